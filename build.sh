@@ -1,0 +1,71 @@
+#!/usr/bin/env bash
+# psq's one entry point for people and CI:
+#   ./build.sh demo       install what is missing, build (Release), run the main job
+#   ./build.sh test       install what is missing, build (Release), run the whole test suite
+#   ./build.sh sanitize   the same suite built with AddressSanitizer + UBSan
+#   ./build.sh build      just build (Release) into build/
+# Dependencies come from Debian 12's packages only.
+set -euo pipefail
+cd "$(dirname "$0")"
+
+PACKAGES=(cmake g++ make libzstd-dev libdraco-dev libgtest-dev libgmock-dev libbenchmark-dev libmeshoptimizer-dev)
+JOBS=$(nproc 2>/dev/null || echo 2)
+
+install_deps() {
+  local missing=()
+  for p in "${PACKAGES[@]}"; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+  done
+  [ ${#missing[@]} -eq 0 ] && return 0
+  if [ "$(id -u)" -eq 0 ]; then
+    echo "build.sh: installing ${missing[*]}" >&2
+    export DEBIAN_FRONTEND=noninteractive
+    apt-get update -qq
+    apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+  else
+    echo "build.sh: missing packages; run as root:" >&2
+    echo "  apt-get install -y ${missing[*]}" >&2
+    exit 1
+  fi
+}
+
+configure_build() {  # $1 build dir, rest: cmake options
+  local dir=$1; shift
+  cmake -S . -B "$dir" -DCMAKE_BUILD_TYPE=Release "$@" >/dev/null
+  cmake --build "$dir" -j "$JOBS"
+}
+
+cmd=${1:-test}
+case "$cmd" in
+  build)
+    install_deps
+    configure_build build
+    ;;
+  demo)
+    install_deps
+    configure_build build -DPSQ_BUILD_TESTS=OFF
+    mesh=tests/data/max_export_nm.ply
+    out=$(mktemp -d)
+    trap 'rm -rf "$out"' EXIT
+    echo "== psq info $mesh"
+    build/psq info "$mesh"
+    echo "== psq convert $mesh mesh.obj, then back to PLY"
+    build/psq convert "$mesh" "$out/mesh.obj"
+    build/psq convert "$out/mesh.obj" "$out/mesh.ply"
+    build/psq info "$out/mesh.ply" | head -4
+    ;;
+  test)
+    install_deps
+    configure_build build
+    (cd build && ctest --output-on-failure -j "$JOBS")
+    ;;
+  sanitize)
+    install_deps
+    configure_build build-sanitize -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPSQ_SANITIZE=ON
+    (cd build-sanitize && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 ctest --output-on-failure -j "$JOBS")
+    ;;
+  *)
+    echo "usage: ./build.sh [demo|test|sanitize|build]" >&2
+    exit 2
+    ;;
+esac

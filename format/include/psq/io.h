@@ -1,0 +1,152 @@
+// psq/io.h: buffered byte input with offsets, and atomic output files.
+//
+// InputStream reads a file, standard input or a memory buffer through one
+// buffer and always knows the byte offset of its cursor, so that every reader
+// built on it can say where an error is. OutputFile writes through a temporary
+// file in the destination's directory and renames it over the destination
+// only on commit(): a failed or interrupted run leaves no half-written file.
+#ifndef PSQ_IO_H_
+#define PSQ_IO_H_
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "psq/status.h"
+
+namespace psq {
+
+class InputStream {
+ public:
+  // The longest text line read_line() accepts; longer lines are an error
+  // (kLimit) so that a file without line ends cannot grow the buffer.
+  static constexpr size_t kMaxLine = size_t{1} << 20;
+
+  InputStream();
+  ~InputStream();
+  InputStream(const InputStream&) = delete;
+  InputStream& operator=(const InputStream&) = delete;
+
+  // Opens `path` for reading; "-" is standard input. Errors: kIo.
+  Status open(const std::string& path);
+  // Reads from an open descriptor (starting at its current position); the
+  // stream closes it when `take_ownership`. Errors: kIo.
+  Status open_fd(int fd, bool take_ownership, std::string name);
+  // Reads from `size` bytes at `data`, which must outlive the stream.
+  void open_memory(const void* data, size_t size, std::string name = "<memory>");
+
+  // The name given to open(): the path, "-" or the memory name.
+  const std::string& name() const { return name_; }
+  // Byte offset of the cursor from the start of the input.
+  uint64_t offset() const { return base_ + pos_; }
+  // Total size when known (a regular file or memory), otherwise -1 (a pipe).
+  int64_t size() const { return size_; }
+
+  // Makes at least `n` bytes (n <= the buffer's capacity, 1 MiB) available at
+  // cursor() unless the input ends first; returns how many are available.
+  // Errors: kIo.
+  Status fill(size_t n, size_t* available);
+  const uint8_t* cursor() const { return data_ + pos_; }
+  size_t buffered() const { return end_ - pos_; }
+  void advance(size_t n) { pos_ += n; }
+
+  // True when rewind() works: a regular file or memory.
+  bool can_rewind() const { return size_ >= 0; }
+  // Moves the cursor back to offset 0. Errors: kIo (a pipe cannot rewind).
+  Status rewind();
+
+  // Reads exactly `n` bytes. Errors: kTruncated (with the offset) at end of
+  // input, kIo.
+  Status read_exact(void* dst, size_t n);
+  // True when no byte is left. Errors: kIo.
+  Status at_end(bool* end);
+
+  // Reads one text line without its terminator ("\n", "\r\n" or "\r") into
+  // `line`, valid until the next call. Sets *eof (and leaves `line` empty)
+  // when no byte is left. Errors: kLimit for a line over kMaxLine, kIo.
+  Status read_line(std::string_view* line, bool* eof);
+
+ private:
+  Status refill();
+
+  std::string name_;
+  int fd_ = -1;
+  bool own_fd_ = false;
+  bool eof_ = false;
+  std::vector<uint8_t> buffer_;
+  const uint8_t* data_ = nullptr;  // buffer_.data() or the memory input
+  size_t pos_ = 0;                 // cursor within data_
+  size_t end_ = 0;                 // valid bytes in data_
+  uint64_t base_ = 0;              // input offset of data_[0]
+  int64_t size_ = -1;
+};
+
+class OutputFile {
+ public:
+  OutputFile() = default;
+  ~OutputFile();  // removes the temporary file unless commit() succeeded
+  OutputFile(const OutputFile&) = delete;
+  OutputFile& operator=(const OutputFile&) = delete;
+
+  // Opens a temporary file beside `path`; "-" writes standard output
+  // directly. Errors: kIo, and kUsage when `path` exists and !overwrite.
+  Status open(const std::string& path, bool overwrite);
+  const std::string& name() const { return path_; }
+  // Bytes written so far.
+  uint64_t size() const { return written_; }
+
+  // Buffered write. Errors: kIo (for example a full disk).
+  Status write(const void* data, size_t n);
+  Status write(std::string_view s) { return write(s.data(), s.size()); }
+
+  // Flushes, closes and renames the temporary file to the destination.
+  // Errors: kIo.
+  Status commit();
+  // Closes and removes the temporary file; idempotent.
+  void discard();
+
+ private:
+  Status flush();
+
+  std::string path_;
+  std::string temp_path_;
+  int fd_ = -1;
+  bool is_stdout_ = false;
+  std::vector<uint8_t> buffer_;
+  uint64_t written_ = 0;
+};
+
+// Removes every temporary output file still open; async-signal-safe, for a
+// SIGINT/SIGTERM handler of a tool.
+void remove_pending_outputs_from_signal();
+
+// A temporary spool file (in `dir`, or $TMPDIR, or /tmp) that is unlinked on
+// creation: it disappears with the process whatever happens. Write, then
+// rewind() and read it back through stream().
+class SpoolFile {
+ public:
+  SpoolFile() = default;
+  ~SpoolFile();
+  SpoolFile(const SpoolFile&) = delete;
+  SpoolFile& operator=(const SpoolFile&) = delete;
+
+  // Errors: kIo.
+  Status create(const std::string& dir = "");
+  Status write(const void* data, size_t n);
+  uint64_t size() const { return written_; }
+  // Flushes and opens the contents for reading from the start. Errors: kIo.
+  Status rewind();
+  InputStream& stream() { return in_; }
+
+ private:
+  int fd_ = -1;
+  std::vector<uint8_t> buffer_;
+  uint64_t written_ = 0;
+  InputStream in_;
+};
+
+}  // namespace psq
+
+#endif  // PSQ_IO_H_

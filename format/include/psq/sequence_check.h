@@ -1,0 +1,61 @@
+// psq/sequence_check.h: validation and statistics of a processing sequence
+// in one streaming pass (paper section 3 and Table 1).
+//
+// SequenceChecker is a SequenceSink that recomputes the processing boundary
+// from the triangles alone and checks every claim of the stream: each
+// triangle's op, its new and last-use corners, its border, leaving and
+// entering edges, consistent orientation (an edge completes only a boundary
+// edge of the opposite direction), and that nothing stays open at the end.
+// It also counts what `psq info` reports. Memory is proportional to the
+// boundary, plus 8 bytes per vertex for the component and border-loop
+// union-find.
+#ifndef PSQ_SEQUENCE_CHECK_H_
+#define PSQ_SEQUENCE_CHECK_H_
+
+#include <cstdint>
+#include <memory>
+
+#include "psq/sequence.h"
+
+namespace psq {
+
+struct SequenceStats {
+  uint64_t vertices = 0;           // input vertices (re-appearances not counted)
+  uint64_t reappearances = 0;      // vertices introduced again by a non-manifold cut
+  uint64_t isolated_vertices = 0;  // used by no triangle
+  uint64_t triangles = 0;
+  uint64_t ops[5] = {0, 0, 0, 0, 0};  // triangles per Op
+  uint64_t components = 0;         // connected by shared vertices (cuts re-joined)
+  uint64_t border_edges = 0;       // edges used by one triangle, cut edges included
+  uint64_t border_loops = 0;       // cycles of border edges (holes and cut seams)
+  int64_t handles = 0;             // genus, from the Euler characteristic of the cut mesh
+  uint64_t nonmanifold_vertices = 0;  // input vertices that re-appear
+  uint64_t nonmanifold_edges = 0;     // input edges cut (more than two triangles or misoriented)
+  uint64_t max_boundary_vertices = 0; // most vertices active (introduced, not finalized) at once
+  uint64_t max_boundary_edges = 0;    // most open boundary edges at once
+};
+
+class SequenceChecker : public SequenceSink {
+ public:
+  SequenceChecker();
+  ~SequenceChecker() override;
+
+  // Each returns kBadSequence with a message naming the triangle (its
+  // 0-based number in the stream) at the first violation.
+  Status begin(const MeshSchema& schema) override;
+  Status vertex(const SequenceVertex& v) override;
+  Status triangle(const SequenceTriangle& t) override;
+  Status finalize(uint32_t index) override;
+  Status finish() override;
+
+  // Complete after finish().
+  const SequenceStats& stats() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace psq
+
+#endif  // PSQ_SEQUENCE_CHECK_H_

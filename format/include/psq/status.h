@@ -1,0 +1,73 @@
+// psq/status.h: error reporting for every psq library.
+//
+// The libraries never print, exit or abort on bad input. Every fallible call
+// returns a Status: a stable numeric code (never renumbered; new codes are
+// appended), a one-line message and, where known, the place in the input the
+// error refers to (a byte offset for binary data, a line for text).
+#ifndef PSQ_STATUS_H_
+#define PSQ_STATUS_H_
+
+#include <cstdint>
+#include <string>
+#include <utility>
+
+namespace psq {
+
+// Stable error codes. The numbers are part of the API (tools and bindings may
+// switch on them); they never change meaning.
+enum class ErrorCode : uint16_t {
+  kOk = 0,
+  kIo = 1,             // the operating system refused a read, write or open
+  kTruncated = 2,      // the input ended before a structure was complete
+  kBadHeader = 3,      // a header is missing, malformed or inconsistent
+  kBadValue = 4,       // a value is malformed or not allowed (NaN position...)
+  kBadIndex = 5,       // a vertex index is negative or out of range
+  kUnsupported = 6,    // valid input that psq does not handle
+  kLimit = 7,          // a size or count exceeds a documented limit
+  kUnknownFormat = 8,  // the content matches no format psq reads
+  kUsage = 9,          // the caller passed invalid arguments
+  kInternal = 10,      // a psq bug: an invariant did not hold
+  kBadSequence = 11,   // events that do not form a valid processing sequence
+};
+
+// Returns the stable name of a code, e.g. "truncated". Never null.
+const char* error_name(ErrorCode code);
+
+class Status {
+ public:
+  static constexpr uint64_t kNoPlace = ~uint64_t{0};
+
+  Status() = default;  // success
+
+  // An error; `offset` is a byte offset into the input, `line` a 1-based line
+  // number of a text input. Either may be kNoPlace.
+  Status(ErrorCode code, std::string message, uint64_t offset = kNoPlace,
+         uint64_t line = kNoPlace)
+      : code_(code), message_(std::move(message)), offset_(offset), line_(line) {}
+
+  bool ok() const { return code_ == ErrorCode::kOk; }
+  ErrorCode code() const { return code_; }
+  const std::string& message() const { return message_; }
+  uint64_t offset() const { return offset_; }
+  uint64_t line() const { return line_; }
+
+  // "line 12: message", "byte 4096: message" or "message"; one line.
+  std::string to_string() const;
+
+ private:
+  ErrorCode code_ = ErrorCode::kOk;
+  std::string message_;
+  uint64_t offset_ = kNoPlace;
+  uint64_t line_ = kNoPlace;
+};
+
+// Returns from the enclosing function if `expr` yields an error Status.
+#define PSQ_RETURN_IF_ERROR(expr)            \
+  do {                                       \
+    ::psq::Status psq_status_ = (expr);      \
+    if (!psq_status_.ok()) return psq_status_; \
+  } while (0)
+
+}  // namespace psq
+
+#endif  // PSQ_STATUS_H_

@@ -1,0 +1,369 @@
+#include "psq/io.h"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cerrno>
+#include <cstdlib>
+#include <cstring>
+#include <mutex>
+
+namespace psq {
+namespace {
+
+constexpr size_t kBufferSize = size_t{1} << 20;
+
+Status io_error(const std::string& what, const std::string& name) {
+  return Status(ErrorCode::kIo, what + " " + name + ": " + std::strerror(errno));
+}
+
+// Temporary output paths still to be removed if the process is interrupted.
+// A fixed table of plain char arrays so that the signal handler only calls
+// unlink(), which is async-signal-safe.
+constexpr int kMaxPending = 16;
+constexpr size_t kMaxPath = 4096;
+char g_pending[kMaxPending][kMaxPath];
+std::atomic<bool> g_pending_used[kMaxPending];
+std::mutex g_pending_mutex;
+
+int register_pending(const std::string& path) {
+  if (path.size() >= kMaxPath) return -1;
+  std::lock_guard<std::mutex> lock(g_pending_mutex);
+  for (int i = 0; i < kMaxPending; ++i) {
+    if (!g_pending_used[i].load()) {
+      std::memcpy(g_pending[i], path.c_str(), path.size() + 1);
+      g_pending_used[i].store(true);
+      return i;
+    }
+  }
+  return -1;
+}
+
+void unregister_pending(const std::string& path) {
+  std::lock_guard<std::mutex> lock(g_pending_mutex);
+  for (int i = 0; i < kMaxPending; ++i) {
+    if (g_pending_used[i].load() && path == g_pending[i]) g_pending_used[i].store(false);
+  }
+}
+
+Status write_all(int fd, const uint8_t* p, size_t n, const std::string& name) {
+  while (n > 0) {
+    ssize_t w = ::write(fd, p, n);
+    if (w < 0) {
+      if (errno == EINTR) continue;
+      return io_error("cannot write", name);
+    }
+    p += w;
+    n -= static_cast<size_t>(w);
+  }
+  return Status();
+}
+
+}  // namespace
+
+void remove_pending_outputs_from_signal() {
+  for (int i = 0; i < kMaxPending; ++i) {
+    if (g_pending_used[i].load()) ::unlink(g_pending[i]);
+  }
+}
+
+// ---------------------------------------------------------------- InputStream
+
+InputStream::InputStream() = default;
+
+InputStream::~InputStream() {
+  if (own_fd_ && fd_ >= 0) ::close(fd_);
+}
+
+Status InputStream::open(const std::string& path) {
+  if (path == "-") return open_fd(STDIN_FILENO, false, path);
+  int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) {
+    name_ = path;
+    return Status(ErrorCode::kIo, std::string("cannot open: ") + std::strerror(errno));
+  }
+  return open_fd(fd, true, path);
+}
+
+Status InputStream::open_fd(int fd, bool take_ownership, std::string name) {
+  name_ = std::move(name);
+  fd_ = fd;
+  own_fd_ = take_ownership;
+  struct stat st;
+  if (::fstat(fd_, &st) == 0) {
+    if (S_ISDIR(st.st_mode)) return Status(ErrorCode::kIo, "is a directory");
+    if (S_ISREG(st.st_mode)) size_ = static_cast<int64_t>(st.st_size);
+  }
+  buffer_.resize(kBufferSize);
+  data_ = buffer_.data();
+  return Status();
+}
+
+void InputStream::open_memory(const void* data, size_t size, std::string name) {
+  name_ = std::move(name);
+  data_ = static_cast<const uint8_t*>(data);
+  end_ = size;
+  size_ = static_cast<int64_t>(size);
+  eof_ = true;
+}
+
+Status InputStream::rewind() {
+  if (fd_ < 0) {  // memory
+    pos_ = 0;
+    return Status();
+  }
+  if (!can_rewind() || ::lseek(fd_, 0, SEEK_SET) != 0) {
+    return Status(ErrorCode::kIo, "input cannot be rewound");
+  }
+  pos_ = end_ = 0;
+  base_ = 0;
+  eof_ = false;
+  return Status();
+}
+
+Status InputStream::refill() {
+  if (eof_) return Status();
+  // Move the unread tail to the front, then read as much as fits.
+  if (pos_ > 0) {
+    std::memmove(buffer_.data(), buffer_.data() + pos_, end_ - pos_);
+    base_ += pos_;
+    end_ -= pos_;
+    pos_ = 0;
+  }
+  while (end_ < buffer_.size()) {
+    ssize_t r = ::read(fd_, buffer_.data() + end_, buffer_.size() - end_);
+    if (r < 0) {
+      if (errno == EINTR) continue;
+      return Status(ErrorCode::kIo, std::string("read failed: ") + std::strerror(errno), offset());
+    }
+    if (r == 0) {
+      eof_ = true;
+      break;
+    }
+    end_ += static_cast<size_t>(r);
+    if (end_ - pos_ >= 65536) break;  // enough for now; keeps pipes responsive
+  }
+  return Status();
+}
+
+Status InputStream::fill(size_t n, size_t* available) {
+  // Callers bound n (read_line by kMaxLine + 2); grow the buffer to fit.
+  if (fd_ >= 0 && n > buffer_.size()) {
+    if (pos_ > 0) {
+      std::memmove(buffer_.data(), buffer_.data() + pos_, end_ - pos_);
+      base_ += pos_;
+      end_ -= pos_;
+      pos_ = 0;
+    }
+    buffer_.resize(n);
+    data_ = buffer_.data();
+  }
+  while (end_ - pos_ < n && !eof_) {
+    size_t before = end_ - pos_;
+    PSQ_RETURN_IF_ERROR(refill());
+    if (end_ - pos_ == before && !eof_ && end_ == buffer_.size()) break;  // n > capacity
+  }
+  *available = end_ - pos_;
+  return Status();
+}
+
+Status InputStream::read_exact(void* dst, size_t n) {
+  auto* out = static_cast<uint8_t*>(dst);
+  while (n > 0) {
+    if (pos_ == end_) {
+      PSQ_RETURN_IF_ERROR(refill());
+      if (pos_ == end_) return Status(ErrorCode::kTruncated, "unexpected end of input", offset());
+    }
+    size_t k = std::min(n, end_ - pos_);
+    std::memcpy(out, data_ + pos_, k);
+    pos_ += k;
+    out += k;
+    n -= k;
+  }
+  return Status();
+}
+
+Status InputStream::at_end(bool* end) {
+  if (pos_ == end_) PSQ_RETURN_IF_ERROR(refill());
+  *end = pos_ == end_;
+  return Status();
+}
+
+Status InputStream::read_line(std::string_view* line, bool* eof) {
+  size_t scanned = 0;  // bytes after pos_ already known to hold no terminator
+  for (;;) {
+    const uint8_t* start = data_ + pos_;
+    size_t avail = end_ - pos_;
+    const uint8_t* nl = nullptr;
+    for (size_t i = scanned; i < avail; ++i) {
+      if (start[i] == '\n' || start[i] == '\r') {
+        nl = start + i;
+        break;
+      }
+    }
+    if (nl != nullptr) {
+      size_t len = static_cast<size_t>(nl - start);
+      if (len > kMaxLine) return Status(ErrorCode::kLimit, "line longer than 1 MiB", offset());
+      // A "\r" at the very end of the buffer may be the first half of "\r\n".
+      if (*nl == '\r' && len + 1 == avail && !eof_) {
+        scanned = len;
+        size_t dummy;
+        PSQ_RETURN_IF_ERROR(fill(avail + 1, &dummy));
+        continue;
+      }
+      *line = std::string_view(reinterpret_cast<const char*>(start), len);
+      size_t skip = len + 1;
+      if (*nl == '\r' && len + 1 < avail && start[len + 1] == '\n') ++skip;
+      pos_ += skip;
+      *eof = false;
+      return Status();
+    }
+    if (avail > kMaxLine) return Status(ErrorCode::kLimit, "line longer than 1 MiB", offset());
+    if (eof_) {
+      *eof = avail == 0;
+      *line = std::string_view(reinterpret_cast<const char*>(start), avail);
+      pos_ += avail;
+      return Status();
+    }
+    scanned = avail;
+    size_t dummy;
+    PSQ_RETURN_IF_ERROR(fill(avail + 1, &dummy));
+  }
+}
+
+// ----------------------------------------------------------------- OutputFile
+
+OutputFile::~OutputFile() { discard(); }
+
+Status OutputFile::open(const std::string& path, bool overwrite) {
+  path_ = path;
+  buffer_.reserve(kBufferSize);
+  if (path == "-") {
+    is_stdout_ = true;
+    fd_ = STDOUT_FILENO;
+    return Status();
+  }
+  struct stat st;
+  if (!overwrite && ::stat(path.c_str(), &st) == 0) {
+    return Status(ErrorCode::kUsage, "output exists (use -f to overwrite)");
+  }
+  std::string dir = ".";
+  std::string base = path;
+  size_t slash = path.rfind('/');
+  if (slash != std::string::npos) {
+    dir = path.substr(0, slash + 1);
+    base = path.substr(slash + 1);
+  } else {
+    dir = "";
+  }
+  std::string tmpl = dir + "." + base + ".psq-tmp-XXXXXX";
+  std::vector<char> name(tmpl.begin(), tmpl.end());
+  name.push_back('\0');
+  fd_ = ::mkstemp(name.data());
+  if (fd_ < 0) return Status(ErrorCode::kIo, std::string("cannot create a temporary file beside the output: ") + std::strerror(errno));
+  temp_path_ = name.data();
+  ::fchmod(fd_, 0644 & ~[] { mode_t m = ::umask(0); ::umask(m); return m; }());
+  register_pending(temp_path_);
+  return Status();
+}
+
+Status OutputFile::flush() {
+  if (buffer_.empty()) return Status();
+  Status s = write_all(fd_, buffer_.data(), buffer_.size(), path_);
+  buffer_.clear();
+  return s;
+}
+
+Status OutputFile::write(const void* data, size_t n) {
+  if (fd_ < 0) return Status(ErrorCode::kIo, "output is not open");
+  written_ += n;
+  if (buffer_.size() + n > kBufferSize) {
+    PSQ_RETURN_IF_ERROR(flush());
+    if (n >= kBufferSize) return write_all(fd_, static_cast<const uint8_t*>(data), n, path_);
+  }
+  const auto* p = static_cast<const uint8_t*>(data);
+  buffer_.insert(buffer_.end(), p, p + n);
+  return Status();
+}
+
+Status OutputFile::commit() {
+  if (fd_ < 0) return Status(ErrorCode::kIo, "output is not open");
+  PSQ_RETURN_IF_ERROR(flush());
+  if (is_stdout_) {
+    fd_ = -1;
+    return Status();
+  }
+  if (::close(fd_) != 0) {
+    fd_ = -1;
+    return io_error("cannot close", path_);
+  }
+  fd_ = -1;
+  if (::rename(temp_path_.c_str(), path_.c_str()) != 0) return io_error("cannot rename to", path_);
+  unregister_pending(temp_path_);
+  temp_path_.clear();
+  return Status();
+}
+
+void OutputFile::discard() {
+  if (is_stdout_) {
+    fd_ = -1;
+    return;
+  }
+  if (fd_ >= 0) {
+    ::close(fd_);
+    fd_ = -1;
+  }
+  if (!temp_path_.empty()) {
+    ::unlink(temp_path_.c_str());
+    unregister_pending(temp_path_);
+    temp_path_.clear();
+  }
+}
+
+// ------------------------------------------------------------------ SpoolFile
+
+SpoolFile::~SpoolFile() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
+Status SpoolFile::create(const std::string& dir) {
+  std::string d = dir;
+  if (d.empty()) {
+    const char* env = std::getenv("TMPDIR");
+    d = (env != nullptr && *env != '\0') ? env : "/tmp";
+  }
+  std::string tmpl = d + "/psq-spool-XXXXXX";
+  std::vector<char> name(tmpl.begin(), tmpl.end());
+  name.push_back('\0');
+  fd_ = ::mkstemp(name.data());
+  if (fd_ < 0) return Status(ErrorCode::kIo, "cannot create a temporary file in " + d + ": " + std::strerror(errno));
+  ::unlink(name.data());
+  buffer_.reserve(kBufferSize);
+  return Status();
+}
+
+Status SpoolFile::write(const void* data, size_t n) {
+  written_ += n;
+  const auto* p = static_cast<const uint8_t*>(data);
+  if (buffer_.size() + n > kBufferSize) {
+    PSQ_RETURN_IF_ERROR(write_all(fd_, buffer_.data(), buffer_.size(), "temporary file"));
+    buffer_.clear();
+    if (n >= kBufferSize) return write_all(fd_, p, n, "temporary file");
+  }
+  buffer_.insert(buffer_.end(), p, p + n);
+  return Status();
+}
+
+Status SpoolFile::rewind() {
+  PSQ_RETURN_IF_ERROR(write_all(fd_, buffer_.data(), buffer_.size(), "temporary file"));
+  buffer_.clear();
+  buffer_.shrink_to_fit();
+  if (::lseek(fd_, 0, SEEK_SET) != 0) return io_error("cannot rewind", "temporary file");
+  // The stream reads through our descriptor; it does not close it.
+  return in_.open_fd(fd_, false, "temporary file");
+}
+
+}  // namespace psq

@@ -1,0 +1,189 @@
+#include "test_util.h"
+
+#include <dirent.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+
+#include <gtest/gtest.h>
+
+#include "psq/mesh_formats.h"
+
+namespace psq::test {
+
+Status MemorySink::begin(const MeshSchema& schema) {
+  mesh = Mesh();
+  mesh.schema = schema;
+  return Status();
+}
+Status MemorySink::vertex(const double p[3], const PropertyValues& values) {
+  mesh.positions.push_back({p[0], p[1], p[2]});
+  mesh.vertex_values.push_back(values);
+  return Status();
+}
+Status MemorySink::triangle(const uint32_t idx[3], const PropertyValues& values) {
+  mesh.triangles.push_back({idx[0], idx[1], idx[2]});
+  mesh.face_values.push_back(values);
+  return Status();
+}
+Status MemorySink::finish() {
+  finished = true;
+  return Status();
+}
+
+MemorySource::MemorySource(Mesh mesh) : mesh_(std::move(mesh)) {}
+
+Status MemorySource::next(MeshItem* item) {
+  size_t nv = mesh_.positions.size();
+  if (at_ < nv) {
+    item->kind = MeshItem::Kind::kVertex;
+    for (int k = 0; k < 3; ++k) item->position[k] = mesh_.positions[at_][k];
+    item->values = at_ < mesh_.vertex_values.size() ? mesh_.vertex_values[at_] : PropertyValues();
+  } else if (at_ < nv + mesh_.triangles.size()) {
+    size_t t = at_ - nv;
+    item->kind = MeshItem::Kind::kTriangle;
+    for (int k = 0; k < 3; ++k) item->index[k] = mesh_.triangles[t][k];
+    item->values = t < mesh_.face_values.size() ? mesh_.face_values[t] : PropertyValues();
+  } else {
+    item->kind = MeshItem::Kind::kEnd;
+    item->values.clear();
+    return Status();
+  }
+  ++at_;
+  return Status();
+}
+
+Mesh make_sphere(int rings, int segments) {
+  Mesh m;
+  const double pi = 3.14159265358979323846;
+  m.positions.push_back({0, 0, 1});
+  for (int r = 1; r < rings; ++r) {
+    double th = pi * r / rings;
+    for (int s = 0; s < segments; ++s) {
+      double ph = 2 * pi * s / segments;
+      // Round through float so that float files hold the positions exactly.
+      volatile float x = static_cast<float>(std::sin(th) * std::cos(ph));
+      volatile float y = static_cast<float>(std::sin(th) * std::sin(ph));
+      volatile float z = static_cast<float>(std::cos(th));
+      m.positions.push_back({x, y, z});
+    }
+  }
+  m.positions.push_back({0, 0, -1});
+  auto ring = [&](int r, int s) { return static_cast<uint32_t>(1 + (r - 1) * segments + (s % segments)); };
+  uint32_t south = static_cast<uint32_t>(m.positions.size() - 1);
+  for (int s = 0; s < segments; ++s) m.triangles.push_back({0, ring(1, s), ring(1, s + 1)});
+  for (int r = 1; r + 1 < rings; ++r) {
+    for (int s = 0; s < segments; ++s) {
+      m.triangles.push_back({ring(r, s), ring(r + 1, s), ring(r + 1, s + 1)});
+      m.triangles.push_back({ring(r, s), ring(r + 1, s + 1), ring(r, s + 1)});
+    }
+  }
+  for (int s = 0; s < segments; ++s) m.triangles.push_back({south, ring(rings - 1, s + 1), ring(rings - 1, s)});
+  m.vertex_values.assign(m.positions.size(), PropertyValues());
+  m.face_values.assign(m.triangles.size(), PropertyValues());
+  m.schema.vertex_count = static_cast<int64_t>(m.positions.size());
+  m.schema.triangle_count = static_cast<int64_t>(m.triangles.size());
+  return m;
+}
+
+Mesh make_grid(int n) {
+  Mesh m;
+  for (int j = 0; j <= n; ++j)
+    for (int i = 0; i <= n; ++i) m.positions.push_back({static_cast<double>(i), static_cast<double>(j), 0.0});
+  auto id = [n](int i, int j) { return static_cast<uint32_t>(j * (n + 1) + i); };
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) {
+      m.triangles.push_back({id(i, j), id(i + 1, j), id(i + 1, j + 1)});
+      m.triangles.push_back({id(i, j), id(i + 1, j + 1), id(i, j + 1)});
+    }
+  }
+  m.vertex_values.assign(m.positions.size(), PropertyValues());
+  m.face_values.assign(m.triangles.size(), PropertyValues());
+  m.schema.vertex_count = static_cast<int64_t>(m.positions.size());
+  m.schema.triangle_count = static_cast<int64_t>(m.triangles.size());
+  return m;
+}
+
+std::string read_file(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  EXPECT_TRUE(f.good()) << "cannot read " << path;
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
+void write_file(const std::string& path, const std::string& contents) {
+  std::ofstream f(path, std::ios::binary);
+  f << contents;
+  ASSERT_TRUE(f.good()) << "cannot write " << path;
+}
+
+bool file_exists(const std::string& path) {
+  struct stat st;
+  return ::stat(path.c_str(), &st) == 0;
+}
+
+TempDir::TempDir() {
+  const char* env = std::getenv("TMPDIR");
+  std::string tmpl = std::string(env != nullptr && *env != '\0' ? env : "/tmp") + "/psq-test-XXXXXX";
+  std::vector<char> buf(tmpl.begin(), tmpl.end());
+  buf.push_back('\0');
+  char* made = ::mkdtemp(buf.data());
+  EXPECT_NE(made, nullptr);
+  path_ = made != nullptr ? made : "/tmp";
+}
+
+TempDir::~TempDir() {
+  for (const std::string& e : entries()) ::unlink((path_ + "/" + e).c_str());
+  ::rmdir(path_.c_str());
+}
+
+std::vector<std::string> TempDir::entries() const {
+  std::vector<std::string> out;
+  DIR* d = ::opendir(path_.c_str());
+  if (d == nullptr) return out;
+  while (dirent* e = ::readdir(d)) {
+    std::string n = e->d_name;
+    if (n != "." && n != "..") out.push_back(n);
+  }
+  ::closedir(d);
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+int run_psq(const std::string& args, std::string* out, std::string* err, const std::string& stdin_file) {
+  TempDir tmp;
+  std::string cmd = std::string(PSQ_BINARY) + " " + args + " >" + tmp.file("out") + " 2>" + tmp.file("err");
+  cmd += " <" + (stdin_file.empty() ? std::string("/dev/null") : stdin_file);
+  int rc = std::system(cmd.c_str());
+  if (out != nullptr) *out = read_file(tmp.file("out"));
+  if (err != nullptr) *err = read_file(tmp.file("err"));
+  return WIFEXITED(rc) ? WEXITSTATUS(rc) : 128;
+}
+
+Status load_mesh(const std::string& path, Mesh* mesh) {
+  OpenedMesh opened;
+  PSQ_RETURN_IF_ERROR(open_mesh(path, OpenOptions(), &opened));
+  MemorySink sink;
+  PSQ_RETURN_IF_ERROR(pump(*opened.source, sink));
+  *mesh = std::move(sink.mesh);
+  return Status();
+}
+
+std::vector<std::array<uint32_t, 3>> canonical_triangles(const Mesh& mesh) {
+  std::vector<std::array<uint32_t, 3>> out = mesh.triangles;
+  for (auto& t : out) {
+    while (t[0] > t[1] || t[0] > t[2]) std::rotate(t.begin(), t.begin() + 1, t.end());
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+}  // namespace psq::test

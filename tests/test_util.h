@@ -1,0 +1,89 @@
+// Shared helpers for psq's tests: meshes generated in code, an in-memory sink,
+// temporary directories and running the psq binary.
+#ifndef PSQ_TESTS_TEST_UTIL_H_
+#define PSQ_TESTS_TEST_UTIL_H_
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "psq/indexed_mesh.h"
+#include "psq/io.h"
+
+namespace psq::test {
+
+// A whole mesh in memory, for comparisons in tests.
+struct Mesh {
+  MeshSchema schema;
+  std::vector<std::array<double, 3>> positions;
+  std::vector<PropertyValues> vertex_values;
+  std::vector<std::array<uint32_t, 3>> triangles;
+  std::vector<PropertyValues> face_values;
+};
+
+// A MeshSink that keeps everything.
+class MemorySink : public MeshSink {
+ public:
+  Status begin(const MeshSchema& schema) override;
+  Status vertex(const double position[3], const PropertyValues& values) override;
+  Status triangle(const uint32_t index[3], const PropertyValues& values) override;
+  Status finish() override;
+  Mesh mesh;
+  bool finished = false;
+};
+
+// A MeshSource over a Mesh (vertices first, then triangles).
+class MemorySource : public MeshSource {
+ public:
+  explicit MemorySource(Mesh mesh);
+  const MeshSchema& schema() const override { return mesh_.schema; }
+  Status next(MeshItem* item) override;
+  const SourceReport& report() const override { return report_; }
+
+ private:
+  Mesh mesh_;
+  size_t at_ = 0;
+  SourceReport report_;
+};
+
+// A closed genus-0 mesh: a UV sphere with `rings` x `segments` quads split in
+// triangles, float positions, counts set in its schema.
+Mesh make_sphere(int rings, int segments);
+// An open grid of (n+1)^2 vertices and 2 n^2 triangles in the z = 0 plane.
+Mesh make_grid(int n);
+
+// Reads the whole file; fails the test when it cannot.
+std::string read_file(const std::string& path);
+void write_file(const std::string& path, const std::string& contents);
+bool file_exists(const std::string& path);
+
+// A fresh directory under $TMPDIR, removed with its contents at destruction.
+class TempDir {
+ public:
+  TempDir();
+  ~TempDir();
+  const std::string& path() const { return path_; }
+  std::string file(const std::string& name) const { return path_ + "/" + name; }
+  // Names of the entries in the directory, sorted.
+  std::vector<std::string> entries() const;
+
+ private:
+  std::string path_;
+};
+
+// Runs the psq binary with `args` (a shell-quoted string); returns its exit
+// status and fills stdout/stderr.
+int run_psq(const std::string& args, std::string* out, std::string* err,
+            const std::string& stdin_file = "");
+
+// Reads `path` through open_mesh() into a Mesh; returns the status.
+Status load_mesh(const std::string& path, Mesh* mesh);
+
+// Sorted triangles with each rotated so its smallest index comes first, for
+// order-independent comparisons that keep orientation.
+std::vector<std::array<uint32_t, 3>> canonical_triangles(const Mesh& mesh);
+
+}  // namespace psq::test
+
+#endif  // PSQ_TESTS_TEST_UTIL_H_

@@ -1,0 +1,152 @@
+#include "cli_util.h"
+
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <charconv>
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+
+#include "psq/io.h"
+
+namespace psq::cli {
+
+int report_error(const std::string& file, const Status& status) {
+  std::string where = file.empty() ? "" : (file == "-" ? "<stdin>" : file) + ": ";
+  std::fprintf(stderr, "psq: error: %s%s\n", where.c_str(), status.to_string().c_str());
+  return status.code() == ErrorCode::kUsage ? kExitUsage : kExitFailure;
+}
+
+int usage_error(const std::string& command, const std::string& message) {
+  std::fprintf(stderr, "psq: error: %s\n", message.c_str());
+  std::fprintf(stderr, "Try 'psq %s--help' for more information.\n", command.empty() ? "" : (command + " ").c_str());
+  return kExitUsage;
+}
+
+void warn(const std::string& file, const std::string& message) {
+  std::fprintf(stderr, "psq: warning: %s: %s\n", file == "-" ? "<stdin>" : file.c_str(), message.c_str());
+}
+
+void note(const std::string& file, const std::string& message) {
+  std::fprintf(stderr, "psq: note: %s: %s\n", file == "-" ? "<stdin>" : file.c_str(), message.c_str());
+}
+
+Args::Args(int argc, char** argv, int first) {
+  for (int i = first; i < argc; ++i) args_.emplace_back(argv[i]);
+  used_.assign(args_.size(), false);
+}
+
+bool Args::options_ended_at(size_t i) const {
+  for (size_t k = 0; k < i; ++k) {
+    if (args_[k] == "--") return true;
+  }
+  return false;
+}
+
+bool Args::flag(const std::string& name, const std::string& alias) {
+  bool found = false;
+  for (size_t i = 0; i < args_.size(); ++i) {
+    if (used_[i] || options_ended_at(i)) continue;
+    if (args_[i] == name || (!alias.empty() && args_[i] == alias)) {
+      used_[i] = true;
+      found = true;
+    }
+  }
+  return found;
+}
+
+std::string Args::option(const std::string& name, const std::string& fallback) {
+  std::string value = fallback;
+  for (size_t i = 0; i < args_.size(); ++i) {
+    if (used_[i] || options_ended_at(i)) continue;
+    if (args_[i] == name) {
+      used_[i] = true;
+      if (i + 1 >= args_.size()) {
+        error_ = "option " + name + " needs a value";
+        return fallback;
+      }
+      used_[i + 1] = true;
+      value = args_[i + 1];
+    } else if (args_[i].rfind(name + "=", 0) == 0) {
+      used_[i] = true;
+      value = args_[i].substr(name.size() + 1);
+    }
+  }
+  return value;
+}
+
+std::vector<std::string> Args::positionals() {
+  std::vector<std::string> out;
+  bool ended = false;
+  for (size_t i = 0; i < args_.size(); ++i) {
+    if (used_[i]) continue;
+    const std::string& a = args_[i];
+    if (!ended && a == "--") {
+      ended = true;
+      continue;
+    }
+    if (!ended && a.size() > 1 && a[0] == '-') {
+      if (error_.empty()) error_ = "unknown option '" + a + "'";
+      continue;
+    }
+    out.push_back(a);
+  }
+  return out;
+}
+
+std::string json_escape(const std::string& s) {
+  std::string out;
+  for (unsigned char c : s) {
+    switch (c) {
+      case '"': out += "\\\""; break;
+      case '\\': out += "\\\\"; break;
+      case '\n': out += "\\n"; break;
+      case '\r': out += "\\r"; break;
+      case '\t': out += "\\t"; break;
+      default:
+        if (c < 0x20) {
+          char buf[8];
+          std::snprintf(buf, sizeof buf, "\\u%04x", c);
+          out += buf;
+        } else {
+          out += static_cast<char>(c);
+        }
+    }
+  }
+  return out;
+}
+
+std::string json_number(double v) {
+  if (!std::isfinite(v)) return "null";
+  char buf[64];
+  auto r = std::to_chars(buf, buf + sizeof buf, v);
+  return std::string(buf, r.ptr);
+}
+
+bool same_file(const std::string& a, const std::string& b) {
+  if (a == "-" || b == "-") return false;
+  if (a == b) return true;
+  struct stat sa, sb;
+  if (::stat(a.c_str(), &sa) != 0 || ::stat(b.c_str(), &sb) != 0) return false;
+  return sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
+}
+
+namespace {
+extern "C" void on_signal(int sig) {
+  remove_pending_outputs_from_signal();
+  ::_exit(128 + sig);
+}
+}  // namespace
+
+void install_signal_cleanup() {
+  struct sigaction sa {};
+  sa.sa_handler = on_signal;
+  sigemptyset(&sa.sa_mask);
+  ::sigaction(SIGINT, &sa, nullptr);
+  ::sigaction(SIGTERM, &sa, nullptr);
+  ::sigaction(SIGHUP, &sa, nullptr);
+  ::sigaction(SIGPIPE, &sa, nullptr);
+}
+
+}  // namespace psq::cli

@@ -1,0 +1,63 @@
+// Shared pieces of the psq command-line tool: argument parsing, diagnostics
+// and exit codes (STYLE.md: data on stdout only, diagnostics on stderr as
+// "psq: error: FILE: message"; exit 0 success, 1 data or I/O failure, 2 usage).
+#ifndef PSQ_CLI_UTIL_H_
+#define PSQ_CLI_UTIL_H_
+
+#include <string>
+#include <vector>
+
+#include "psq/status.h"
+
+namespace psq::cli {
+
+constexpr int kExitOk = 0;
+constexpr int kExitFailure = 1;
+constexpr int kExitUsage = 2;
+
+// Prints "psq: error: FILE: <status>" and returns the exit code for it.
+int report_error(const std::string& file, const Status& status);
+// Prints "psq: error: MESSAGE" and a hint to the command's --help; returns 2.
+int usage_error(const std::string& command, const std::string& message);
+// Prints "psq: warning: FILE: MESSAGE".
+void warn(const std::string& file, const std::string& message);
+// Prints "psq: note: FILE: MESSAGE".
+void note(const std::string& file, const std::string& message);
+
+// A minimal option parser: flags (--json), options with a value (--to ply or
+// --to=ply) and positional arguments; "--" ends options; "-" is positional.
+class Args {
+ public:
+  Args(int argc, char** argv, int first);
+  // True and consumed if the flag is present.
+  bool flag(const std::string& name, const std::string& alias = "");
+  // The value of an option, or `fallback`. Sets error() when the option has
+  // no value.
+  std::string option(const std::string& name, const std::string& fallback = "");
+  // After all flag()/option() calls: the rest; any unconsumed "-x"/"--x" is an
+  // error (unknown option).
+  std::vector<std::string> positionals();
+  const std::string& error() const { return error_; }
+
+ private:
+  std::vector<std::string> args_;
+  std::vector<bool> used_;
+  std::string error_;
+  bool options_ended_at(size_t i) const;
+};
+
+// Escapes `s` for a JSON string literal (without the quotes).
+std::string json_escape(const std::string& s);
+// Formats a double so that it reads back exactly and is valid JSON.
+std::string json_number(double v);
+
+// Whether two paths name the same existing file.
+bool same_file(const std::string& a, const std::string& b);
+
+// Installs SIGINT/SIGTERM/SIGHUP handlers that remove pending temporary
+// outputs and exit with 130/143.
+void install_signal_cleanup();
+
+}  // namespace psq::cli
+
+#endif  // PSQ_CLI_UTIL_H_

@@ -1,0 +1,12 @@
+// The psq subcommands; each takes its own argv slice and returns an exit code.
+#ifndef PSQ_CLI_COMMANDS_H_
+#define PSQ_CLI_COMMANDS_H_
+
+namespace psq::cli {
+
+int cmd_info(int argc, char** argv);     // argv[0] is "info"
+int cmd_convert(int argc, char** argv);  // argv[0] is "convert"
+
+}  // namespace psq::cli
+
+#endif  // PSQ_CLI_COMMANDS_H_

@@ -1,0 +1,48 @@
+// psq: the command-line tool. Thin glue over the libraries; see --help.
+#include <cstdio>
+#include <cstring>
+#include <string>
+
+#include "cli_util.h"
+#include "commands.h"
+
+namespace {
+
+const char kUsage[] =
+    "Usage: psq COMMAND [OPTIONS] ...\n"
+    "\n"
+    "psq reads and writes triangle meshes as streams: PLY and OBJ today,\n"
+    "compressed processing sequences (.psq) as the codec lands.\n"
+    "\n"
+    "Commands:\n"
+    "  info FILE        counts, properties, bounding box and defects of a mesh\n"
+    "  convert IN OUT   convert between PLY and OBJ, streaming\n"
+    "\n"
+    "Options:\n"
+    "  -h, --help       show this help (psq COMMAND --help for a command's)\n"
+    "  --version        print the version\n"
+    "\n"
+    "FILE may be '-' for standard input; OUT may be '-' for standard output.\n"
+    "Exit status: 0 success, 1 data or I/O failure, 2 usage error.\n";
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  psq::cli::install_signal_cleanup();
+  if (argc < 2) {
+    std::fputs(kUsage, stderr);
+    return psq::cli::kExitUsage;
+  }
+  std::string cmd = argv[1];
+  if (cmd == "-h" || cmd == "--help" || cmd == "help") {
+    std::fputs(kUsage, stdout);
+    return psq::cli::kExitOk;
+  }
+  if (cmd == "--version" || cmd == "-V") {
+    std::printf("psq %s\n", PSQ_VERSION);
+    return psq::cli::kExitOk;
+  }
+  if (cmd == "info") return psq::cli::cmd_info(argc - 1, argv + 1);
+  if (cmd == "convert") return psq::cli::cmd_convert(argc - 1, argv + 1);
+  return psq::cli::usage_error("", "unknown command '" + cmd + "'");
+}

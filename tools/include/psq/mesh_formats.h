@@ -1,0 +1,55 @@
+// psq/mesh_formats.h: which mesh format a file is, and opening the right
+// reader or writer for it.
+//
+// Input formats are recognised by content, never by file name; output
+// formats by an explicit name or the file extension.
+#ifndef PSQ_MESH_FORMATS_H_
+#define PSQ_MESH_FORMATS_H_
+
+#include <memory>
+#include <string>
+
+#include "psq/indexed_mesh.h"
+#include "psq/io.h"
+
+namespace psq {
+
+enum class MeshFormat { kUnknown, kPly, kObj };
+
+// "ply", "obj" or "unknown".
+const char* format_name(MeshFormat f);
+// The format named `name` ("ply", "obj"; case-insensitive), or kUnknown.
+MeshFormat format_from_name(const std::string& name);
+// The format of an output path by its extension, or kUnknown.
+MeshFormat format_from_extension(const std::string& path);
+// The format of input whose first bytes are `data`, or kUnknown.
+MeshFormat detect_format(const uint8_t* data, size_t size);
+
+// An open input: the byte stream and the source reading it.
+struct OpenedMesh {
+  std::unique_ptr<InputStream> stream;
+  std::unique_ptr<MeshSource> source;
+  MeshFormat format = MeshFormat::kUnknown;
+};
+
+struct OpenOptions {
+  std::string spool_dir;  // for inputs that must be spooled (empty: $TMPDIR)
+};
+
+// Opens `path` ("-": standard input), detects its format by content and
+// reads its header. Errors: kIo, kUnknownFormat, and the reader's errors.
+Status open_mesh(const std::string& path, const OpenOptions& options, OpenedMesh* out);
+
+struct WriteOptions {
+  bool ascii = false;     // PLY: ascii instead of binary little-endian
+  std::string spool_dir;  // PLY: where to spool when counts are unknown
+};
+
+// A sink writing `format` to `out`, which must outlive it. Never null for
+// kPly and kObj; null for kUnknown.
+std::unique_ptr<MeshSink> make_mesh_writer(MeshFormat format, OutputFile* out,
+                                           const WriteOptions& options);
+
+}  // namespace psq
+
+#endif  // PSQ_MESH_FORMATS_H_

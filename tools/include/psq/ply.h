@@ -1,0 +1,86 @@
+// psq/ply.h: streaming PLY reader and writer.
+//
+// PlyReader is a MeshSource over ascii, binary little-endian and binary
+// big-endian PLY. It reads one element at a time: memory does not depend on
+// the file's size. Header lines may end in LF, CRLF or CR. The vertex element
+// needs float or double x, y, z; every other vertex property, scalar or list,
+// of any type, is carried. Faces come from a `face` element (list property
+// `vertex_indices` or `vertex_index`; polygons are split into fans) or a
+// `tristrips` element (`vertex_indices` with -1 restarts); every other face
+// property is carried per triangle. Other elements are skipped.
+//
+// Safe on untrusted input: every malformed file gives a Status with the byte
+// offset (binary) or line (ascii) and no allocation depends on a count in the
+// header.
+#ifndef PSQ_PLY_H_
+#define PSQ_PLY_H_
+
+#include <memory>
+#include <string>
+
+#include "psq/indexed_mesh.h"
+#include "psq/io.h"
+
+namespace psq {
+
+enum class PlyEncoding { kAscii, kBinaryLittleEndian, kBinaryBigEndian };
+
+// True when `data` (at least the first 4 bytes of an input) starts like PLY.
+bool looks_like_ply(const uint8_t* data, size_t size);
+
+class PlyReader : public MeshSource {
+ public:
+  PlyReader();
+  ~PlyReader() override;
+
+  // Reads and checks the header from `in`, which must outlive the reader.
+  // Errors: kBadHeader (no "ply" magic, no end_header, unknown format or
+  // type, no vertex element or no x/y/z, a face element without an index
+  // list), kLimit (a header over 1 MiB), kIo.
+  Status open(InputStream* in);
+
+  PlyEncoding encoding() const;
+  const MeshSchema& schema() const override;
+  // Errors: kTruncated (the data ends before the header's counts are read),
+  // kBadValue (a malformed ascii number, a NaN or infinite position, a face
+  // with fewer than 3 indices, a list count that is negative or overruns its
+  // line), kBadIndex (an index < 0 or >= the vertex count), kIo.
+  Status next(MeshItem* item) override;
+  const SourceReport& report() const override;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+struct PlyWriteOptions {
+  PlyEncoding encoding = PlyEncoding::kBinaryLittleEndian;
+  // Where to spool vertices or faces when the source does not know their
+  // count up front (PLY needs counts in its header); empty means $TMPDIR.
+  std::string spool_dir;
+};
+
+// Writes a PLY file with the schema's properties and types. When the schema
+// knows the vertex and triangle counts the data is written straight through;
+// otherwise it is spooled to an unlinked temporary file and copied after the
+// header. Errors: kIo, kBadValue (a value that the declared type cannot hold).
+class PlyWriter : public MeshSink {
+ public:
+  // `out` must be open and outlive the writer; the caller commits it after
+  // finish().
+  PlyWriter(OutputFile* out, PlyWriteOptions options = {});
+  ~PlyWriter() override;
+
+  Status begin(const MeshSchema& schema) override;
+  Status vertex(const double position[3], const PropertyValues& values) override;
+  Status triangle(const uint32_t index[3], const PropertyValues& values) override;
+  Status finish() override;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace psq
+
+#endif  // PSQ_PLY_H_

@@ -1,0 +1,83 @@
+// Format detection by content and the reader/writer factory (psq/mesh_formats.h).
+#include "psq/mesh_formats.h"
+
+#include <algorithm>
+#include <cctype>
+
+#include "psq/obj.h"
+#include "psq/ply.h"
+
+namespace psq {
+
+const char* format_name(MeshFormat f) {
+  switch (f) {
+    case MeshFormat::kPly: return "ply";
+    case MeshFormat::kObj: return "obj";
+    case MeshFormat::kUnknown: break;
+  }
+  return "unknown";
+}
+
+MeshFormat format_from_name(const std::string& name) {
+  std::string n = name;
+  std::transform(n.begin(), n.end(), n.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  if (n == "ply") return MeshFormat::kPly;
+  if (n == "obj") return MeshFormat::kObj;
+  return MeshFormat::kUnknown;
+}
+
+MeshFormat format_from_extension(const std::string& path) {
+  size_t dot = path.rfind('.');
+  size_t slash = path.rfind('/');
+  if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) return MeshFormat::kUnknown;
+  return format_from_name(path.substr(dot + 1));
+}
+
+MeshFormat detect_format(const uint8_t* data, size_t size) {
+  if (looks_like_ply(data, size)) return MeshFormat::kPly;
+  if (looks_like_obj(data, size)) return MeshFormat::kObj;
+  return MeshFormat::kUnknown;
+}
+
+Status open_mesh(const std::string& path, const OpenOptions& options, OpenedMesh* out) {
+  out->stream = std::make_unique<InputStream>();
+  PSQ_RETURN_IF_ERROR(out->stream->open(path));
+  // The first 4 KiB decide; comments at the top of an OBJ may be longer, in
+  // which case looks_like_obj() sees only comment text and says no.
+  size_t avail;
+  PSQ_RETURN_IF_ERROR(out->stream->fill(4096, &avail));
+  out->format = detect_format(out->stream->cursor(), avail);
+  switch (out->format) {
+    case MeshFormat::kPly: {
+      auto reader = std::make_unique<PlyReader>();
+      PSQ_RETURN_IF_ERROR(reader->open(out->stream.get()));
+      out->source = std::move(reader);
+      return Status();
+    }
+    case MeshFormat::kObj: {
+      auto reader = std::make_unique<ObjReader>();
+      PSQ_RETURN_IF_ERROR(reader->open(out->stream.get(), options.spool_dir));
+      out->source = std::move(reader);
+      return Status();
+    }
+    case MeshFormat::kUnknown: break;
+  }
+  if (avail == 0) return Status(ErrorCode::kUnknownFormat, "empty input", 0);
+  return Status(ErrorCode::kUnknownFormat, "not a PLY or OBJ file (unrecognised content)", 0);
+}
+
+std::unique_ptr<MeshSink> make_mesh_writer(MeshFormat format, OutputFile* out, const WriteOptions& options) {
+  switch (format) {
+    case MeshFormat::kPly: {
+      PlyWriteOptions o;
+      o.encoding = options.ascii ? PlyEncoding::kAscii : PlyEncoding::kBinaryLittleEndian;
+      o.spool_dir = options.spool_dir;
+      return std::make_unique<PlyWriter>(out, o);
+    }
+    case MeshFormat::kObj: return std::make_unique<ObjWriter>(out);
+    case MeshFormat::kUnknown: break;
+  }
+  return nullptr;
+}
+
+}  // namespace psq

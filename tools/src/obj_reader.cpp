@@ -1,0 +1,815 @@
+// ObjReader and looks_like_obj: reading Wavefront OBJ as an indexed mesh
+// (see psq/obj.h for what is supported and how memory is used).
+
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <string>
+#include <string_view>
+#include <system_error>
+#include <unordered_map>
+#include <utility>
+#include <vector>
+
+#include "psq/obj.h"
+
+namespace psq {
+namespace {
+
+// Element counts stay below these so that uint32 vertex indices hold every
+// vertex, split vertices included, and two values remain free as markers.
+constexpr uint64_t kMaxCount = 0xFFFFFFF0u;
+constexpr uint32_t kAbsent = 0xFFFFFFFFu;  // a corner without vt or vn
+constexpr uint32_t kUnset = 0xFFFFFFFEu;   // a position no corner used yet
+
+// Leading comments are kept as schema comments, but only a bounded amount:
+// a file could start with megabytes of them.
+constexpr size_t kMaxComments = 64;
+constexpr size_t kMaxCommentBytes = 16 * 1024;
+
+bool is_space(char c) { return c == ' ' || c == '\t' || c == '\v' || c == '\f'; }
+
+// Whitespace-separated tokens of a statement, without copies.
+class Tokens {
+ public:
+  explicit Tokens(std::string_view s) : s_(s) {}
+
+  bool next(std::string_view* tok) {
+    size_t i = 0;
+    while (i < s_.size() && is_space(s_[i])) ++i;
+    if (i == s_.size()) {
+      s_ = std::string_view();
+      return false;
+    }
+    size_t j = i;
+    while (j < s_.size() && !is_space(s_[j])) ++j;
+    *tok = s_.substr(i, j - i);
+    s_.remove_prefix(j);
+    return true;
+  }
+
+  size_t count() const {
+    Tokens copy(s_);
+    std::string_view tok;
+    size_t n = 0;
+    while (copy.next(&tok)) ++n;
+    return n;
+  }
+
+ private:
+  std::string_view s_;
+};
+
+// A token for an error message: short and on one line whatever the input.
+std::string quoted(std::string_view tok) {
+  constexpr size_t kMaxShown = 32;
+  std::string s = "'";
+  for (size_t i = 0; i < tok.size() && i < kMaxShown; ++i) {
+    unsigned char c = static_cast<unsigned char>(tok[i]);
+    s += (c >= 0x20 && c < 0x7f) ? static_cast<char>(c) : '?';
+  }
+  if (tok.size() > kMaxShown) s += "...";
+  s += "'";
+  return s;
+}
+
+// from_chars does not take a leading '+', which OBJ writers do emit.
+bool skip_plus(const char** b, const char* e) {
+  if (*b != e && **b == '+') {
+    ++*b;
+    if (*b == e || **b == '+' || **b == '-') return false;
+  }
+  return true;
+}
+
+enum class Parse { kOk, kMalformed, kOutOfRange };
+
+// Parses a whole token as a float, rounding once from the decimal text.
+// Values too small for float become 0 (or a denormal); values too large are
+// out of range rather than silently infinite.
+Parse parse_float(std::string_view tok, float* out) {
+  const char* b = tok.data();
+  const char* e = b + tok.size();
+  if (!skip_plus(&b, e)) return Parse::kMalformed;
+  float f = 0;
+  auto r = std::from_chars(b, e, f);
+  if (r.ptr != e) return Parse::kMalformed;
+  if (r.ec == std::errc()) {
+    *out = f;
+    return Parse::kOk;
+  }
+  if (r.ec != std::errc::result_out_of_range) return Parse::kMalformed;
+  // Tell underflow from overflow, which from_chars reports alike.
+  double d = 0;
+  auto rd = std::from_chars(b, e, d);
+  if (rd.ec == std::errc()) {
+    if (std::fabs(d) < 1.0) {
+      *out = static_cast<float>(d);
+      return Parse::kOk;
+    }
+    return Parse::kOutOfRange;
+  }
+  for (const char* p = b; p + 1 < e; ++p) {
+    if ((*p == 'e' || *p == 'E') && p[1] == '-') {
+      *out = *b == '-' ? -0.0f : 0.0f;
+      return Parse::kOk;
+    }
+  }
+  return Parse::kOutOfRange;
+}
+
+Parse parse_int(std::string_view tok, int64_t* out) {
+  const char* b = tok.data();
+  const char* e = b + tok.size();
+  if (!skip_plus(&b, e)) return Parse::kMalformed;
+  auto r = std::from_chars(b, e, *out);
+  if (r.ec == std::errc::result_out_of_range && r.ptr == e) return Parse::kOutOfRange;
+  if (r.ec != std::errc() || r.ptr != e) return Parse::kMalformed;
+  return Parse::kOk;
+}
+
+// Removes a trailing comment and trailing whitespace.
+std::string_view strip(std::string_view line) {
+  size_t hash = line.find('#');
+  if (hash != std::string_view::npos) line = line.substr(0, hash);
+  while (!line.empty() && is_space(line.back())) line.remove_suffix(1);
+  return line;
+}
+
+// Yields OBJ statements: lines without comments, with continuation lines
+// (ending in '\') joined, blank ones skipped. Knows the line numbers.
+class StatementReader {
+ public:
+  void start(InputStream* in) {
+    in_ = in;
+    line_ = 0;
+    first_line_ = 0;
+    comments_ = nullptr;
+  }
+
+  // Keeps the comment lines that precede the first statement.
+  void collect_comments(std::vector<std::string>* out) {
+    comments_ = out;
+    comment_bytes_ = 0;
+  }
+
+  // The statement stays valid until the next call.
+  Status next(std::string_view* stmt, bool* eof) {
+    for (;;) {
+      std::string_view line;
+      PSQ_RETURN_IF_ERROR(read(&line, eof));
+      if (*eof) return Status();
+      first_line_ = line_;
+      if (comments_ != nullptr) collect(line);
+      std::string_view s = strip(line);
+      if (!s.empty() && s.back() == '\\') PSQ_RETURN_IF_ERROR(join(s, &s));
+      size_t i = 0;
+      while (i < s.size() && is_space(s[i])) ++i;
+      if (i == s.size()) continue;
+      comments_ = nullptr;
+      *stmt = s.substr(i);
+      *eof = false;
+      return Status();
+    }
+  }
+
+  // First line of the last statement.
+  uint64_t line() const { return first_line_; }
+
+ private:
+  Status read(std::string_view* line, bool* eof) {
+    Status s = in_->read_line(line, eof);
+    if (!s.ok()) return Status(s.code(), s.message(), s.offset(), line_ + 1);
+    if (!*eof) ++line_;
+    return Status();
+  }
+
+  // A backslash continues the statement on the next line; it stands for a
+  // space so that tokens never run across lines.
+  Status join(std::string_view first, std::string_view* out) {
+    joined_.assign(first.data(), first.size() - 1);
+    joined_ += ' ';
+    for (;;) {
+      std::string_view line;
+      bool eof = false;
+      PSQ_RETURN_IF_ERROR(read(&line, &eof));
+      if (eof) break;
+      std::string_view t = strip(line);
+      bool more = !t.empty() && t.back() == '\\';
+      if (more) t.remove_suffix(1);
+      if (joined_.size() + t.size() > InputStream::kMaxLine) {
+        return Status(ErrorCode::kLimit, "statement continued over more than 1 MiB",
+                      Status::kNoPlace, first_line_);
+      }
+      joined_.append(t.data(), t.size());
+      if (!more) break;
+      joined_ += ' ';
+    }
+    *out = joined_;
+    return Status();
+  }
+
+  void collect(std::string_view line) {
+    size_t i = 0;
+    while (i < line.size() && is_space(line[i])) ++i;
+    if (i == line.size() || line[i] != '#') return;
+    std::string_view text = line.substr(i + 1);
+    while (!text.empty() && is_space(text.front())) text.remove_prefix(1);
+    while (!text.empty() && is_space(text.back())) text.remove_suffix(1);
+    if (comments_->size() >= kMaxComments || comment_bytes_ + text.size() > kMaxCommentBytes) return;
+    comment_bytes_ += text.size();
+    comments_->emplace_back(text);
+  }
+
+  InputStream* in_ = nullptr;
+  uint64_t line_ = 0;
+  uint64_t first_line_ = 0;
+  std::string joined_;
+  std::vector<std::string>* comments_ = nullptr;
+  size_t comment_bytes_ = 0;
+};
+
+struct Corner {
+  uint32_t v, t, n;  // 0-based; t and n may be kAbsent
+  bool operator==(const Corner& o) const { return v == o.v && t == o.t && n == o.n; }
+};
+
+struct CornerHash {
+  size_t operator()(const Corner& c) const {
+    uint64_t h = c.v * 0x9E3779B97F4A7C15ull;
+    h ^= (h >> 29) + c.t * 0xC2B2AE3D27D4EB4Full;
+    h ^= (h >> 31) + c.n * 0x165667B19E3779F9ull;
+    return static_cast<size_t>(h ^ (h >> 32));
+  }
+};
+
+struct Attr {
+  uint32_t t = kUnset, n = kUnset;
+};
+
+Property float_property(const char* name) {
+  Property p;
+  p.name = name;
+  p.type = ScalarType::kFloat32;
+  return p;
+}
+
+}  // namespace
+
+bool looks_like_obj(const uint8_t* data, size_t size) {
+  size_t i = 0;
+  for (;;) {
+    while (i < size && (is_space(static_cast<char>(data[i])) || data[i] == '\r' || data[i] == '\n')) ++i;
+    if (i == size) return false;
+    if (data[i] != '#') break;
+    while (i < size && data[i] != '\n' && data[i] != '\r') ++i;
+  }
+  size_t start = i;
+  while (i < size && data[i] >= 'a' && data[i] <= 'z') ++i;
+  std::string_view word(reinterpret_cast<const char*>(data + start), i - start);
+  static constexpr std::string_view kKeywords[] = {"v", "vn", "vt", "f", "o", "g", "s",
+                                                   "usemtl", "mtllib", "l", "p", "vp"};
+  bool known = false;
+  for (std::string_view k : kKeywords) known = known || word == k;
+  if (!known) return false;
+  if (i < size && !is_space(static_cast<char>(data[i])) && data[i] != '\r' && data[i] != '\n') return false;
+  // The rest of the first statement must be text, which binary data is not.
+  for (; i < size && data[i] != '\n' && data[i] != '\r'; ++i) {
+    if (data[i] < 0x20 && data[i] != '\t') return false;
+    if (data[i] == 0x7f) return false;
+  }
+  return true;
+}
+
+struct ObjReader::Impl {
+  enum class Mode { kClosed, kStream, kMemory };
+
+  Status open(InputStream* input, const std::string& spool_dir);
+  Status prescan();
+  Status next(MeshItem* item);
+  Status next_streamed(MeshItem* item);
+  Status next_in_memory(MeshItem* item);
+  Status load();
+  Status read_vertex(Tokens& tk, float xyz[3], float rgb[3]);
+  Status read_numbers(Tokens& tk, const char* what, float* out, size_t max, size_t* count);
+  Status read_face(Tokens& tk);
+  Status read_corner(std::string_view tok, Corner* c);
+  Status resolve(std::string_view tok, uint64_t defined, const char* what, uint32_t* out);
+  Status check_unused(std::string_view tok, const char* what);
+  Status corner_vertex(const Corner& c, uint32_t* id);
+  void add_final_notes();
+
+  Status error(ErrorCode code, std::string message) const {
+    return Status(code, std::move(message), Status::kNoPlace, reader.line());
+  }
+
+  InputStream* in = nullptr;
+  std::unique_ptr<SpoolFile> spool;
+  StatementReader reader;
+  MeshSchema schema;
+  SourceReport report;
+  Status status;
+  Mode mode = Mode::kClosed;
+
+  // Learned by the prescan.
+  uint64_t file_vertices = 0;
+  uint64_t file_triangles = 0;
+  bool has_vn = false;
+  bool has_vt = false;
+  bool colours = false;      // the first `v` line has r g b
+  bool interleaved = false;  // a `v` line follows an `f` line
+
+  // Elements defined so far in the current pass.
+  uint64_t v_count = 0;
+  uint64_t vt_count = 0;
+  uint64_t vn_count = 0;
+  uint64_t colours_ignored = 0;
+  uint64_t texcoord_refs_ignored = 0;
+  uint64_t normal_refs_ignored = 0;
+  std::vector<Corner> corners;  // of the current face
+
+  // Streaming: the fan of the current face still to yield. An interleaved
+  // file is read twice (vertices, then faces) so that every vertex comes
+  // before every triangle, as sinks that write PLY need.
+  std::vector<uint32_t> fan;
+  size_t fan_next = 0;
+  bool yield_vertices = true;
+  bool yield_faces = true;
+  uint64_t vertices_yielded = 0;
+  uint64_t triangles_yielded = 0;
+  bool ended = false;
+
+  // In memory: everything, then yielded from `at`.
+  std::vector<float> positions;
+  std::vector<float> vertex_colours;
+  std::vector<float> texcoords;
+  std::vector<float> normals;
+  std::vector<Attr> attrs;      // per position: the first (vt, vn) used
+  std::vector<Corner> splits;   // vertices appended after the positions
+  std::unordered_map<Corner, uint32_t, CornerHash> split_ids;
+  std::vector<uint32_t> triangles;
+  uint64_t at = 0;
+};
+
+Status ObjReader::Impl::open(InputStream* input, const std::string& spool_dir) {
+  if (input == nullptr) return Status(ErrorCode::kUsage, "no input stream");
+  if (!input->can_rewind()) {
+    // OBJ needs two passes (and streaming mode a rewind), which a pipe
+    // cannot give: keep a copy.
+    spool = std::make_unique<SpoolFile>();
+    PSQ_RETURN_IF_ERROR(spool->create(spool_dir));
+    for (;;) {
+      size_t available = 0;
+      PSQ_RETURN_IF_ERROR(input->fill(size_t{1} << 16, &available));
+      if (available == 0) break;
+      PSQ_RETURN_IF_ERROR(spool->write(input->cursor(), available));
+      input->advance(available);
+    }
+    PSQ_RETURN_IF_ERROR(spool->rewind());
+    input = &spool->stream();
+  }
+  in = input;
+  PSQ_RETURN_IF_ERROR(prescan());
+  PSQ_RETURN_IF_ERROR(in->rewind());
+  reader.start(in);
+
+  // OBJ text is almost always single precision and carries no type, so
+  // positions and attributes are declared (and parsed as) float; a writer
+  // then reproduces them exactly.
+  schema.position_type = ScalarType::kFloat32;
+  if (has_vn) {
+    for (const char* name : {"nx", "ny", "nz"}) schema.vertex_properties.push_back(float_property(name));
+  }
+  if (colours) {
+    for (const char* name : {"red", "green", "blue"}) schema.vertex_properties.push_back(float_property(name));
+  }
+  if (has_vt) {
+    for (const char* name : {"u", "v"}) schema.vertex_properties.push_back(float_property(name));
+  }
+
+  if (has_vn || has_vt) {
+    mode = Mode::kMemory;
+    return load();
+  }
+  mode = Mode::kStream;
+  schema.vertex_count = static_cast<int64_t>(file_vertices);
+  schema.triangle_count = static_cast<int64_t>(file_triangles);
+  if (interleaved) yield_faces = false;
+  return Status();
+}
+
+// One cheap pass over first tokens: how to read the file, and its counts.
+Status ObjReader::Impl::prescan() {
+  reader.start(in);
+  reader.collect_comments(&schema.comments);
+  bool seen_face = false;
+  uint64_t lines_points = 0;
+  for (;;) {
+    std::string_view stmt;
+    bool eof = false;
+    PSQ_RETURN_IF_ERROR(reader.next(&stmt, &eof));
+    if (eof) break;
+    Tokens tk(stmt);
+    std::string_view kw;
+    tk.next(&kw);
+    if (kw == "v") {
+      if (file_vertices == 0) colours = tk.count() == 6;
+      ++file_vertices;
+      if (seen_face) interleaved = true;
+    } else if (kw == "f") {
+      size_t n = tk.count();
+      if (n >= 3) file_triangles += n - 2;
+      if (n >= 4) ++report.polygons_triangulated;
+      seen_face = true;
+    } else if (kw == "vn") {
+      has_vn = true;
+    } else if (kw == "vt") {
+      has_vt = true;
+    } else if (kw == "l" || kw == "p") {
+      ++lines_points;
+    }
+  }
+  if (lines_points > 0) report.notes.push_back(std::to_string(lines_points) + " line/point elements ignored");
+  return Status();
+}
+
+Status ObjReader::Impl::read_numbers(Tokens& tk, const char* what, float* out, size_t max,
+                                     size_t* count) {
+  std::string_view tok;
+  size_t n = 0;
+  while (tk.next(&tok)) {
+    if (n < max) {
+      Parse p = parse_float(tok, &out[n]);
+      if (p == Parse::kMalformed) {
+        return error(ErrorCode::kBadValue, std::string("malformed number ") + quoted(tok) + " in " + what);
+      }
+      if (p == Parse::kOutOfRange) {
+        return error(ErrorCode::kBadValue, std::string("number ") + quoted(tok) + " in " + what +
+                                               " is out of range for float");
+      }
+    }
+    ++n;
+  }
+  *count = n;
+  return Status();
+}
+
+Status ObjReader::Impl::read_vertex(Tokens& tk, float xyz[3], float rgb[3]) {
+  float v[6];
+  size_t n = 0;
+  PSQ_RETURN_IF_ERROR(read_numbers(tk, "vertex", v, 6, &n));
+  if (n != 3 && n != 4 && n != 6) {
+    return error(ErrorCode::kBadValue, "vertex has " + std::to_string(n) +
+                                           " coordinates; expected 3, 4 (x y z w) or 6 (x y z r g b)");
+  }
+  if (colours && n != 6) {
+    return error(ErrorCode::kBadValue,
+                 "vertex has " + std::to_string(n) + " coordinates but earlier vertices have colours");
+  }
+  if (!colours && n == 6) ++colours_ignored;
+  for (int k = 0; k < 3; ++k) {
+    if (!std::isfinite(v[k])) return error(ErrorCode::kBadValue, "position is not finite");
+    xyz[k] = v[k];
+    rgb[k] = v[3 + k];  // meaningful only with colours
+  }
+  if (v_count >= kMaxCount) return error(ErrorCode::kLimit, "too many vertices for 32-bit indices");
+  ++v_count;
+  return Status();
+}
+
+Status ObjReader::Impl::resolve(std::string_view tok, uint64_t defined, const char* what,
+                                uint32_t* out) {
+  int64_t raw = 0;
+  Parse p = parse_int(tok, &raw);
+  if (p == Parse::kMalformed) {
+    return error(ErrorCode::kBadValue, std::string("malformed ") + what + " index " + quoted(tok));
+  }
+  if (p == Parse::kOutOfRange) {
+    return error(ErrorCode::kBadIndex, std::string(what) + " index " + quoted(tok) + " is out of range");
+  }
+  if (raw == 0) return error(ErrorCode::kBadIndex, "index 0 is not valid in OBJ (indices start at 1)");
+  // Negative indices count back from the last element defined so far.
+  auto d = static_cast<int64_t>(defined);
+  if (raw > 0 && raw <= d) {
+    *out = static_cast<uint32_t>(raw - 1);
+    return Status();
+  }
+  if (raw < 0 && raw >= -d) {
+    *out = static_cast<uint32_t>(d + raw);
+    return Status();
+  }
+  return error(ErrorCode::kBadIndex, std::string(what) + " index " + std::to_string(raw) +
+                                         " refers to an undefined " + what + " (" +
+                                         std::to_string(defined) + " defined so far)");
+}
+
+Status ObjReader::Impl::read_corner(std::string_view tok, Corner* c) {
+  size_t s1 = tok.find('/');
+  std::string_view vs = tok.substr(0, s1);
+  std::string_view ts, ns;
+  if (s1 != std::string_view::npos) {
+    std::string_view rest = tok.substr(s1 + 1);
+    size_t s2 = rest.find('/');
+    ts = rest.substr(0, s2);
+    if (s2 != std::string_view::npos) {
+      ns = rest.substr(s2 + 1);
+      if (ns.find('/') != std::string_view::npos) {
+        return error(ErrorCode::kBadValue, "malformed face corner " + quoted(tok));
+      }
+    }
+  }
+  if (vs.empty()) return error(ErrorCode::kBadValue, "face corner " + quoted(tok) + " has no vertex index");
+  PSQ_RETURN_IF_ERROR(resolve(vs, v_count, "vertex", &c->v));
+  c->t = c->n = kAbsent;
+  if (!ts.empty()) {
+    if (has_vt) {
+      PSQ_RETURN_IF_ERROR(resolve(ts, vt_count, "texture coordinate", &c->t));
+    } else {
+      PSQ_RETURN_IF_ERROR(check_unused(ts, "texture coordinate"));
+      ++texcoord_refs_ignored;
+    }
+  }
+  if (!ns.empty()) {
+    if (has_vn) {
+      PSQ_RETURN_IF_ERROR(resolve(ns, vn_count, "normal", &c->n));
+    } else {
+      PSQ_RETURN_IF_ERROR(check_unused(ns, "normal"));
+      ++normal_refs_ignored;
+    }
+  }
+  return Status();
+}
+
+// Some writers emit `f a//a` with no `vn` line at all (and likewise for vt);
+// such indices can refer to nothing, so they are ignored, but they must
+// still be well-formed.
+Status ObjReader::Impl::check_unused(std::string_view tok, const char* what) {
+  int64_t raw = 0;
+  Parse p = parse_int(tok, &raw);
+  if (p == Parse::kMalformed) {
+    return error(ErrorCode::kBadValue, std::string("malformed ") + what + " index " + quoted(tok));
+  }
+  if (p == Parse::kOk && raw == 0) {
+    return error(ErrorCode::kBadIndex, "index 0 is not valid in OBJ (indices start at 1)");
+  }
+  return Status();
+}
+
+Status ObjReader::Impl::read_face(Tokens& tk) {
+  corners.clear();
+  std::string_view tok;
+  while (tk.next(&tok)) {
+    Corner c;
+    PSQ_RETURN_IF_ERROR(read_corner(tok, &c));
+    corners.push_back(c);
+  }
+  if (corners.size() < 3) {
+    return error(ErrorCode::kBadValue,
+                 "face has " + std::to_string(corners.size()) + " corners; a face needs at least 3");
+  }
+  return Status();
+}
+
+void ObjReader::Impl::add_final_notes() {
+  if (texcoord_refs_ignored > 0) {
+    report.notes.push_back(std::to_string(texcoord_refs_ignored) +
+                           " texture coordinate indices ignored: the file has no vt lines");
+  }
+  if (normal_refs_ignored > 0) {
+    report.notes.push_back(std::to_string(normal_refs_ignored) + " normal indices ignored: the file has no vn lines");
+  }
+  if (colours_ignored > 0) {
+    report.notes.push_back("colours of " + std::to_string(colours_ignored) +
+                           " vertices ignored: the first vertex has none");
+  }
+  if (!splits.empty()) {
+    report.notes.push_back(std::to_string(splits.size()) +
+                           " vertices split where normals or texture coordinates differ");
+  }
+}
+
+Status ObjReader::Impl::next(MeshItem* item) {
+  if (!status.ok()) return status;
+  if (mode == Mode::kClosed) return Status(ErrorCode::kUsage, "the OBJ reader is not open");
+  Status s = mode == Mode::kStream ? next_streamed(item) : next_in_memory(item);
+  if (!s.ok()) status = s;
+  return s;
+}
+
+Status ObjReader::Impl::next_streamed(MeshItem* item) {
+  for (;;) {
+    if (fan_next + 1 < fan.size()) {
+      item->kind = MeshItem::Kind::kTriangle;
+      item->index[0] = fan[0];
+      item->index[1] = fan[fan_next];
+      item->index[2] = fan[fan_next + 1];
+      item->values.clear();
+      ++fan_next;
+      ++triangles_yielded;
+      return Status();
+    }
+    if (ended) {
+      item->kind = MeshItem::Kind::kEnd;
+      item->values.clear();
+      return Status();
+    }
+    std::string_view stmt;
+    bool eof = false;
+    PSQ_RETURN_IF_ERROR(reader.next(&stmt, &eof));
+    if (eof) {
+      if (!yield_faces) {
+        PSQ_RETURN_IF_ERROR(in->rewind());
+        reader.start(in);
+        v_count = 0;
+        yield_vertices = false;
+        yield_faces = true;
+        continue;
+      }
+      // The counts promised in the schema came from the prescan.
+      if (vertices_yielded != file_vertices || triangles_yielded != file_triangles) {
+        return Status(ErrorCode::kIo, "the input changed while it was read");
+      }
+      add_final_notes();
+      ended = true;
+      continue;
+    }
+    Tokens tk(stmt);
+    std::string_view kw;
+    tk.next(&kw);
+    if (kw == "v") {
+      if (!yield_vertices) {
+        ++v_count;  // parsed and checked in the first pass
+        continue;
+      }
+      float xyz[3], rgb[3];
+      PSQ_RETURN_IF_ERROR(read_vertex(tk, xyz, rgb));
+      item->kind = MeshItem::Kind::kVertex;
+      item->values.clear();
+      for (int k = 0; k < 3; ++k) item->position[k] = xyz[k];
+      if (colours) item->values.assign(rgb, rgb + 3);
+      ++vertices_yielded;
+      return Status();
+    }
+    if (kw == "f") {
+      if (!yield_faces) continue;
+      PSQ_RETURN_IF_ERROR(read_face(tk));
+      fan.clear();
+      for (const Corner& c : corners) fan.push_back(c.v);
+      fan_next = 1;
+      continue;
+    }
+    if (kw == "vn" || kw == "vt") return Status(ErrorCode::kIo, "the input changed while it was read");
+  }
+}
+
+// The vertex a corner becomes: its position, unless that position was first
+// used with other attributes, in which case a split vertex.
+Status ObjReader::Impl::corner_vertex(const Corner& c, uint32_t* id) {
+  Attr& a = attrs[c.v];
+  if (a.t == kUnset) {
+    a.t = c.t;
+    a.n = c.n;
+  }
+  if (a.t == c.t && a.n == c.n) {
+    *id = c.v;
+    return Status();
+  }
+  auto found = split_ids.find(c);
+  if (found != split_ids.end()) {
+    *id = found->second;
+    return Status();
+  }
+  uint64_t next_id = file_vertices + splits.size();
+  if (next_id >= kMaxCount) return error(ErrorCode::kLimit, "too many vertices for 32-bit indices");
+  *id = static_cast<uint32_t>(next_id);
+  splits.push_back(c);
+  split_ids.emplace(c, *id);
+  return Status();
+}
+
+Status ObjReader::Impl::load() {
+  // Split vertices are numbered after every position, whose count the
+  // prescan gave.
+  attrs.resize(file_vertices);
+  positions.reserve(3 * file_vertices);
+  if (colours) vertex_colours.reserve(3 * file_vertices);
+  for (;;) {
+    std::string_view stmt;
+    bool eof = false;
+    PSQ_RETURN_IF_ERROR(reader.next(&stmt, &eof));
+    if (eof) break;
+    Tokens tk(stmt);
+    std::string_view kw;
+    tk.next(&kw);
+    if (kw == "v") {
+      float xyz[3], rgb[3];
+      PSQ_RETURN_IF_ERROR(read_vertex(tk, xyz, rgb));
+      if (v_count > file_vertices) return Status(ErrorCode::kIo, "the input changed while it was read");
+      positions.insert(positions.end(), xyz, xyz + 3);
+      if (colours) vertex_colours.insert(vertex_colours.end(), rgb, rgb + 3);
+    } else if (kw == "vt") {
+      float uvw[3] = {0, 0, 0};
+      size_t n = 0;
+      PSQ_RETURN_IF_ERROR(read_numbers(tk, "texture coordinate", uvw, 3, &n));
+      if (n < 1 || n > 3) {
+        return error(ErrorCode::kBadValue,
+                     "texture coordinate has " + std::to_string(n) + " values; expected 1 to 3");
+      }
+      if (vt_count >= kMaxCount) return error(ErrorCode::kLimit, "too many texture coordinates");
+      texcoords.push_back(uvw[0]);
+      texcoords.push_back(uvw[1]);
+      ++vt_count;
+    } else if (kw == "vn") {
+      float xyz[3];
+      size_t n = 0;
+      PSQ_RETURN_IF_ERROR(read_numbers(tk, "normal", xyz, 3, &n));
+      if (n != 3) {
+        return error(ErrorCode::kBadValue, "normal has " + std::to_string(n) + " values; expected 3");
+      }
+      if (vn_count >= kMaxCount) return error(ErrorCode::kLimit, "too many normals");
+      normals.insert(normals.end(), xyz, xyz + 3);
+      ++vn_count;
+    } else if (kw == "f") {
+      PSQ_RETURN_IF_ERROR(read_face(tk));
+      uint32_t first = 0, prev = 0;
+      for (size_t i = 0; i < corners.size(); ++i) {
+        uint32_t id = 0;
+        PSQ_RETURN_IF_ERROR(corner_vertex(corners[i], &id));
+        if (i == 0) {
+          first = id;
+        } else if (i >= 2) {
+          triangles.insert(triangles.end(), {first, prev, id});
+        }
+        prev = id;
+      }
+    }
+  }
+  if (v_count != file_vertices) return Status(ErrorCode::kIo, "the input changed while it was read");
+  split_ids = {};
+  schema.vertex_count = static_cast<int64_t>(file_vertices + splits.size());
+  schema.triangle_count = static_cast<int64_t>(triangles.size() / 3);
+  add_final_notes();
+  // Everything is in memory: the spool file can go.
+  in = nullptr;
+  spool.reset();
+  return Status();
+}
+
+Status ObjReader::Impl::next_in_memory(MeshItem* item) {
+  uint64_t vertex_total = file_vertices + splits.size();
+  uint64_t triangle_total = triangles.size() / 3;
+  item->values.clear();
+  if (at < vertex_total) {
+    uint32_t v = static_cast<uint32_t>(at);
+    Attr a = at < file_vertices ? attrs[at] : Attr();
+    if (at >= file_vertices) {
+      const Corner& c = splits[at - file_vertices];
+      v = c.v;
+      a.t = c.t;
+      a.n = c.n;
+    }
+    item->kind = MeshItem::Kind::kVertex;
+    for (int k = 0; k < 3; ++k) item->position[k] = positions[3 * size_t{v} + k];
+    if (has_vn) {
+      bool any = a.n != kUnset && a.n != kAbsent;
+      for (int k = 0; k < 3; ++k) item->values.push_back(any ? normals[3 * size_t{a.n} + k] : 0.0);
+    }
+    if (colours) {
+      for (int k = 0; k < 3; ++k) item->values.push_back(vertex_colours[3 * size_t{v} + k]);
+    }
+    if (has_vt) {
+      bool any = a.t != kUnset && a.t != kAbsent;
+      for (int k = 0; k < 2; ++k) item->values.push_back(any ? texcoords[2 * size_t{a.t} + k] : 0.0);
+    }
+    ++at;
+    return Status();
+  }
+  if (at < vertex_total + triangle_total) {
+    size_t t = static_cast<size_t>(at - vertex_total);
+    item->kind = MeshItem::Kind::kTriangle;
+    for (int k = 0; k < 3; ++k) item->index[k] = triangles[3 * t + k];
+    ++at;
+    return Status();
+  }
+  item->kind = MeshItem::Kind::kEnd;
+  return Status();
+}
+
+ObjReader::ObjReader() : impl_(std::make_unique<Impl>()) {}
+ObjReader::~ObjReader() = default;
+
+Status ObjReader::open(InputStream* in, const std::string& spool_dir) {
+  impl_ = std::make_unique<Impl>();
+  Status s = impl_->open(in, spool_dir);
+  if (!s.ok()) impl_->status = s;
+  return s;
+}
+
+const MeshSchema& ObjReader::schema() const { return impl_->schema; }
+
+Status ObjReader::next(MeshItem* item) { return impl_->next(item); }
+
+const SourceReport& ObjReader::report() const { return impl_->report; }
+
+}  // namespace psq

@@ -1,0 +1,234 @@
+// Streaming PLY writer (psq/ply.h). PLY puts element counts in its header,
+// so when the source cannot promise them up front the elements are spooled to
+// unlinked temporary files and copied after the header at finish().
+#include <charconv>
+#include <cstring>
+#include <string>
+
+#include "psq/ply.h"
+
+namespace psq {
+namespace {
+
+// Appends `v` as type `t` to `out`: binary (little or big endian) or ascii.
+class ValueEncoder {
+ public:
+  explicit ValueEncoder(PlyEncoding enc) : enc_(enc) {}
+
+  // Errors: kBadValue when type `t` cannot hold `v`.
+  Status put(ScalarType t, double v, std::string* out) const {
+    if (!scalar_is_float(t) && !scalar_holds(t, v)) {
+      return Status(ErrorCode::kBadValue, "value " + std::to_string(v) + " does not fit PLY type " + scalar_name(t));
+    }
+    if (enc_ == PlyEncoding::kAscii) {
+      char buf[64];
+      std::to_chars_result r;
+      if (t == ScalarType::kFloat32) {
+        r = std::to_chars(buf, buf + sizeof buf, static_cast<float>(v));
+      } else if (t == ScalarType::kFloat64) {
+        r = std::to_chars(buf, buf + sizeof buf, v);
+      } else {
+        r = std::to_chars(buf, buf + sizeof buf, static_cast<int64_t>(v));
+      }
+      if (!out->empty() && out->back() != '\n') out->push_back(' ');
+      out->append(buf, r.ptr);
+      return Status();
+    }
+    uint8_t b[8];
+    int n = scalar_size(t);
+    switch (t) {
+      case ScalarType::kInt8: { int8_t x = static_cast<int8_t>(v); std::memcpy(b, &x, 1); break; }
+      case ScalarType::kUInt8: { uint8_t x = static_cast<uint8_t>(v); std::memcpy(b, &x, 1); break; }
+      case ScalarType::kInt16: { int16_t x = static_cast<int16_t>(v); std::memcpy(b, &x, 2); break; }
+      case ScalarType::kUInt16: { uint16_t x = static_cast<uint16_t>(v); std::memcpy(b, &x, 2); break; }
+      case ScalarType::kInt32: { int32_t x = static_cast<int32_t>(v); std::memcpy(b, &x, 4); break; }
+      case ScalarType::kUInt32: { uint32_t x = static_cast<uint32_t>(v); std::memcpy(b, &x, 4); break; }
+      case ScalarType::kFloat32: { float x = static_cast<float>(v); std::memcpy(b, &x, 4); break; }
+      case ScalarType::kFloat64: std::memcpy(b, &v, 8); break;
+    }
+    if (enc_ == PlyEncoding::kBinaryBigEndian) {
+      for (int i = 0; i < n / 2; ++i) std::swap(b[i], b[n - 1 - i]);
+    }
+    out->append(reinterpret_cast<const char*>(b), static_cast<size_t>(n));
+    return Status();
+  }
+
+  // Appends the flattened `values` of `props`. Errors: as put(), and
+  // kInternal when `values` does not match `props`.
+  Status put_all(const std::vector<Property>& props, const PropertyValues& values, std::string* out) const {
+    size_t at = 0;
+    for (const Property& p : props) {
+      if (at >= values.size()) return Status(ErrorCode::kInternal, "fewer property values than the schema has");
+      if (p.is_list) {
+        double count = values[at++];
+        PSQ_RETURN_IF_ERROR(put(p.count_type, count, out));
+        if (count < 0 || count > static_cast<double>(values.size() - at)) {
+          return Status(ErrorCode::kInternal, "list count overruns the property values");
+        }
+        for (size_t k = 0; k < static_cast<size_t>(count); ++k) PSQ_RETURN_IF_ERROR(put(p.type, values[at++], out));
+      } else {
+        PSQ_RETURN_IF_ERROR(put(p.type, values[at++], out));
+      }
+    }
+    if (at != values.size()) return Status(ErrorCode::kInternal, "more property values than the schema has");
+    return Status();
+  }
+
+ private:
+  PlyEncoding enc_;
+};
+
+}  // namespace
+
+struct PlyWriter::Impl {
+  OutputFile* out = nullptr;
+  PlyWriteOptions options;
+  MeshSchema schema;
+  ScalarType index_type = ScalarType::kInt32;
+  ValueEncoder enc{PlyEncoding::kBinaryLittleEndian};
+  bool direct = false;       // header written at begin(), elements go straight out
+  SpoolFile vertex_spool;    // used unless direct
+  SpoolFile face_spool;      // used unless direct and every vertex came first
+  bool vertex_spooled = false;
+  bool face_spooled = false;
+  uint64_t vertices = 0;
+  uint64_t triangles = 0;
+  std::string record;
+
+  Status write_header(uint64_t nv, uint64_t nt);
+  Status emit_vertex(const std::string& data);
+  Status emit_face(const std::string& data);
+};
+
+PlyWriter::PlyWriter(OutputFile* out, PlyWriteOptions options) : impl_(std::make_unique<Impl>()) {
+  impl_->out = out;
+  impl_->options = std::move(options);
+  impl_->enc = ValueEncoder(impl_->options.encoding);
+}
+
+PlyWriter::~PlyWriter() = default;
+
+Status PlyWriter::Impl::write_header(uint64_t nv, uint64_t nt) {
+  std::string h = "ply\nformat ";
+  switch (options.encoding) {
+    case PlyEncoding::kAscii: h += "ascii"; break;
+    case PlyEncoding::kBinaryLittleEndian: h += "binary_little_endian"; break;
+    case PlyEncoding::kBinaryBigEndian: h += "binary_big_endian"; break;
+  }
+  h += " 1.0\n";
+  for (const std::string& c : schema.comments) {
+    // A comment cannot hold a line break; keep the text on one line.
+    std::string line = c;
+    for (char& ch : line) {
+      if (ch == '\n' || ch == '\r') ch = ' ';
+    }
+    if (line.rfind("obj_info ", 0) == 0) {
+      h += line + "\n";
+    } else {
+      h += "comment " + line + "\n";
+    }
+  }
+  auto prop_line = [](const Property& p) {
+    if (p.is_list) return "property list " + std::string(scalar_name(p.count_type)) + " " + scalar_name(p.type) + " " + p.name + "\n";
+    return "property " + std::string(scalar_name(p.type)) + " " + p.name + "\n";
+  };
+  h += "element vertex " + std::to_string(nv) + "\n";
+  const char* pt = scalar_name(schema.position_type);
+  h += std::string("property ") + pt + " x\nproperty " + pt + " y\nproperty " + pt + " z\n";
+  for (const Property& p : schema.vertex_properties) h += prop_line(p);
+  h += "element face " + std::to_string(nt) + "\n";
+  h += std::string("property list uchar ") + scalar_name(index_type) + " vertex_indices\n";
+  for (const Property& p : schema.face_properties) h += prop_line(p);
+  h += "end_header\n";
+  return out->write(h);
+}
+
+Status PlyWriter::begin(const MeshSchema& schema) {
+  Impl& m = *impl_;
+  m.schema = schema;
+  if (m.schema.position_type != ScalarType::kFloat64) m.schema.position_type = ScalarType::kFloat32;
+  for (const Property& p : schema.vertex_properties) {
+    if (p.name == "x" || p.name == "y" || p.name == "z") {
+      return Status(ErrorCode::kUsage, "vertex property named '" + p.name + "' clashes with the position");
+    }
+  }
+  // int indices unless there are more vertices than int can index.
+  if (schema.vertex_count > 0x7fffffff) m.index_type = ScalarType::kUInt32;
+  m.direct = schema.vertex_count != MeshSchema::kUnknown && schema.triangle_count != MeshSchema::kUnknown;
+  if (m.direct) {
+    return m.write_header(static_cast<uint64_t>(schema.vertex_count), static_cast<uint64_t>(schema.triangle_count));
+  }
+  if (schema.vertex_count == MeshSchema::kUnknown) m.index_type = ScalarType::kUInt32;
+  PSQ_RETURN_IF_ERROR(m.vertex_spool.create(m.options.spool_dir));
+  m.vertex_spooled = true;
+  return Status();
+}
+
+Status PlyWriter::Impl::emit_vertex(const std::string& data) {
+  ++vertices;
+  return direct ? out->write(data) : vertex_spool.write(data.data(), data.size());
+}
+
+Status PlyWriter::Impl::emit_face(const std::string& data) {
+  ++triangles;
+  bool vertices_done = direct && vertices == static_cast<uint64_t>(schema.vertex_count);
+  if (vertices_done && !face_spooled) return out->write(data);
+  if (!face_spooled) {
+    PSQ_RETURN_IF_ERROR(face_spool.create(options.spool_dir));
+    face_spooled = true;
+  }
+  return face_spool.write(data.data(), data.size());
+}
+
+Status PlyWriter::vertex(const double p[3], const PropertyValues& values) {
+  Impl& m = *impl_;
+  m.record.clear();
+  for (int k = 0; k < 3; ++k) PSQ_RETURN_IF_ERROR(m.enc.put(m.schema.position_type, p[k], &m.record));
+  PSQ_RETURN_IF_ERROR(m.enc.put_all(m.schema.vertex_properties, values, &m.record));
+  if (m.options.encoding == PlyEncoding::kAscii) m.record.push_back('\n');
+  return m.emit_vertex(m.record);
+}
+
+Status PlyWriter::triangle(const uint32_t idx[3], const PropertyValues& values) {
+  Impl& m = *impl_;
+  m.record.clear();
+  PSQ_RETURN_IF_ERROR(m.enc.put(ScalarType::kUInt8, 3, &m.record));
+  for (int k = 0; k < 3; ++k) PSQ_RETURN_IF_ERROR(m.enc.put(m.index_type, idx[k], &m.record));
+  PSQ_RETURN_IF_ERROR(m.enc.put_all(m.schema.face_properties, values, &m.record));
+  if (m.options.encoding == PlyEncoding::kAscii) m.record.push_back('\n');
+  return m.emit_face(m.record);
+}
+
+namespace {
+
+Status copy_spool(SpoolFile& spool, OutputFile* out) {
+  PSQ_RETURN_IF_ERROR(spool.rewind());
+  InputStream& in = spool.stream();
+  for (;;) {
+    size_t avail;
+    PSQ_RETURN_IF_ERROR(in.fill(1 << 16, &avail));
+    if (avail == 0) return Status();
+    PSQ_RETURN_IF_ERROR(out->write(in.cursor(), avail));
+    in.advance(avail);
+  }
+}
+
+}  // namespace
+
+Status PlyWriter::finish() {
+  Impl& m = *impl_;
+  if (m.direct) {
+    if (m.vertices != static_cast<uint64_t>(m.schema.vertex_count) ||
+        m.triangles != static_cast<uint64_t>(m.schema.triangle_count)) {
+      return Status(ErrorCode::kInternal, "the source yielded " + std::to_string(m.vertices) + " vertices and " +
+                                              std::to_string(m.triangles) + " triangles, not the counts it promised");
+    }
+  } else {
+    PSQ_RETURN_IF_ERROR(m.write_header(m.vertices, m.triangles));
+    PSQ_RETURN_IF_ERROR(copy_spool(m.vertex_spool, m.out));
+  }
+  if (m.face_spooled) PSQ_RETURN_IF_ERROR(copy_spool(m.face_spool, m.out));
+  return Status();
+}
+
+}  // namespace psq
