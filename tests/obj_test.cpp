@@ -158,37 +158,81 @@ TEST(Obj, NormalsAndTexcoordsWithoutSplit) {
   EXPECT_TRUE(report.notes.empty());
 }
 
-TEST(Obj, SplitsVerticesWithDifferentAttributes) {
-  Mesh m;
-  SourceReport report;
-  // Position 2 and 3 are used with two normals each: two split vertices.
-  const std::string text =
-      "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\n"
-      "vn 0 0 1\nvn 0 0 -1\n"
-      "f 1//1 2//1 3//1\n"
-      "f 2//2 4//2 3//2\n"
-      "f 2//2 3//2 4//2\n";
-  ASSERT_TRUE(read_obj(text, &m, &report).ok());
-  EXPECT_EQ(m.schema.vertex_count, 6);
-  ASSERT_EQ(m.positions.size(), 6u);
-  EXPECT_EQ(m.positions[4], (Pos{1, 0, 0}));
-  EXPECT_EQ(m.positions[5], (Pos{0, 1, 0}));
-  EXPECT_EQ(m.vertex_values[1], (PropertyValues{0, 0, 1}));
-  EXPECT_EQ(m.vertex_values[3], (PropertyValues{0, 0, -1}));
-  EXPECT_EQ(m.vertex_values[4], (PropertyValues{0, 0, -1}));
-  EXPECT_EQ(m.vertex_values[5], (PropertyValues{0, 0, -1}));
-  EXPECT_EQ(m.triangles, (std::vector<Tri>{{0, 1, 2}, {4, 3, 5}, {4, 5, 3}}));
-  ASSERT_EQ(report.notes.size(), 1u);
-  EXPECT_EQ(report.notes[0], "2 vertices split where normals or texture coordinates differ");
-}
-
-TEST(Obj, CornerWithoutAttributesIsItsOwnVertex) {
+TEST(Obj, CornerWithoutAttributesIsCompatible) {
   Mesh m;
   SourceReport report;
   ASSERT_TRUE(read_obj("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0.5 0.5\nf 1/1 2/1 3/1\nf 1 2 3\n", &m, &report).ok());
-  EXPECT_EQ(m.positions.size(), 6u);
-  EXPECT_EQ(m.vertex_values[3], (PropertyValues{0, 0}));
-  EXPECT_EQ(m.triangles, (std::vector<Tri>{{0, 1, 2}, {3, 4, 5}}));
+  EXPECT_EQ(property_names(m.schema.vertex_properties), (std::vector<std::string>{"u", "v"}));
+  EXPECT_TRUE(m.schema.face_properties.empty());
+  EXPECT_EQ(m.positions.size(), 3u);
+  EXPECT_EQ(m.vertex_values[2], (PropertyValues{0.5, 0.5}));
+  EXPECT_EQ(m.triangles, (std::vector<Tri>{{0, 1, 2}, {0, 1, 2}}));
+  EXPECT_TRUE(report.notes.empty());
+}
+
+// As cube_quads.obj: every corner of the cube is on three faces, with three
+// normals and several texture coordinates.
+const char kFlatCube[] =
+    "v 0 0 0\nv 0 0 1\nv 0 1 0\nv 0 1 1\nv 1 0 0\nv 1 0 1\nv 1 1 0\nv 1 1 1\n"
+    "vn 0 0 1\nvn 0 0 -1\nvn 0 1 0\nvn 0 -1 0\nvn 1 0 0\nvn -1 0 0\n"
+    "vt 0 0\nvt 0 1\nvt 1 0\nvt 1 1\n"
+    "f 1/4/2 3/3/2 7/1/2 5/2/2\n"
+    "f 1/2/6 2/4/6 4/3/6 3/1/6\n"
+    "f 3/1/3 4/2/3 8/4/3 7/3/3\n"
+    "f 5/4/5 7/3/5 8/1/5 6/2/5\n"
+    "f 1/2/4 5/4/4 6/3/4 2/1/4\n"
+    "f 2/2/1 6/4/1 8/3/1 4/1/1\n";
+
+TEST(Obj, FlatShadedCubeKeepsConnectivity) {
+  Mesh m;
+  SourceReport report;
+  ASSERT_TRUE(read_obj(kFlatCube, &m, &report).ok());
+  EXPECT_EQ(m.schema.vertex_count, 8);
+  EXPECT_EQ(m.schema.triangle_count, 12);
+  ASSERT_EQ(m.positions.size(), 8u);
+  EXPECT_EQ(m.positions[7], (Pos{1, 1, 1}));
+  ASSERT_EQ(m.triangles.size(), 12u);
+  EXPECT_EQ(m.triangles[0], (Tri{0, 2, 6}));
+  EXPECT_EQ(m.triangles[1], (Tri{0, 6, 4}));
+  EXPECT_TRUE(m.schema.vertex_properties.empty());
+  ASSERT_EQ(property_names(m.schema.face_properties), (std::vector<std::string>{"corner_normals", "corner_uv"}));
+  for (const Property& p : m.schema.face_properties) {
+    EXPECT_TRUE(p.is_list);
+    EXPECT_EQ(p.type, ScalarType::kFloat32);
+    EXPECT_EQ(p.count_type, ScalarType::kUInt8);
+  }
+  ASSERT_EQ(m.face_values.size(), 12u);
+  // Triangle 3 is the second of `f 1/2/6 2/4/6 4/3/6 3/1/6`: corners 1, 4, 3.
+  EXPECT_EQ(m.triangles[3], (Tri{0, 3, 2}));
+  EXPECT_EQ(m.face_values[3], (PropertyValues{9, -1, 0, 0, -1, 0, 0, -1, 0, 0, 6, 0, 1, 1, 0, 0, 0}));
+  EXPECT_EQ(report.polygons_triangulated, 6u);
+  EXPECT_EQ(report.notes,
+            (std::vector<std::string>{"normals vary per corner at 8 vertices: kept as per-corner face property corner_normals",
+                                      "texture coordinates vary per corner at 8 vertices: kept as per-corner face property corner_uv"}));
+}
+
+TEST(Obj, PerCornerAttributesFollowTheFan) {
+  // Normals vary (position 1 has two), texture coordinates do not; a corner
+  // without a normal gets 0s.
+  Mesh m;
+  SourceReport report;
+  const std::string text =
+      "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n"
+      "vn 0 0 1\nvn 0 1 0\nvt 0.25 0.75\n"
+      "f 1/1/1 2/1/2 3/1/1 4/1\n"
+      "f 1//2 3 2\n";
+  ASSERT_TRUE(read_obj(text, &m, &report).ok());
+  EXPECT_EQ(m.positions.size(), 4u);
+  EXPECT_EQ(property_names(m.schema.vertex_properties), (std::vector<std::string>{"u", "v"}));
+  EXPECT_EQ(m.vertex_values[3], (PropertyValues{0.25, 0.75}));
+  EXPECT_EQ(property_names(m.schema.face_properties), (std::vector<std::string>{"corner_normals"}));
+  EXPECT_EQ(m.triangles, (std::vector<Tri>{{0, 1, 2}, {0, 2, 3}, {0, 2, 1}}));
+  ASSERT_EQ(m.face_values.size(), 3u);
+  EXPECT_EQ(m.face_values[0], (PropertyValues{9, 0, 0, 1, 0, 1, 0, 0, 0, 1}));
+  EXPECT_EQ(m.face_values[1], (PropertyValues{9, 0, 0, 1, 0, 0, 1, 0, 0, 0}));
+  EXPECT_EQ(m.face_values[2], (PropertyValues{9, 0, 1, 0, 0, 0, 0, 0, 0, 0}));
+  EXPECT_EQ(report.notes,
+            (std::vector<std::string>{"normals vary per corner at 1 vertices: kept as per-corner face property corner_normals"}));
 }
 
 TEST(Obj, NegativeIndices) {
@@ -532,6 +576,74 @@ TEST(Obj, WriterColoursListsAndDropped) {
   EXPECT_NE(test::read_file(dir.file("d.obj")).find("\nv 0.123456789012345 0 0\n"), std::string::npos);
 }
 
+TEST(Obj, WriterRoundTripOfCornerAttributes) {
+  TempDir dir;
+  Mesh cube;
+  ASSERT_TRUE(read_obj(kFlatCube, &cube).ok());
+  std::vector<std::string> dropped;
+  ASSERT_TRUE(write_obj(cube, dir.file("c.obj"), &dropped).ok());
+  EXPECT_TRUE(dropped.empty());
+  std::string text = test::read_file(dir.file("c.obj"));
+  // A flat face's corners share one vn line; each triangle has its own vt.
+  EXPECT_NE(text.find("\nvn 0 0 -1\nvt 1 1\nvt 1 0\nvt 0 0\nf 1/1/1 3/2/1 7/3/1\n"
+                      "vt 1 1\nvt 0 0\nvt 0 1\nf 1/4/1 7/5/1 5/6/1\n"),
+            std::string::npos)
+      << text;
+  Mesh back;
+  SourceReport report;
+  ASSERT_TRUE(read_obj_file(dir.file("c.obj"), &back, &report).ok());
+  EXPECT_EQ(back.schema.vertex_count, 8);
+  EXPECT_EQ(back.schema.vertex_properties, cube.schema.vertex_properties);
+  EXPECT_EQ(back.schema.face_properties, cube.schema.face_properties);
+  EXPECT_EQ(back.positions, cube.positions);
+  EXPECT_EQ(back.triangles, cube.triangles);
+  EXPECT_EQ(back.face_values, cube.face_values);
+  EXPECT_EQ(report.notes.size(), 2u);
+
+  // Normals only, in double: f a//n.
+  cube.schema.face_properties.resize(1);
+  cube.schema.face_properties[0].type = ScalarType::kFloat64;
+  for (PropertyValues& v : cube.face_values) v.resize(10);
+  cube.face_values[0][1] = 0.1;
+  ASSERT_TRUE(write_obj(cube, dir.file("n.obj")).ok());
+  text = test::read_file(dir.file("n.obj"));
+  EXPECT_NE(text.find("\nvn 0.1 0 -1\nvn 0 0 -1\nf 1//1 3//2 7//2\nf 1//2 7//2 5//2\n"), std::string::npos) << text;
+  ASSERT_TRUE(read_obj_file(dir.file("n.obj"), &back).ok());
+  EXPECT_EQ(property_names(back.schema.face_properties), (std::vector<std::string>{"corner_normals"}));
+  EXPECT_EQ(back.triangles, cube.triangles);
+  EXPECT_EQ(back.face_values[0][1], static_cast<double>(0.1f));
+  EXPECT_EQ(back.face_values[5], cube.face_values[5]);
+}
+
+TEST(Obj, WriterCornerAttributeErrorsAndPrecedence) {
+  TempDir dir;
+  Mesh mesh = test::make_grid(1);
+  auto prop = [](const char* name, ScalarType t, bool list = false) {
+    Property p;
+    p.name = name;
+    p.type = t;
+    p.is_list = list;
+    return p;
+  };
+  mesh.schema.face_properties = {prop("flags", ScalarType::kUInt8), prop("corner_normals", ScalarType::kFloat32, true)};
+  mesh.face_values.assign(mesh.triangles.size(), PropertyValues{1, 9, 0, 0, 1, 0, 0, 1, 0, 0, 1});
+  std::vector<std::string> dropped;
+  ASSERT_TRUE(write_obj(mesh, dir.file("a.obj"), &dropped).ok());
+  EXPECT_EQ(dropped, (std::vector<std::string>{"flags"}));
+  EXPECT_NE(test::read_file(dir.file("a.obj")).find("\nvn 0 0 1\nf 1//1 2//1 "), std::string::npos);
+
+  // A triangle whose list has the wrong length.
+  mesh.face_values.back() = {1, 3, 0, 0, 1};
+  Status s = write_obj(mesh, dir.file("b.obj"));
+  EXPECT_EQ(s.code(), ErrorCode::kInternal) << s.to_string();
+
+  // Per-vertex normals win; corner_normals is then dropped.
+  for (const char* name : {"nx", "ny", "nz"}) mesh.schema.vertex_properties.push_back(prop(name, ScalarType::kFloat32));
+  for (PropertyValues& v : mesh.vertex_values) v = {0, 0, 1};
+  ASSERT_TRUE(write_obj(mesh, dir.file("c.obj"), &dropped).ok());
+  EXPECT_EQ(dropped, (std::vector<std::string>{"flags", "corner_normals"}));
+}
+
 // A pipe cannot rewind: the reader spools it.
 Status read_through_pipe(const std::string& text, const std::string& spool_dir, Mesh* mesh) {
   int fds[2];
@@ -576,8 +688,9 @@ TEST(Obj, ReadsFromAPipe) {
 
   text += "vn 0 0 1\nf -1//1 -2//1 -3//1\n";
   ASSERT_TRUE(read_through_pipe(text, "", &m).ok());
-  EXPECT_EQ(m.positions.size(), grid.positions.size() + 3);
+  EXPECT_EQ(m.positions, grid.positions);
   EXPECT_EQ(m.triangles.size(), grid.triangles.size() + 1);
+  EXPECT_EQ(m.vertex_values.back(), (PropertyValues{0, 0, 1}));
 }
 
 TEST(Obj, SharedFandisk) {
@@ -600,11 +713,14 @@ TEST(Obj, SharedCubeQuads) {
   Mesh m;
   SourceReport report;
   ASSERT_TRUE(read_obj_file(path, &m, &report).ok());
-  // 8 corners, each on 3 faces with 3 normals: 24 vertices.
-  EXPECT_EQ(m.positions.size(), 24u);
+  // 8 corners, each on 3 faces with 3 normals: still 8 vertices.
+  EXPECT_EQ(m.positions.size(), 8u);
   EXPECT_EQ(m.triangles.size(), 12u);
   EXPECT_EQ(report.polygons_triangulated, 6u);
-  EXPECT_EQ(report.notes, (std::vector<std::string>{"16 vertices split where normals or texture coordinates differ"}));
+  EXPECT_EQ(property_names(m.schema.face_properties), (std::vector<std::string>{"corner_normals", "corner_uv"}));
+  EXPECT_EQ(report.notes,
+            (std::vector<std::string>{"normals vary per corner at 8 vertices: kept as per-corner face property corner_normals",
+                                      "texture coordinates vary per corner at 8 vertices: kept as per-corner face property corner_uv"}));
 }
 
 TEST(Obj, SharedBadFiles) {

@@ -366,4 +366,20 @@ Status SpoolFile::rewind() {
   return in_.open_fd(fd_, false, "temporary file");
 }
 
+Status SpoolFile::read_at(uint64_t offset, void* dst, size_t n) const {
+  auto* p = static_cast<uint8_t*>(dst);
+  while (n > 0) {
+    ssize_t r = ::pread(fd_, p, n, static_cast<off_t>(offset));
+    if (r < 0) {
+      if (errno == EINTR) continue;
+      return io_error("cannot read", "temporary file");
+    }
+    if (r == 0) return Status(ErrorCode::kTruncated, "temporary file ends early", offset);
+    p += r;
+    n -= static_cast<size_t>(r);
+    offset += static_cast<uint64_t>(r);
+  }
+  return Status();
+}
+
 }  // namespace psq

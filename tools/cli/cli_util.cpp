@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <charconv>
+#include <cctype>
 #include <cmath>
 #include <csignal>
 #include <cstdio>
@@ -122,6 +123,25 @@ std::string json_number(double v) {
   char buf[64];
   auto r = std::to_chars(buf, buf + sizeof buf, v);
   return std::string(buf, r.ptr);
+}
+
+bool parse_size(const std::string& text, uint64_t* bytes) {
+  uint64_t n = 0;
+  const char* b = text.data();
+  const char* e = b + text.size();
+  auto r = std::from_chars(b, e, n);
+  if (r.ec != std::errc() || r.ptr == b || n == 0) return false;
+  std::string unit(r.ptr, e);
+  int shift = 0;
+  if (!unit.empty()) {
+    char u = static_cast<char>(std::toupper(static_cast<unsigned char>(unit[0])));
+    shift = u == 'K' ? 10 : u == 'M' ? 20 : u == 'G' ? 30 : u == 'T' ? 40 : -1;
+    std::string rest = unit.substr(1);
+    if (shift < 0 || !(rest.empty() || rest == "B" || rest == "iB" || rest == "b")) return false;
+  }
+  if (shift > 0 && n > (~uint64_t{0} >> shift)) return false;
+  *bytes = n << shift;
+  return true;
 }
 
 bool same_file(const std::string& a, const std::string& b) {

@@ -4,6 +4,7 @@
 #ifndef PSQ_CLI_UTIL_H_
 #define PSQ_CLI_UTIL_H_
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -50,6 +51,10 @@ class Args {
 std::string json_escape(const std::string& s);
 // Formats a double so that it reads back exactly and is valid JSON.
 std::string json_number(double v);
+
+// Parses a byte size: a number with an optional K, M, G or T suffix (powers
+// of 1024; "MiB", "MB" and "M" all mean 2^20). False when malformed or zero.
+bool parse_size(const std::string& text, uint64_t* bytes);
 
 // Whether two paths name the same existing file.
 bool same_file(const std::string& a, const std::string& b);

@@ -17,6 +17,7 @@ const char kUsage[] =
     "Commands:\n"
     "  info FILE        counts, properties, bounding box and defects of a mesh\n"
     "  convert IN OUT   convert between PLY and OBJ, streaming\n"
+    "  dump IN          print the processing sequence of a mesh as text\n"
     "\n"
     "Options:\n"
     "  -h, --help       show this help (psq COMMAND --help for a command's)\n"
@@ -44,5 +45,6 @@ int main(int argc, char** argv) {
   }
   if (cmd == "info") return psq::cli::cmd_info(argc - 1, argv + 1);
   if (cmd == "convert") return psq::cli::cmd_convert(argc - 1, argv + 1);
+  if (cmd == "dump") return psq::cli::cmd_dump(argc - 1, argv + 1);
   return psq::cli::usage_error("", "unknown command '" + cmd + "'");
 }

@@ -8,7 +8,6 @@
 #include <string>
 #include <string_view>
 #include <system_error>
-#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -17,11 +16,12 @@
 namespace psq {
 namespace {
 
-// Element counts stay below these so that uint32 vertex indices hold every
-// vertex, split vertices included, and two values remain free as markers.
+// Element counts stay below this so that uint32 indices hold every vertex,
+// normal and texture coordinate, and the values above remain free as markers.
 constexpr uint64_t kMaxCount = 0xFFFFFFF0u;
 constexpr uint32_t kAbsent = 0xFFFFFFFFu;  // a corner without vt or vn
-constexpr uint32_t kUnset = 0xFFFFFFFEu;   // a position no corner used yet
+constexpr uint32_t kUnset = 0xFFFFFFFEu;   // a position no corner gave one yet
+constexpr uint32_t kMixed = 0xFFFFFFFDu;   // a position its corners gave several
 
 // Leading comments are kept as schema comments, but only a bounded amount:
 // a file could start with megabytes of them.
@@ -232,20 +232,6 @@ class StatementReader {
 
 struct Corner {
   uint32_t v, t, n;  // 0-based; t and n may be kAbsent
-  bool operator==(const Corner& o) const { return v == o.v && t == o.t && n == o.n; }
-};
-
-struct CornerHash {
-  size_t operator()(const Corner& c) const {
-    uint64_t h = c.v * 0x9E3779B97F4A7C15ull;
-    h ^= (h >> 29) + c.t * 0xC2B2AE3D27D4EB4Full;
-    h ^= (h >> 31) + c.n * 0x165667B19E3779F9ull;
-    return static_cast<size_t>(h ^ (h >> 32));
-  }
-};
-
-struct Attr {
-  uint32_t t = kUnset, n = kUnset;
 };
 
 Property float_property(const char* name) {
@@ -254,6 +240,44 @@ Property float_property(const char* name) {
   p.type = ScalarType::kFloat32;
   return p;
 }
+
+Property float_list_property(const char* name) {
+  Property p = float_property(name);
+  p.is_list = true;
+  p.count_type = ScalarType::kUInt8;
+  return p;
+}
+
+// One kind of attribute (normals or texture coordinates) of a file read in
+// memory. OBJ indexes attributes per corner; psq keeps every `v` line as one
+// vertex, so the attribute is a vertex property when each position has a
+// single one, and a per-corner face property otherwise.
+struct Attribute {
+  size_t arity = 0;             // floats per element: 3 (vn) or 2 (vt)
+  std::vector<float> elements;  // the vn or vt lines
+  std::vector<uint32_t> of_vertex;  // per position: the index, kUnset or kMixed
+  std::vector<uint32_t> corners;    // per triangle corner: the index or kAbsent
+  uint64_t mixed = 0;               // positions used with several indices
+  bool per_corner = false;
+
+  void use(uint32_t v, uint32_t index) {
+    corners.push_back(index);
+    if (index == kAbsent) return;  // compatible with any index
+    uint32_t& a = of_vertex[v];
+    if (a == kUnset) {
+      a = index;
+    } else if (a != kMixed && a != index) {
+      a = kMixed;
+      ++mixed;
+    }
+  }
+
+  // Appends `arity` values of element `index`, zeros when there is none.
+  void append(uint32_t index, PropertyValues* out) const {
+    bool any = index < kMixed;
+    for (size_t k = 0; k < arity; ++k) out->push_back(any ? elements[arity * size_t{index} + k] : 0.0);
+  }
+};
 
 }  // namespace
 
@@ -297,7 +321,7 @@ struct ObjReader::Impl {
   Status read_corner(std::string_view tok, Corner* c);
   Status resolve(std::string_view tok, uint64_t defined, const char* what, uint32_t* out);
   Status check_unused(std::string_view tok, const char* what);
-  Status corner_vertex(const Corner& c, uint32_t* id);
+  void decide_attributes();
   void add_final_notes();
 
   Status error(ErrorCode code, std::string message) const {
@@ -343,11 +367,8 @@ struct ObjReader::Impl {
   // In memory: everything, then yielded from `at`.
   std::vector<float> positions;
   std::vector<float> vertex_colours;
-  std::vector<float> texcoords;
-  std::vector<float> normals;
-  std::vector<Attr> attrs;      // per position: the first (vt, vn) used
-  std::vector<Corner> splits;   // vertices appended after the positions
-  std::unordered_map<Corner, uint32_t, CornerHash> split_ids;
+  Attribute normals;
+  Attribute texcoords;
   std::vector<uint32_t> triangles;
   uint64_t at = 0;
 };
@@ -374,24 +395,28 @@ Status ObjReader::Impl::open(InputStream* input, const std::string& spool_dir) {
   PSQ_RETURN_IF_ERROR(in->rewind());
   reader.start(in);
 
+  if (has_vn || has_vt) {
+    mode = Mode::kMemory;
+    PSQ_RETURN_IF_ERROR(load());
+  }
+
   // OBJ text is almost always single precision and carries no type, so
   // positions and attributes are declared (and parsed as) float; a writer
   // then reproduces them exactly.
   schema.position_type = ScalarType::kFloat32;
-  if (has_vn) {
+  if (has_vn && !normals.per_corner) {
     for (const char* name : {"nx", "ny", "nz"}) schema.vertex_properties.push_back(float_property(name));
   }
   if (colours) {
     for (const char* name : {"red", "green", "blue"}) schema.vertex_properties.push_back(float_property(name));
   }
-  if (has_vt) {
+  if (has_vt && !texcoords.per_corner) {
     for (const char* name : {"u", "v"}) schema.vertex_properties.push_back(float_property(name));
   }
+  if (normals.per_corner) schema.face_properties.push_back(float_list_property("corner_normals"));
+  if (texcoords.per_corner) schema.face_properties.push_back(float_list_property("corner_uv"));
+  if (mode == Mode::kMemory) return Status();
 
-  if (has_vn || has_vt) {
-    mode = Mode::kMemory;
-    return load();
-  }
   mode = Mode::kStream;
   schema.vertex_count = static_cast<int64_t>(file_vertices);
   schema.triangle_count = static_cast<int64_t>(file_triangles);
@@ -583,9 +608,13 @@ void ObjReader::Impl::add_final_notes() {
     report.notes.push_back("colours of " + std::to_string(colours_ignored) +
                            " vertices ignored: the first vertex has none");
   }
-  if (!splits.empty()) {
-    report.notes.push_back(std::to_string(splits.size()) +
-                           " vertices split where normals or texture coordinates differ");
+  if (normals.per_corner) {
+    report.notes.push_back("normals vary per corner at " + std::to_string(normals.mixed) +
+                           " vertices: kept as per-corner face property corner_normals");
+  }
+  if (texcoords.per_corner) {
+    report.notes.push_back("texture coordinates vary per corner at " + std::to_string(texcoords.mixed) +
+                           " vertices: kept as per-corner face property corner_uv");
   }
 }
 
@@ -663,37 +692,13 @@ Status ObjReader::Impl::next_streamed(MeshItem* item) {
   }
 }
 
-// The vertex a corner becomes: its position, unless that position was first
-// used with other attributes, in which case a split vertex.
-Status ObjReader::Impl::corner_vertex(const Corner& c, uint32_t* id) {
-  Attr& a = attrs[c.v];
-  if (a.t == kUnset) {
-    a.t = c.t;
-    a.n = c.n;
-  }
-  if (a.t == c.t && a.n == c.n) {
-    *id = c.v;
-    return Status();
-  }
-  auto found = split_ids.find(c);
-  if (found != split_ids.end()) {
-    *id = found->second;
-    return Status();
-  }
-  uint64_t next_id = file_vertices + splits.size();
-  if (next_id >= kMaxCount) return error(ErrorCode::kLimit, "too many vertices for 32-bit indices");
-  *id = static_cast<uint32_t>(next_id);
-  splits.push_back(c);
-  split_ids.emplace(c, *id);
-  return Status();
-}
-
 Status ObjReader::Impl::load() {
-  // Split vertices are numbered after every position, whose count the
-  // prescan gave.
-  attrs.resize(file_vertices);
   positions.reserve(3 * file_vertices);
   if (colours) vertex_colours.reserve(3 * file_vertices);
+  normals.arity = 3;
+  texcoords.arity = 2;
+  if (has_vn) normals.of_vertex.assign(file_vertices, kUnset);
+  if (has_vt) texcoords.of_vertex.assign(file_vertices, kUnset);
   for (;;) {
     std::string_view stmt;
     bool eof = false;
@@ -717,8 +722,7 @@ Status ObjReader::Impl::load() {
                      "texture coordinate has " + std::to_string(n) + " values; expected 1 to 3");
       }
       if (vt_count >= kMaxCount) return error(ErrorCode::kLimit, "too many texture coordinates");
-      texcoords.push_back(uvw[0]);
-      texcoords.push_back(uvw[1]);
+      texcoords.elements.insert(texcoords.elements.end(), uvw, uvw + 2);
       ++vt_count;
     } else if (kw == "vn") {
       float xyz[3];
@@ -728,26 +732,23 @@ Status ObjReader::Impl::load() {
         return error(ErrorCode::kBadValue, "normal has " + std::to_string(n) + " values; expected 3");
       }
       if (vn_count >= kMaxCount) return error(ErrorCode::kLimit, "too many normals");
-      normals.insert(normals.end(), xyz, xyz + 3);
+      normals.elements.insert(normals.elements.end(), xyz, xyz + 3);
       ++vn_count;
     } else if (kw == "f") {
       PSQ_RETURN_IF_ERROR(read_face(tk));
-      uint32_t first = 0, prev = 0;
-      for (size_t i = 0; i < corners.size(); ++i) {
-        uint32_t id = 0;
-        PSQ_RETURN_IF_ERROR(corner_vertex(corners[i], &id));
-        if (i == 0) {
-          first = id;
-        } else if (i >= 2) {
-          triangles.insert(triangles.end(), {first, prev, id});
+      // A fan: corners 0, i - 1, i.
+      for (size_t i = 2; i < corners.size(); ++i) {
+        for (const Corner& c : {corners[0], corners[i - 1], corners[i]}) {
+          triangles.push_back(c.v);
+          if (has_vn) normals.use(c.v, c.n);
+          if (has_vt) texcoords.use(c.v, c.t);
         }
-        prev = id;
       }
     }
   }
   if (v_count != file_vertices) return Status(ErrorCode::kIo, "the input changed while it was read");
-  split_ids = {};
-  schema.vertex_count = static_cast<int64_t>(file_vertices + splits.size());
+  decide_attributes();
+  schema.vertex_count = static_cast<int64_t>(file_vertices);
   schema.triangle_count = static_cast<int64_t>(triangles.size() / 3);
   add_final_notes();
   // Everything is in memory: the spool file can go.
@@ -756,39 +757,43 @@ Status ObjReader::Impl::load() {
   return Status();
 }
 
+// Keeps of each attribute only the indices that will be yielded.
+void ObjReader::Impl::decide_attributes() {
+  for (Attribute* a : {&normals, &texcoords}) {
+    a->per_corner = a->mixed > 0;
+    if (a->per_corner) {
+      a->of_vertex = {};
+    } else {
+      a->corners = {};
+    }
+  }
+}
+
 Status ObjReader::Impl::next_in_memory(MeshItem* item) {
-  uint64_t vertex_total = file_vertices + splits.size();
   uint64_t triangle_total = triangles.size() / 3;
   item->values.clear();
-  if (at < vertex_total) {
-    uint32_t v = static_cast<uint32_t>(at);
-    Attr a = at < file_vertices ? attrs[at] : Attr();
-    if (at >= file_vertices) {
-      const Corner& c = splits[at - file_vertices];
-      v = c.v;
-      a.t = c.t;
-      a.n = c.n;
-    }
+  if (at < file_vertices) {
+    size_t v = static_cast<size_t>(at);
     item->kind = MeshItem::Kind::kVertex;
-    for (int k = 0; k < 3; ++k) item->position[k] = positions[3 * size_t{v} + k];
-    if (has_vn) {
-      bool any = a.n != kUnset && a.n != kAbsent;
-      for (int k = 0; k < 3; ++k) item->values.push_back(any ? normals[3 * size_t{a.n} + k] : 0.0);
-    }
+    for (int k = 0; k < 3; ++k) item->position[k] = positions[3 * v + k];
+    if (has_vn && !normals.per_corner) normals.append(normals.of_vertex[v], &item->values);
     if (colours) {
-      for (int k = 0; k < 3; ++k) item->values.push_back(vertex_colours[3 * size_t{v} + k]);
+      for (int k = 0; k < 3; ++k) item->values.push_back(vertex_colours[3 * v + k]);
     }
-    if (has_vt) {
-      bool any = a.t != kUnset && a.t != kAbsent;
-      for (int k = 0; k < 2; ++k) item->values.push_back(any ? texcoords[2 * size_t{a.t} + k] : 0.0);
-    }
+    if (has_vt && !texcoords.per_corner) texcoords.append(texcoords.of_vertex[v], &item->values);
     ++at;
     return Status();
   }
-  if (at < vertex_total + triangle_total) {
-    size_t t = static_cast<size_t>(at - vertex_total);
+  if (at < file_vertices + triangle_total) {
+    size_t t = static_cast<size_t>(at - file_vertices);
     item->kind = MeshItem::Kind::kTriangle;
     for (int k = 0; k < 3; ++k) item->index[k] = triangles[3 * t + k];
+    // The flattened list: its count, then the values of corners 0, 1, 2.
+    for (const Attribute* a : {&normals, &texcoords}) {
+      if (!a->per_corner) continue;
+      item->values.push_back(static_cast<double>(3 * a->arity));
+      for (int k = 0; k < 3; ++k) a->append(a->corners[3 * t + k], &item->values);
+    }
     ++at;
     return Status();
   }

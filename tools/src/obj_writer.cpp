@@ -3,6 +3,7 @@
 
 #include <charconv>
 #include <cstdint>
+#include <cstring>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -12,9 +13,10 @@
 namespace psq {
 namespace {
 
-// Room for one vertex's v, vn and vt lines or one f line: a number takes at
-// most 24 characters.
-constexpr size_t kLineBuffer = 512;
+// Room for one vertex's v, vn and vt lines, or for one triangle's three vn,
+// three vt and one f line: a number takes at most 25 characters with its
+// space, an index 20.
+constexpr size_t kLineBuffer = 1024;
 
 // How a written value is converted from the property's own value.
 enum class Conversion { kFloat, kDouble, kByteColour, kShortColour };
@@ -60,6 +62,71 @@ bool find_slots(const std::vector<Property>& props, const char* const (&names)[N
   return true;
 }
 
+// Where each property's value (or list count) sits in an element's values:
+// a list moves every property after it by its length.
+class Layout {
+ public:
+  void reset(const std::vector<Property>& props) {
+    is_list_.assign(props.size(), false);
+    has_list_ = false;
+    for (size_t i = 0; i < props.size(); ++i) {
+      is_list_[i] = props[i].is_list;
+      has_list_ = has_list_ || props[i].is_list;
+    }
+    offsets_.resize(props.size());
+    for (size_t i = 0; i < props.size(); ++i) offsets_[i] = i;
+  }
+
+  // False when `values` is too short for the schema.
+  bool locate(const PropertyValues& values) {
+    if (!has_list_) return values.size() >= offsets_.size();
+    size_t at = 0;
+    for (size_t i = 0; i < offsets_.size(); ++i) {
+      if (at >= values.size()) return false;
+      offsets_[i] = at++;
+      if (is_list_[i]) {
+        double n = values[at - 1];
+        if (!(n >= 0) || n > static_cast<double>(values.size() - at)) return false;
+        at += static_cast<size_t>(n);
+      }
+    }
+    return true;
+  }
+
+  size_t offset(int property) const { return offsets_[static_cast<size_t>(property)]; }
+
+ private:
+  std::vector<bool> is_list_;
+  bool has_list_ = false;
+  std::vector<size_t> offsets_;
+};
+
+// A face list property with one attribute per corner, as ObjReader makes
+// them: corner_normals (nx ny nz per corner, written as vn lines) or
+// corner_uv (u v per corner, written as vt lines).
+struct CornerSlot {
+  const char* name = "";
+  const char* keyword = "";
+  size_t arity = 0;
+  int property = -1;  // index in the schema's face properties, or none
+  Conversion conversion = Conversion::kFloat;
+  uint64_t lines = 0;      // vn or vt lines written so far
+  double last[3] = {0, 0, 0};  // the values of the last one
+
+  bool active() const { return property >= 0; }
+
+  void find(const std::vector<Property>& props) {
+    property = -1;
+    lines = 0;
+    for (size_t i = 0; i < props.size(); ++i) {
+      if (props[i].is_list && props[i].name == name && float_conversion(props[i].type, &conversion)) {
+        property = static_cast<int>(i);
+        return;
+      }
+    }
+  }
+};
+
 // Shortest text that reads back to the same float or double: float data
 // round-trips bit-exactly and the files stay small.
 char* put_number(char* p, double v, Conversion c) {
@@ -78,8 +145,36 @@ char* put_text(char* p, std::string_view s) {
   return p;
 }
 
-char* put_index(char* p, uint32_t index) {
-  return std::to_chars(p, p + 16, uint64_t{index} + 1).ptr;  // OBJ counts from 1
+char* put_index(char* p, uint64_t index) {
+  return std::to_chars(p, p + 24, index + 1).ptr;  // OBJ counts from 1
+}
+
+// Writes the vn or vt lines of a triangle's corners at `*p` and sets `ids`
+// to the (0-based) line each corner refers to. A corner equal to the line
+// written last reuses it, so a flat-shaded face costs one line, not three.
+Status put_corners(CornerSlot& c, const PropertyValues& values, size_t at, char** p, uint64_t ids[3]) {
+  size_t n = 3 * c.arity;
+  if (values[at] != static_cast<double>(n)) {
+    return Status(ErrorCode::kInternal, std::string(c.name) + " of a triangle does not have " +
+                                            std::to_string(n) + " values");
+  }
+  for (size_t k = 0; k < 3; ++k) {
+    double v[3] = {0, 0, 0};
+    for (size_t j = 0; j < c.arity; ++j) {
+      double x = values[at + 1 + c.arity * k + j];
+      v[j] = c.conversion == Conversion::kFloat ? static_cast<double>(static_cast<float>(x)) : x;
+    }
+    if (c.lines > 0 && std::memcmp(v, c.last, sizeof v) == 0) {
+      ids[k] = c.lines - 1;
+      continue;
+    }
+    *p = put_text(*p, c.keyword);
+    for (size_t j = 0; j < c.arity; ++j) *p = put_number(*p, v[j], c.conversion);
+    *(*p)++ = '\n';
+    std::memcpy(c.last, v, sizeof v);
+    ids[k] = c.lines++;
+  }
+  return Status();
 }
 
 }  // namespace
@@ -93,17 +188,28 @@ struct ObjWriter::Impl {
   bool has_colour = false;
   bool has_normal = false;
   bool has_texcoord = false;
-  size_t property_count = 0;
-  bool has_list = false;        // offsets of values vary per vertex
-  std::vector<bool> is_list;    // per vertex property
-  std::vector<size_t> offsets;  // of each vertex property in its values
+  CornerSlot corner_normal;
+  CornerSlot corner_uv;
+  Layout vertex_layout;
+  Layout face_layout;
   std::vector<std::string> dropped;
   char line[kLineBuffer];
 
-  double value(const PropertyValues& values, const Slot& s) const { return values[offsets[s.property]]; }
+  double value(const PropertyValues& values, const Slot& s) const {
+    return values[vertex_layout.offset(s.property)];
+  }
 };
 
-ObjWriter::ObjWriter(OutputFile* out) : impl_(std::make_unique<Impl>()) { impl_->out = out; }
+ObjWriter::ObjWriter(OutputFile* out) : impl_(std::make_unique<Impl>()) {
+  impl_->out = out;
+  impl_->corner_normal.name = "corner_normals";
+  impl_->corner_normal.keyword = "vn";
+  impl_->corner_normal.arity = 3;
+  impl_->corner_uv.name = "corner_uv";
+  impl_->corner_uv.keyword = "vt";
+  impl_->corner_uv.arity = 2;
+}
+
 ObjWriter::~ObjWriter() = default;
 
 Status ObjWriter::begin(const MeshSchema& schema) {
@@ -122,6 +228,12 @@ Status ObjWriter::begin(const MeshSchema& schema) {
       break;
     }
   }
+  // An OBJ corner has one normal and one texture coordinate: per-vertex
+  // ones win over per-corner ones.
+  w.corner_normal.find(schema.face_properties);
+  if (w.has_normal) w.corner_normal.property = -1;
+  w.corner_uv.find(schema.face_properties);
+  if (w.has_texcoord) w.corner_uv.property = -1;
 
   std::vector<bool> written(props.size(), false);
   if (w.has_colour) for (const Slot& s : w.colour) written[s.property] = true;
@@ -131,17 +243,14 @@ Status ObjWriter::begin(const MeshSchema& schema) {
   for (size_t i = 0; i < props.size(); ++i) {
     if (!written[i]) w.dropped.push_back(props[i].name);
   }
-  for (const Property& p : schema.face_properties) w.dropped.push_back(p.name);
-
-  w.property_count = props.size();
-  w.has_list = false;
-  w.is_list.assign(props.size(), false);
-  for (size_t i = 0; i < props.size(); ++i) {
-    w.is_list[i] = props[i].is_list;
-    w.has_list = w.has_list || props[i].is_list;
+  for (size_t i = 0; i < schema.face_properties.size(); ++i) {
+    int index = static_cast<int>(i);
+    if (index == w.corner_normal.property || index == w.corner_uv.property) continue;
+    w.dropped.push_back(schema.face_properties[i].name);
   }
-  w.offsets.resize(props.size());
-  for (size_t i = 0; i < props.size(); ++i) w.offsets[i] = i;
+
+  w.vertex_layout.reset(props);
+  w.face_layout.reset(schema.face_properties);
 
   // The reader keeps leading comments; "psq" is this line, not repeated.
   std::string header = "# psq\n";
@@ -156,23 +265,7 @@ Status ObjWriter::begin(const MeshSchema& schema) {
 
 Status ObjWriter::vertex(const double position[3], const PropertyValues& values) {
   Impl& w = *impl_;
-  if (w.has_list) {
-    // A list before a property moves its value by the list's length.
-    size_t at = 0;
-    for (size_t i = 0; i < w.property_count; ++i) {
-      if (at >= values.size()) return Status(ErrorCode::kInternal, "vertex values do not match the schema");
-      w.offsets[i] = at++;
-      if (w.is_list[i]) {
-        double n = values[at - 1];
-        if (!(n >= 0) || n > static_cast<double>(values.size() - at)) {
-          return Status(ErrorCode::kInternal, "vertex values do not match the schema");
-        }
-        at += static_cast<size_t>(n);
-      }
-    }
-  } else if (values.size() < w.property_count) {
-    return Status(ErrorCode::kInternal, "vertex values do not match the schema");
-  }
+  if (!w.vertex_layout.locate(values)) return Status(ErrorCode::kInternal, "vertex values do not match the schema");
   char* p = w.line;
   p = put_text(p, "v");
   for (int k = 0; k < 3; ++k) p = put_number(p, position[k], w.position);
@@ -193,20 +286,34 @@ Status ObjWriter::vertex(const double position[3], const PropertyValues& values)
   return w.out->write(w.line, static_cast<size_t>(p - w.line));
 }
 
-Status ObjWriter::triangle(const uint32_t index[3], const PropertyValues& /*values*/) {
+Status ObjWriter::triangle(const uint32_t index[3], const PropertyValues& values) {
   Impl& w = *impl_;
   char* p = w.line;
+  // Per-vertex attributes are numbered like the vertex; per-corner ones get
+  // lines of their own, written just before the face.
+  uint64_t t[3] = {index[0], index[1], index[2]};
+  uint64_t n[3] = {index[0], index[1], index[2]};
+  if (w.corner_normal.active() || w.corner_uv.active()) {
+    if (!w.face_layout.locate(values)) return Status(ErrorCode::kInternal, "triangle values do not match the schema");
+    if (w.corner_normal.active()) {
+      PSQ_RETURN_IF_ERROR(put_corners(w.corner_normal, values, w.face_layout.offset(w.corner_normal.property), &p, n));
+    }
+    if (w.corner_uv.active()) {
+      PSQ_RETURN_IF_ERROR(put_corners(w.corner_uv, values, w.face_layout.offset(w.corner_uv.property), &p, t));
+    }
+  }
+  bool with_t = w.has_texcoord || w.corner_uv.active();
+  bool with_n = w.has_normal || w.corner_normal.active();
   p = put_text(p, "f");
   for (int k = 0; k < 3; ++k) {
     *p++ = ' ';
     p = put_index(p, index[k]);
-    // Each vertex has its own vt and vn, numbered like the vertex.
-    if (w.has_texcoord || w.has_normal) {
+    if (with_t || with_n) {
       *p++ = '/';
-      if (w.has_texcoord) p = put_index(p, index[k]);
-      if (w.has_normal) {
+      if (with_t) p = put_index(p, t[k]);
+      if (with_n) {
         *p++ = '/';
-        p = put_index(p, index[k]);
+        p = put_index(p, n[k]);
       }
     }
   }

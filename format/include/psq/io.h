@@ -138,6 +138,9 @@ class SpoolFile {
   uint64_t size() const { return written_; }
   // Flushes and opens the contents for reading from the start. Errors: kIo.
   Status rewind();
+  // Reads `n` bytes at `offset` (after rewind(), which flushes), without
+  // moving stream(). Errors: kIo, kTruncated past the end.
+  Status read_at(uint64_t offset, void* dst, size_t n) const;
   InputStream& stream() { return in_; }
 
  private:

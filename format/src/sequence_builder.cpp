@@ -1,0 +1,248 @@
+// build_sequence (psq/sequence_builder.h): spool an indexed mesh, then feed
+// the converter either in file order (coherent input) or after an external
+// spatial sort (paper section 3, "from scratch"; external sorts as in
+// Lindstrom and Silva 2001).
+#include "psq/sequence_builder.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <vector>
+
+#include "psq/external_sort.h"
+#include "psq/io.h"
+
+namespace psq {
+namespace {
+
+// Spool record layouts (native endianness; the files never leave the
+// process): vertex = 3 doubles, uint32 n, n doubles; triangle = 3 uint32,
+// uint32 n, n doubles.
+Status put_values(SpoolFile& f, const PropertyValues& values) {
+  uint32_t n = static_cast<uint32_t>(values.size());
+  PSQ_RETURN_IF_ERROR(f.write(&n, 4));
+  return values.empty() ? Status() : f.write(values.data(), 8 * values.size());
+}
+
+Status get_values(InputStream& in, PropertyValues* values) {
+  uint32_t n;
+  PSQ_RETURN_IF_ERROR(in.read_exact(&n, 4));
+  values->resize(n);
+  return n == 0 ? Status() : in.read_exact(values->data(), 8 * size_t{n});
+}
+
+Status get_values_at(const SpoolFile& f, uint64_t offset, PropertyValues* values) {
+  uint32_t n;
+  PSQ_RETURN_IF_ERROR(f.read_at(offset, &n, 4));
+  values->resize(n);
+  return n == 0 ? Status() : f.read_at(offset + 4, values->data(), 8 * size_t{n});
+}
+
+// A float made into an unsigned integer that sorts like the float.
+uint32_t sortable(float f) {
+  uint32_t u;
+  std::memcpy(&u, &f, 4);
+  return (u & 0x80000000u) ? ~u : (u | 0x80000000u);
+}
+
+struct VertexKey {
+  uint32_t key;     // position along the sweep axis
+  uint32_t index;   // input index: ties, and identity
+  uint64_t offset;  // of the record in the vertex spool
+  bool operator<(const VertexKey& o) const { return key != o.key ? key < o.key : index < o.index; }
+};
+
+struct TriangleKey {
+  uint32_t rank;    // smallest rank of its vertices
+  uint32_t pad = 0;
+  uint64_t offset;  // of the record in the triangle spool (also a unique tie-break)
+  bool operator<(const TriangleKey& o) const { return rank != o.rank ? rank < o.rank : offset < o.offset; }
+};
+
+struct Spooled {
+  SpoolFile vertices;
+  SpoolFile triangles;
+  uint64_t nv = 0, nt = 0;
+  double lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
+  uint64_t lag = 0, span = 0;
+};
+
+Status spool_input(MeshSource& source, const BuildOptions& options, Spooled* s) {
+  PSQ_RETURN_IF_ERROR(s->vertices.create(options.tmpdir));
+  PSQ_RETURN_IF_ERROR(s->triangles.create(options.tmpdir));
+  MeshItem item;
+  uint64_t running_min = 0;  // running maximum of the triangles' smallest index
+  for (;;) {
+    PSQ_RETURN_IF_ERROR(source.next(&item));
+    if (item.kind == MeshItem::Kind::kEnd) break;
+    if (item.kind == MeshItem::Kind::kVertex) {
+      if (s->nv == 0) {
+        std::copy(item.position, item.position + 3, s->lo);
+        std::copy(item.position, item.position + 3, s->hi);
+      }
+      for (int k = 0; k < 3; ++k) {
+        s->lo[k] = std::min(s->lo[k], item.position[k]);
+        s->hi[k] = std::max(s->hi[k], item.position[k]);
+      }
+      PSQ_RETURN_IF_ERROR(s->vertices.write(item.position, 24));
+      PSQ_RETURN_IF_ERROR(put_values(s->vertices, item.values));
+      ++s->nv;
+    } else {
+      PSQ_RETURN_IF_ERROR(s->triangles.write(item.index, 12));
+      PSQ_RETURN_IF_ERROR(put_values(s->triangles, item.values));
+      uint32_t mn = std::min({item.index[0], item.index[1], item.index[2]});
+      uint32_t mx = std::max({item.index[0], item.index[1], item.index[2]});
+      running_min = std::max<uint64_t>(running_min, mn);
+      s->lag = std::max<uint64_t>(s->lag, running_min - mn);
+      s->span = std::max<uint64_t>(s->span, mx - mn);
+      ++s->nt;
+    }
+  }
+  PSQ_RETURN_IF_ERROR(s->vertices.rewind());
+  return s->triangles.rewind();
+}
+
+// Coherent path: triangles in file order, vertices in index order, vertex v
+// final once the running maximum of smallest indices exceeds v + lag.
+Status feed_coherent(Spooled& s, SequenceConverter& conv) {
+  InputStream& vin = s.vertices.stream();
+  InputStream& tin = s.triangles.stream();
+  uint64_t fed = 0, finalized = 0, running_min = 0;
+  double pos[3];
+  PropertyValues values;
+  auto feed_until = [&](uint64_t end) -> Status {
+    while (fed < end) {
+      PSQ_RETURN_IF_ERROR(vin.read_exact(pos, 24));
+      PSQ_RETURN_IF_ERROR(get_values(vin, &values));
+      PSQ_RETURN_IF_ERROR(conv.vertex(static_cast<uint32_t>(fed), pos, values));
+      ++fed;
+    }
+    return Status();
+  };
+  for (uint64_t t = 0; t < s.nt; ++t) {
+    uint32_t idx[3];
+    PSQ_RETURN_IF_ERROR(tin.read_exact(idx, 12));
+    PSQ_RETURN_IF_ERROR(get_values(tin, &values));
+    uint32_t mn = std::min({idx[0], idx[1], idx[2]});
+    uint32_t mx = std::max({idx[0], idx[1], idx[2]});
+    PSQ_RETURN_IF_ERROR(feed_until(uint64_t{mx} + 1));
+    PSQ_RETURN_IF_ERROR(conv.triangle(idx, values));
+    running_min = std::max<uint64_t>(running_min, mn);
+    while (finalized + s.lag < running_min) PSQ_RETURN_IF_ERROR(conv.finalize(static_cast<uint32_t>(finalized++)));
+  }
+  PSQ_RETURN_IF_ERROR(feed_until(s.nv));
+  while (finalized < s.nv) PSQ_RETURN_IF_ERROR(conv.finalize(static_cast<uint32_t>(finalized++)));
+  return Status();
+}
+
+// Sort path.
+Status feed_sorted(Spooled& s, const BuildOptions& options, SequenceConverter& conv) {
+  if (s.nv * 4 > options.memory_budget / 2) {
+    return Status(ErrorCode::kLimit, "the vertex rank array (4 bytes per vertex) does not fit --memory");
+  }
+  int axis = 0;
+  for (int k = 1; k < 3; ++k) {
+    if (s.hi[k] - s.lo[k] > s.hi[axis] - s.lo[axis]) axis = k;
+  }
+  ExternalSortOptions so;
+  so.memory_budget = options.memory_budget / 2;  // the rank array takes the rest
+  so.tmpdir = options.tmpdir;
+  // 1. Vertices by their coordinate along the longest axis.
+  ExternalSorter<VertexKey> vsort(so);
+  {
+    InputStream& vin = s.vertices.stream();
+    double pos[3];
+    PropertyValues values;
+    uint64_t offset = 0;
+    for (uint64_t i = 0; i < s.nv; ++i) {
+      PSQ_RETURN_IF_ERROR(vin.read_exact(pos, 24));
+      PSQ_RETURN_IF_ERROR(get_values(vin, &values));
+      PSQ_RETURN_IF_ERROR(vsort.add(VertexKey{sortable(static_cast<float>(pos[axis])), static_cast<uint32_t>(i), offset}));
+      offset += 24 + 4 + 8 * values.size();
+    }
+  }
+  PSQ_RETURN_IF_ERROR(vsort.finish());
+  // 2. Ranks, and the vertices in rank order spooled as (index, offset).
+  std::vector<uint32_t> rank(s.nv);
+  SpoolFile order;
+  PSQ_RETURN_IF_ERROR(order.create(options.tmpdir));
+  for (uint32_t r = 0;; ++r) {
+    VertexKey vk;
+    bool done;
+    PSQ_RETURN_IF_ERROR(vsort.next(&vk, &done));
+    if (done) break;
+    rank[vk.index] = r;
+    PSQ_RETURN_IF_ERROR(order.write(&vk.index, 4));
+    PSQ_RETURN_IF_ERROR(order.write(&vk.offset, 8));
+  }
+  vsort = ExternalSorter<VertexKey>(so);  // release its buffers
+  PSQ_RETURN_IF_ERROR(order.rewind());
+  // 3. Triangles by the smallest rank of their vertices.
+  ExternalSorter<TriangleKey> tsort(so);
+  {
+    InputStream& tin = s.triangles.stream();
+    uint32_t idx[3];
+    PropertyValues values;
+    uint64_t offset = 0;
+    for (uint64_t t = 0; t < s.nt; ++t) {
+      PSQ_RETURN_IF_ERROR(tin.read_exact(idx, 12));
+      PSQ_RETURN_IF_ERROR(get_values(tin, &values));
+      uint32_t r = std::min({rank[idx[0]], rank[idx[1]], rank[idx[2]]});
+      PSQ_RETURN_IF_ERROR(tsort.add(TriangleKey{r, 0, offset}));
+      offset += 12 + 4 + 8 * values.size();
+    }
+  }
+  PSQ_RETURN_IF_ERROR(tsort.finish());
+  // 4. Merge: for each vertex in rank order, the vertex, the triangles whose
+  // first vertex it is, and its finalization: all its triangles are in.
+  InputStream& oin = order.stream();
+  TriangleKey next_t{};
+  bool t_done = false;
+  PSQ_RETURN_IF_ERROR(tsort.next(&next_t, &t_done));
+  double pos[3];
+  PropertyValues values;
+  for (uint64_t r = 0; r < s.nv; ++r) {
+    uint32_t index;
+    uint64_t offset;
+    PSQ_RETURN_IF_ERROR(oin.read_exact(&index, 4));
+    PSQ_RETURN_IF_ERROR(oin.read_exact(&offset, 8));
+    PSQ_RETURN_IF_ERROR(s.vertices.read_at(offset, pos, 24));
+    PSQ_RETURN_IF_ERROR(get_values_at(s.vertices, offset + 24, &values));
+    PSQ_RETURN_IF_ERROR(conv.vertex(index, pos, values));
+    while (!t_done && next_t.rank == r) {
+      uint32_t idx[3];
+      PSQ_RETURN_IF_ERROR(s.triangles.read_at(next_t.offset, idx, 12));
+      PSQ_RETURN_IF_ERROR(get_values_at(s.triangles, next_t.offset + 12, &values));
+      PSQ_RETURN_IF_ERROR(conv.triangle(idx, values));
+      PSQ_RETURN_IF_ERROR(tsort.next(&next_t, &t_done));
+    }
+    PSQ_RETURN_IF_ERROR(conv.finalize(index));
+  }
+  return Status();
+}
+
+}  // namespace
+
+Status build_sequence(MeshSource& source, SequenceSink& sink, const BuildOptions& options, BuildReport* report) {
+  Spooled s;
+  PSQ_RETURN_IF_ERROR(spool_input(source, options, &s));
+  if (s.nv > 0xffffffffull) return Status(ErrorCode::kLimit, "more than 4294967295 vertices");
+  SequenceConverter conv(&sink);
+  PSQ_RETURN_IF_ERROR(conv.begin(source.schema()));
+  // Coherent enough when the vertices the lag and the triangles' spread keep
+  // waiting fit a small share of the budget (about 200 bytes each).
+  uint64_t window = std::max<uint64_t>(4096, options.memory_budget / 4 / 200);
+  bool sorted = options.force_sort || s.lag + s.span > window;
+  report->sorted = sorted;
+  report->lag = s.lag;
+  report->span = s.span;
+  report->vertices = s.nv;
+  report->triangles = s.nt;
+  PSQ_RETURN_IF_ERROR(sorted ? feed_sorted(s, options, conv) : feed_coherent(s, conv));
+  PSQ_RETURN_IF_ERROR(conv.finish());
+  report->converter = conv.stats();
+  return Status();
+}
+
+}  // namespace psq
