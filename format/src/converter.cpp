@@ -317,6 +317,11 @@ Status SequenceConverter::Impl::settle(uint32_t id) {
     return x;
   };
   for (const Spoke& s : spokes) {
+    if (id < s.other) {  // each edge once: at the settling of its smaller end
+      if (s.count == 1) ++stats.border_edges;
+      else if (s.count > 2) ++stats.nonmanifold_edges;
+      else if (s.out[0] == s.out[1]) ++stats.misoriented_edges;
+    }
     bool link = is_link(s, id, broken);
     bool cut = !link && s.count >= 2;
     if (link) parent[find(s.tris[0])] = find(s.tris[1]);
@@ -338,6 +343,7 @@ Status SequenceConverter::Impl::settle(uint32_t id) {
   }
   // One segment per fan.
   std::vector<uint32_t> seg_of(n, kNone);
+  uint32_t fans = 0;
   for (uint32_t i = 0; i < n; ++i) {
     uint32_t r = find(i);
     if (seg_of[r] == kNone) {
@@ -352,6 +358,7 @@ Status SequenceConverter::Impl::settle(uint32_t id) {
       }
       segs[s].vertex = id;
       seg_of[r] = s;
+      ++fans;
     }
     uint32_t s = seg_of[r];
     ++segs[s].remaining;
@@ -361,6 +368,7 @@ Status SequenceConverter::Impl::settle(uint32_t id) {
     }
     if (++t.settled == 3) make_ready(v.tris[i]);
   }
+  if (fans > 1) ++stats.nonmanifold_vertices;
   return Status();
 }
 

@@ -83,12 +83,14 @@ struct SequenceChecker::Impl {
   std::unordered_set<uint64_t> boundary;  // directed edges waiting for their partner
   std::unordered_set<uint64_t> borders;   // undirected border edges between active vertices
   UnionFind components;                   // by dense vertex, cut vertices joined to their origin
-  UnionFind loops;                        // by dense vertex, over border edges
+  UnionFind loops;                        // by dense vertex, over border edges (cut mesh)
+  UnionFind holes;                        // by first occurrence, over true border edges
   std::vector<uint32_t> origin;           // dense index -> first occurrence
   std::unordered_set<uint32_t> cut_origins;
   std::unordered_set<uint64_t> cut_edges;  // undirected, by origin
   std::vector<uint8_t> used;               // dense index -> used by a triangle
   std::vector<uint8_t> on_border;          // dense index -> has a border edge
+  std::vector<uint8_t> on_hole;            // first occurrence -> has a true border edge
 
   Status bad(const std::string& m) const {
     return Status(ErrorCode::kBadSequence, "triangle " + std::to_string(stats.triangles) + ": " + m);
@@ -121,6 +123,8 @@ Status SequenceChecker::vertex(const SequenceVertex& v) {
   m.origin.push_back(origin);
   m.used.push_back(0);
   m.on_border.push_back(0);
+  m.on_hole.push_back(0);
+  m.holes.add();
   m.components.add();
   m.loops.add();
   m.active.emplace(v.index, Active());
@@ -204,7 +208,12 @@ Status SequenceChecker::triangle(const SequenceTriangle& t) {
       ++m.stats.border_edges;
       m.loops.unite(x, y);
       m.on_border[x] = m.on_border[y] = 1;
-      if ((t.nonmanifold_mask >> k) & 1) m.cut_edges.insert(undirected(m.origin[x], m.origin[y]));
+      if ((t.nonmanifold_mask >> k) & 1) {
+        m.cut_edges.insert(undirected(m.origin[x], m.origin[y]));
+      } else {
+        m.holes.unite(m.origin[x], m.origin[y]);
+        m.on_hole[m.origin[x]] = m.on_hole[m.origin[y]] = 1;
+      }
     }
   }
   for (int k = 0; k < 3; ++k) {
@@ -247,7 +256,7 @@ Status SequenceChecker::finish() {
   }
   // Components of the cut mesh (for its Euler characteristic), then of the
   // input mesh: a cut vertex joins the component of its first occurrence.
-  uint64_t used = 0, cut_components = 0, components = 0, loops = 0;
+  uint64_t used = 0, cut_components = 0, components = 0, loops = 0, holes = 0;
   for (uint32_t v = 0; v < m.introduced; ++v) {
     if (!m.used[v]) continue;
     ++used;
@@ -255,6 +264,7 @@ Status SequenceChecker::finish() {
     // Each border vertex of the cut mesh has exactly two border edges, so
     // the border edges form disjoint cycles: count their components.
     if (m.on_border[v] && m.loops.find(v) == v) ++loops;
+    if (m.on_hole[v] && m.holes.find(v) == v) ++holes;
   }
   for (uint32_t v = 0; v < m.introduced; ++v) {
     if (m.used[v] && m.used[m.origin[v]]) m.components.unite(v, m.origin[v]);
@@ -263,7 +273,7 @@ Status SequenceChecker::finish() {
     if (m.used[v] && m.components.find(v) == v) ++components;
   }
   m.stats.components = components;
-  m.stats.border_loops = loops;
+  m.stats.border_loops = holes;
   // V - E + F = 2C - 2G - B summed over the components of the cut mesh.
   int64_t faces = static_cast<int64_t>(m.stats.triangles);
   int64_t edges = (3 * faces + static_cast<int64_t>(m.stats.border_edges)) / 2;

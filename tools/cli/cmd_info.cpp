@@ -6,6 +6,8 @@
 #include "commands.h"
 #include "psq/mesh_formats.h"
 #include "psq/mesh_stats.h"
+#include "psq/sequence_builder.h"
+#include "psq/sequence_check.h"
 
 namespace psq::cli {
 namespace {
@@ -14,13 +16,43 @@ const char kHelp[] =
     "Usage: psq info FILE [--json]\n"
     "\n"
     "Reads FILE (PLY or OBJ, recognised by content; '-' for standard input)\n"
-    "in one streaming pass and prints its vertex and triangle counts, its\n"
-    "properties, its bounding box, unreferenced vertices and degenerate\n"
-    "triangles (a repeated vertex index).\n"
+    "and prints its vertex and triangle counts, properties, bounding box,\n"
+    "unreferenced vertices and degenerate triangles (a repeated vertex\n"
+    "index), and, from its processing sequence (paper Table 1): components,\n"
+    "border loops (holes), handles (genus), non-manifold vertices and edges,\n"
+    "and the longest processing boundary (most vertices active at once).\n"
     "\n"
     "Options:\n"
-    "  --json       print one JSON object instead of text\n"
-    "  -h, --help   show this help\n";
+    "  --json         print one JSON object instead of text\n"
+    "  --memory SIZE  memory budget for the external sort (default 512M)\n"
+    "  --tmpdir DIR   directory for temporary files (default $TMPDIR)\n"
+    "  -h, --help     show this help\n";
+
+// Passes every item of a source on, and shows it to a sink on the way.
+class TeeSource : public MeshSource {
+ public:
+  TeeSource(MeshSource* in, MeshSink* side) : in_(in), side_(side) {}
+  const MeshSchema& schema() const override { return in_->schema(); }
+  const SourceReport& report() const override { return in_->report(); }
+  Status next(MeshItem* item) override {
+    if (!started_) {
+      started_ = true;
+      PSQ_RETURN_IF_ERROR(side_->begin(in_->schema()));
+    }
+    PSQ_RETURN_IF_ERROR(in_->next(item));
+    switch (item->kind) {
+      case MeshItem::Kind::kVertex: return side_->vertex(item->position, item->values);
+      case MeshItem::Kind::kTriangle: return side_->triangle(item->index, item->values);
+      case MeshItem::Kind::kEnd: return side_->finish();
+    }
+    return Status();
+  }
+
+ private:
+  MeshSource* in_;
+  MeshSink* side_;
+  bool started_ = false;
+};
 
 std::string type_list(const std::vector<Property>& props) {
   std::string s;
@@ -52,19 +84,32 @@ int cmd_info(int argc, char** argv) {
     return kExitOk;
   }
   bool json = args.flag("--json");
+  std::string memory = args.option("--memory", "512M");
+  BuildOptions build_options;
+  build_options.tmpdir = args.option("--tmpdir");
   std::vector<std::string> files = args.positionals();
   if (!args.error().empty()) return usage_error("info", args.error());
+  if (!parse_size(memory, &build_options.memory_budget)) {
+    return usage_error("info", "bad --memory '" + memory + "' (e.g. 256M, 2G)");
+  }
   if (files.size() != 1) return usage_error("info", files.empty() ? "missing FILE" : "info takes one FILE");
   const std::string& file = files[0];
 
   OpenedMesh mesh;
-  Status s = open_mesh(file, OpenOptions(), &mesh);
+  OpenOptions open_options;
+  open_options.spool_dir = build_options.tmpdir;
+  Status s = open_mesh(file, open_options, &mesh);
   if (!s.ok()) return report_error(file, s);
   MeshStats stats;
-  s = pump(*mesh.source, stats);
+  TeeSource tee(mesh.source.get(), &stats);
+  SequenceChecker checker;
+  BuildReport build;
+  s = build_sequence(tee, checker, build_options, &build);
   if (!s.ok()) return report_error(file, s);
   const MeshStatsResult& r = stats.result();
   const SourceReport& rep = mesh.source->report();
+  const SequenceStats& q = checker.stats();
+  const ConverterStats& c = build.converter;
 
   if (json) {
     std::string o = "{\n";
@@ -80,6 +125,20 @@ int cmd_info(int argc, char** argv) {
     o += "  \"bbox\": {\"min\": [" + json_number(r.bbox_min[0]) + ", " + json_number(r.bbox_min[1]) + ", " +
          json_number(r.bbox_min[2]) + "], \"max\": [" + json_number(r.bbox_max[0]) + ", " +
          json_number(r.bbox_max[1]) + ", " + json_number(r.bbox_max[2]) + "]},\n";
+    o += "  \"components\": " + std::to_string(q.components) + ",\n";
+    o += "  \"border_edges\": " + std::to_string(c.border_edges) + ",\n";
+    o += "  \"border_loops\": " + std::to_string(q.border_loops) + ",\n";
+    o += "  \"handles\": " + std::to_string(q.handles) + ",\n";
+    o += "  \"nonmanifold_vertices\": " + std::to_string(c.nonmanifold_vertices) + ",\n";
+    o += "  \"nonmanifold_edges\": " + std::to_string(c.nonmanifold_edges) + ",\n";
+    o += "  \"misoriented_edges\": " + std::to_string(c.misoriented_edges) + ",\n";
+    o += "  \"reappearances\": " + std::to_string(q.reappearances) + ",\n";
+    o += "  \"max_boundary_vertices\": " + std::to_string(q.max_boundary_vertices) + ",\n";
+    o += "  \"max_boundary_edges\": " + std::to_string(q.max_boundary_edges) + ",\n";
+    o += "  \"ops\": {\"start\": " + std::to_string(q.ops[0]) + ", \"add\": " + std::to_string(q.ops[1]) +
+         ", \"join\": " + std::to_string(q.ops[2]) + ", \"fill\": " + std::to_string(q.ops[3]) +
+         ", \"end\": " + std::to_string(q.ops[4]) + "},\n";
+    o += std::string("  \"sequence_order\": \"") + (build.sorted ? "sorted" : "coherent") + "\",\n";
     o += "  \"vertex_properties\": " + json_props(r.schema.vertex_properties) + ",\n";
     o += "  \"face_properties\": " + json_props(r.schema.face_properties) + ",\n";
     o += "  \"notes\": [";
@@ -102,6 +161,22 @@ int cmd_info(int argc, char** argv) {
     std::printf("position type          %s\n", scalar_name(r.schema.position_type));
     std::printf("bounding box           [%.9g %.9g %.9g] .. [%.9g %.9g %.9g]\n", r.bbox_min[0], r.bbox_min[1],
                 r.bbox_min[2], r.bbox_max[0], r.bbox_max[1], r.bbox_max[2]);
+    std::printf("components             %llu\n", static_cast<unsigned long long>(q.components));
+    std::printf("border edges           %llu\n", static_cast<unsigned long long>(c.border_edges));
+    std::printf("border loops           %llu\n", static_cast<unsigned long long>(q.border_loops));
+    std::printf("handles                %lld\n", static_cast<long long>(q.handles));
+    std::printf("non-manifold vertices  %llu (%llu re-appearances)\n",
+                static_cast<unsigned long long>(c.nonmanifold_vertices), static_cast<unsigned long long>(q.reappearances));
+    std::printf("non-manifold edges     %llu\n", static_cast<unsigned long long>(c.nonmanifold_edges));
+    std::printf("misoriented edges      %llu\n", static_cast<unsigned long long>(c.misoriented_edges));
+    std::printf("max boundary           %llu vertices, %llu edges\n",
+                static_cast<unsigned long long>(q.max_boundary_vertices),
+                static_cast<unsigned long long>(q.max_boundary_edges));
+    std::printf("ops                    start %llu, add %llu, join %llu, fill %llu, end %llu\n",
+                static_cast<unsigned long long>(q.ops[0]), static_cast<unsigned long long>(q.ops[1]),
+                static_cast<unsigned long long>(q.ops[2]), static_cast<unsigned long long>(q.ops[3]),
+                static_cast<unsigned long long>(q.ops[4]));
+    std::printf("sequence order         %s\n", build.sorted ? "sorted (external sort)" : "coherent (file order)");
     std::printf("vertex properties      %s\n", type_list(r.schema.vertex_properties).c_str());
     std::printf("face properties        %s\n", type_list(r.schema.face_properties).c_str());
     for (const std::string& n : rep.notes) std::printf("note                   %s\n", n.c_str());

@@ -40,6 +40,12 @@ struct ConverterStats {
   uint64_t vertices_in = 0;
   uint64_t triangles_in = 0;
   uint64_t degenerate_dropped = 0;   // triangles with a repeated index
+  // The input mesh's edges and vertices as the converter found them (each
+  // edge counted once, degenerate triangles aside):
+  uint64_t border_edges = 0;         // used by one triangle
+  uint64_t nonmanifold_edges = 0;    // used by more than two triangles
+  uint64_t misoriented_edges = 0;    // two triangles of the same orientation
+  uint64_t nonmanifold_vertices = 0; // triangles form more than one fan (re-appears)
   uint64_t max_waiting_triangles = 0;
   uint64_t max_waiting_vertices = 0;
 };

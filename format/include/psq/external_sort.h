@@ -32,10 +32,11 @@
 // most three descriptors at any time however many runs there are.
 //
 // Order. The output is a deterministic function of the input sequence, the
-// comparator and the budget. Records that compare equal come out in an
-// unspecified order that may change with the budget, so callers that need
-// the same output on every machine must make the comparator total (break
-// ties by an id, as the converter does with vertex and triangle numbers).
+// comparator, the budget and max_fan_in. Records that compare equal come out
+// in an unspecified order (std::sort is not stable) that may change with the
+// budget, so callers that need the same output on every machine and budget
+// must make the comparator total (break ties by an id, as the converter does
+// with vertex and triangle numbers).
 //
 // Not thread-safe: use one sorter per thread.
 #ifndef PSQ_EXTERNAL_SORT_H_

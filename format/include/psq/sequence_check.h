@@ -7,8 +7,8 @@
 // entering edges, consistent orientation (an edge completes only a boundary
 // edge of the opposite direction), and that nothing stays open at the end.
 // It also counts what `psq info` reports. Memory is proportional to the
-// boundary, plus 8 bytes per vertex for the component and border-loop
-// union-find.
+// boundary, plus 12 bytes per vertex for the component, border-loop and hole
+// union-finds.
 #ifndef PSQ_SEQUENCE_CHECK_H_
 #define PSQ_SEQUENCE_CHECK_H_
 
@@ -27,7 +27,7 @@ struct SequenceStats {
   uint64_t ops[5] = {0, 0, 0, 0, 0};  // triangles per Op
   uint64_t components = 0;         // connected by shared vertices (cuts re-joined)
   uint64_t border_edges = 0;       // edges used by one triangle, cut edges included
-  uint64_t border_loops = 0;       // cycles of border edges (holes and cut seams)
+  uint64_t border_loops = 0;       // holes: connected loops of border edges that are not cuts
   int64_t handles = 0;             // genus, from the Euler characteristic of the cut mesh
   uint64_t nonmanifold_vertices = 0;  // input vertices that re-appear
   uint64_t nonmanifold_edges = 0;     // input edges cut (more than two triangles or misoriented)
