@@ -8,7 +8,6 @@
 #include <array>
 #include <deque>
 #include <string>
-#include <unordered_map>
 #include <unordered_set>
 #include <vector>
 
@@ -27,6 +26,7 @@ uint64_t edge_key(uint32_t a, uint32_t b) {
 
 struct Tri {
   uint32_t v[3] = {kNone, kNone, kNone};        // input ids, input orientation
+  uint32_t vs[3] = {kNone, kNone, kNone};       // their slots in the vertex pool
   uint32_t seg[3] = {kNone, kNone, kNone};      // fan of each corner, once settled
   uint32_t partner[3] = {kNone, kNone, kNone};  // triangle across edge k (k: corner k to k+1)
   uint8_t cut_mask = 0;     // edge k is non-manifold (cut)
@@ -37,9 +37,19 @@ struct Tri {
   bool ready = false;
   bool emitted = false;
   PropertyValues values;
+
+  // Back to a fresh triangle, keeping the values' capacity.
+  void reset() {
+    PropertyValues keep;
+    keep.swap(values);
+    *this = Tri();
+    keep.clear();
+    values.swap(keep);
+  }
 };
 
 struct Vert {
+  uint32_t id = kNone;
   bool has_data = false;
   bool finalized = false;
   bool settled = false;
@@ -49,6 +59,7 @@ struct Vert {
   uint32_t waiting_neighbors = 0; // neighbours not yet finalized (after finalization)
   uint32_t first_dense = kNone;   // dense index of its first fan emitted
   uint32_t unemitted = 0;
+  uint64_t stamp = 0;             // marks visits during one finalization
 };
 
 struct Seg {
@@ -65,12 +76,78 @@ struct Spoke {
   uint32_t count = 0;  // triangles on the edge
 };
 
+// Input vertex id -> slot in the vertex pool: open addressing with linear
+// probing and backward-shift deletion, so that the waiting area costs no
+// allocation per vertex once warm.
+class IdMap {
+ public:
+  IdMap() { rehash(1024); }
+  size_t size() const { return size_; }
+  // The slot of `id`, or kNone.
+  uint32_t find(uint32_t id) const {
+    for (size_t i = hash(id);; i = (i + 1) & mask_) {
+      if (keys_[i] == kNone) return kNone;
+      if (keys_[i] == id) return values_[i];
+    }
+  }
+  void insert(uint32_t id, uint32_t value) {
+    if (2 * (size_ + 1) > keys_.size()) rehash(2 * keys_.size());
+    size_t i = hash(id);
+    while (keys_[i] != kNone) i = (i + 1) & mask_;
+    keys_[i] = id;
+    values_[i] = value;
+    ++size_;
+  }
+  void erase(uint32_t id) {
+    size_t i = hash(id);
+    while (keys_[i] != id) {
+      if (keys_[i] == kNone) return;
+      i = (i + 1) & mask_;
+    }
+    // Shift later members of the probe run back into the hole.
+    for (size_t j = (i + 1) & mask_; keys_[j] != kNone; j = (j + 1) & mask_) {
+      size_t home = hash(keys_[j]);
+      if (((j - home) & mask_) >= ((j - i) & mask_)) {
+        keys_[i] = keys_[j];
+        values_[i] = values_[j];
+        i = j;
+      }
+    }
+    keys_[i] = kNone;
+    --size_;
+  }
+  template <class F>
+  void for_each(F f) const {
+    for (size_t i = 0; i < keys_.size(); ++i) {
+      if (keys_[i] != kNone) f(keys_[i], values_[i]);
+    }
+  }
+
+ private:
+  size_t hash(uint32_t id) const { return (uint64_t{id} * 0x9E3779B97F4A7C15ull >> 20) & mask_; }
+  void rehash(size_t capacity) {
+    std::vector<uint32_t> k(capacity, kNone), v(capacity, 0);
+    k.swap(keys_);
+    v.swap(values_);
+    mask_ = capacity - 1;
+    size_ = 0;
+    for (size_t i = 0; i < k.size(); ++i) {
+      if (k[i] != kNone) insert(k[i], v[i]);
+    }
+  }
+  std::vector<uint32_t> keys_, values_;
+  size_t mask_ = 0;
+  size_t size_ = 0;
+};
+
 }  // namespace
 
 struct SequenceConverter::Impl {
   SequenceSink* out = nullptr;
   ConverterStats stats;
-  std::unordered_map<uint32_t, Vert> verts;
+  IdMap ids;                 // input id -> slot in vpool
+  std::vector<Vert> vpool;
+  std::vector<uint32_t> free_verts;
   std::vector<Tri> tris;
   std::vector<uint32_t> free_tris;
   std::vector<Seg> segs;
@@ -87,15 +164,54 @@ struct SequenceConverter::Impl {
   SequenceTriangle st;  // reused
   SequenceVertex sv;
 
-  Status settle(uint32_t id);
+  std::vector<Spoke> spokes;            // scratch
+  std::vector<uint32_t> to_settle;      // scratch
+  std::vector<uint32_t> parent, seg_of; // scratch
+  uint64_t visit_stamp = 0;
+  std::vector<std::array<uint32_t, 2>> spoke_index;  // scratch: per fan triangle, its out and in spoke
+
+  uint32_t vertex_slot(uint32_t id);  // existing or new
+  void release_vertex(uint32_t slot);
+  Status settle(uint32_t slot);
   void split_fans(uint32_t id, Vert& v);
-  void spokes_of(uint32_t id, const Vert& v, std::vector<Spoke>* spokes);
+  void spokes_of(uint32_t id, const Vert& v);
   void make_ready(uint32_t t);
   int classify(const Tri& t) const;
   Status emit(uint32_t t);
   Status drain();
-  Status finish_vertex(uint32_t id);
 };
+
+uint32_t SequenceConverter::Impl::vertex_slot(uint32_t id) {
+  uint32_t slot = ids.find(id);
+  if (slot != kNone) return slot;
+  if (!free_verts.empty()) {
+    slot = free_verts.back();
+    free_verts.pop_back();
+  } else {
+    slot = static_cast<uint32_t>(vpool.size());
+    vpool.emplace_back();
+  }
+  vpool[slot].id = id;
+  ids.insert(id, slot);
+  stats.max_waiting_vertices = std::max<uint64_t>(stats.max_waiting_vertices, ids.size());
+  return slot;
+}
+
+void SequenceConverter::Impl::release_vertex(uint32_t slot) {
+  Vert& v = vpool[slot];
+  ids.erase(v.id);
+  // Keep the vectors' capacity for the next vertex in this slot.
+  std::vector<uint32_t> tris_keep;
+  PropertyValues values_keep;
+  tris_keep.swap(v.tris);
+  values_keep.swap(v.values);
+  v = Vert();
+  tris_keep.clear();
+  values_keep.clear();
+  v.tris.swap(tris_keep);
+  v.values.swap(values_keep);
+  free_verts.push_back(slot);
+}
 
 SequenceConverter::SequenceConverter(SequenceSink* out) : impl_(std::make_unique<Impl>()) { impl_->out = out; }
 SequenceConverter::~SequenceConverter() = default;
@@ -105,13 +221,13 @@ Status SequenceConverter::begin(const MeshSchema& schema) { return impl_->out->b
 
 Status SequenceConverter::vertex(uint32_t id, const double position[3], const PropertyValues& values) {
   Impl& m = *impl_;
-  Vert& v = m.verts[id];
+  if (id == kNone) return Status(ErrorCode::kBadIndex, "vertex id 4294967295 is reserved");
+  Vert& v = m.vpool[m.vertex_slot(id)];
   if (v.has_data || v.finalized) return Status(ErrorCode::kBadIndex, "vertex " + std::to_string(id) + " given twice");
   v.has_data = true;
   std::copy(position, position + 3, v.position);
   v.values = values;
   ++m.stats.vertices_in;
-  m.stats.max_waiting_vertices = std::max<uint64_t>(m.stats.max_waiting_vertices, m.verts.size());
   return Status();
 }
 
@@ -123,8 +239,9 @@ Status SequenceConverter::triangle(const uint32_t id[3], const PropertyValues& v
     return Status();
   }
   for (int k = 0; k < 3; ++k) {
-    auto it = m.verts.find(id[k]);
-    if (it != m.verts.end() && it->second.finalized) {
+    if (id[k] == kNone) return Status(ErrorCode::kBadIndex, "vertex id 4294967295 is reserved");
+    uint32_t vs = m.ids.find(id[k]);
+    if (vs != kNone && m.vpool[vs].finalized) {
       return Status(ErrorCode::kBadIndex, "a triangle uses vertex " + std::to_string(id[k]) + " after its finalization");
     }
   }
@@ -132,7 +249,7 @@ Status SequenceConverter::triangle(const uint32_t id[3], const PropertyValues& v
   if (!m.free_tris.empty()) {
     slot = m.free_tris.back();
     m.free_tris.pop_back();
-    m.tris[slot] = Tri();
+    m.tris[slot].reset();
   } else {
     slot = static_cast<uint32_t>(m.tris.size());
     m.tris.emplace_back();
@@ -140,38 +257,38 @@ Status SequenceConverter::triangle(const uint32_t id[3], const PropertyValues& v
   Tri& t = m.tris[slot];
   for (int k = 0; k < 3; ++k) {
     t.v[k] = id[k];
-    Vert& v = m.verts[id[k]];
+    t.vs[k] = m.vertex_slot(id[k]);
+    Vert& v = m.vpool[t.vs[k]];
     v.tris.push_back(slot);
     ++v.unemitted;
   }
   t.values = values;
   ++m.waiting;
   m.stats.max_waiting_triangles = std::max(m.stats.max_waiting_triangles, m.waiting);
-  m.stats.max_waiting_vertices = std::max<uint64_t>(m.stats.max_waiting_vertices, m.verts.size());
   return Status();
 }
 
-// The spokes (edges) of vertex `id` over its waiting triangles.
-void SequenceConverter::Impl::spokes_of(uint32_t id, const Vert& v, std::vector<Spoke>* spokes) {
-  spokes->clear();
+// The spokes (edges) of vertex `id` over its waiting triangles, into
+// `spokes`; spoke_index[i] names the out-spoke (id -> next) and in-spoke
+// (prev -> id) of its i-th triangle.
+void SequenceConverter::Impl::spokes_of(uint32_t id, const Vert& v) {
+  spokes.clear();
+  spoke_index.resize(v.tris.size());
   for (uint32_t i = 0; i < v.tris.size(); ++i) {
     const Tri& t = tris[v.tris[i]];
     int c = t.v[0] == id ? 0 : t.v[1] == id ? 1 : 2;
     uint32_t nb[2] = {t.v[(c + 1) % 3], t.v[(c + 2) % 3]};
     for (int s = 0; s < 2; ++s) {
-      Spoke* sp = nullptr;
-      for (Spoke& x : *spokes) {
-        if (x.other == nb[s]) sp = &x;
+      uint32_t si = 0;
+      while (si < spokes.size() && spokes[si].other != nb[s]) ++si;
+      if (si == spokes.size()) spokes.push_back(Spoke{nb[s], {kNone, kNone}, {false, false}, 0});
+      Spoke& sp = spokes[si];
+      if (sp.count < 2) {
+        sp.tris[sp.count] = i;
+        sp.out[sp.count] = s == 0;
       }
-      if (sp == nullptr) {
-        spokes->push_back(Spoke{nb[s], {kNone, kNone}, {false, false}, 0});
-        sp = &spokes->back();
-      }
-      if (sp->count < 2) {
-        sp->tris[sp->count] = i;
-        sp->out[sp->count] = s == 0;
-      }
-      ++sp->count;
+      ++sp.count;
+      spoke_index[i][s] = si;
     }
   }
 }
@@ -188,29 +305,17 @@ static bool is_nonmanifold(const Spoke& s) { return s.count >= 3 || (s.count == 
 // that no fan holds two triangles that share a non-manifold spoke; otherwise
 // both would use the same edge of the sequence.
 void SequenceConverter::Impl::split_fans(uint32_t id, Vert& v) {
-  std::vector<Spoke> spokes;
-  spokes_of(id, v, &spokes);
+  spokes_of(id, v);
   bool any_nonmanifold = false;
   for (const Spoke& s : spokes) any_nonmanifold = any_nonmanifold || is_nonmanifold(s);
   if (!any_nonmanifold) return;  // a disk or half-disk, or only broken links
   size_t n = v.tris.size();
-  // Per local triangle: its two spokes (indices into `spokes`) and the
-  // triangle linked through each.
-  std::vector<std::array<int, 2>> spoke_of(n, {-1, -1});
+  // Per local triangle: the triangle linked through each of its two spokes.
   std::vector<std::array<int, 2>> next(n, {-1, -1});
-  std::vector<int> fill(n, 0);
-  for (size_t si = 0; si < spokes.size(); ++si) {
-    const Spoke& s = spokes[si];
-    bool link = is_link(s, id, broken);
-    // Record the spoke on every triangle that has it (only the first two are
-    // stored, but a non-manifold spoke only matters for membership).
-    for (uint32_t i = 0; i < n; ++i) {
-      const Tri& t = tris[v.tris[i]];
-      if (t.v[0] != s.other && t.v[1] != s.other && t.v[2] != s.other) continue;
-      int slot = fill[i]++;
-      if (slot > 1) continue;
-      spoke_of[i][slot] = static_cast<int>(si);
-      if (link) next[i][slot] = static_cast<int>(s.tris[0] == i ? s.tris[1] : s.tris[0]);
+  for (size_t i = 0; i < n; ++i) {
+    for (int sl = 0; sl < 2; ++sl) {
+      const Spoke& s = spokes[spoke_index[i][sl]];
+      if (is_link(s, id, broken)) next[i][sl] = static_cast<int>(s.tris[0] == i ? s.tris[1] : s.tris[0]);
     }
   }
   std::vector<char> visited(n, 0);
@@ -222,22 +327,19 @@ void SequenceConverter::Impl::split_fans(uint32_t id, Vert& v) {
       visited[cur] = 1;
       bool clash = false;
       for (int sl = 0; sl < 2; ++sl) {
-        int si = spoke_of[cur][sl];
-        if (si >= 0 && is_nonmanifold(spokes[si]) &&
-            std::find(seen.begin(), seen.end(), spokes[si].other) != seen.end()) {
-          clash = true;
-        }
+        const Spoke& s = spokes[spoke_index[cur][sl]];
+        if (is_nonmanifold(s) && std::find(seen.begin(), seen.end(), s.other) != seen.end()) clash = true;
       }
       if (clash && prev >= 0) {
         // Break the link between prev and cur: it runs through their shared spoke.
         for (int sl = 0; sl < 2; ++sl) {
-          if (next[cur][sl] == prev) broken.insert(edge_key(id, spokes[spoke_of[cur][sl]].other));
+          if (next[cur][sl] == prev) broken.insert(edge_key(id, spokes[spoke_index[cur][sl]].other));
         }
         seen.clear();
       }
       for (int sl = 0; sl < 2; ++sl) {
-        int si = spoke_of[cur][sl];
-        if (si >= 0 && is_nonmanifold(spokes[si])) seen.push_back(spokes[si].other);
+        const Spoke& s = spokes[spoke_index[cur][sl]];
+        if (is_nonmanifold(s)) seen.push_back(s.other);
       }
       int nxt = -1;
       for (int sl = 0; sl < 2; ++sl) {
@@ -256,44 +358,43 @@ void SequenceConverter::Impl::split_fans(uint32_t id, Vert& v) {
 
 Status SequenceConverter::finalize(uint32_t id) {
   Impl& m = *impl_;
-  auto it = m.verts.find(id);
-  if (it == m.verts.end() || it->second.finalized) {
-    return Status(ErrorCode::kBadIndex, "vertex " + std::to_string(id) + (it == m.verts.end() ? " finalized but never given" : " finalized twice"));
+  uint32_t slot = m.ids.find(id);
+  if (slot == kNone || m.vpool[slot].finalized) {
+    return Status(ErrorCode::kBadIndex, "vertex " + std::to_string(id) + (slot == kNone ? " finalized but never given" : " finalized twice"));
   }
-  Vert& v = it->second;
+  Vert& v = m.vpool[slot];
   if (!v.has_data) return Status(ErrorCode::kBadIndex, "vertex " + std::to_string(id) + " is used but was never given");
   m.split_fans(id, v);
   v.finalized = true;
-  // Neighbours: settle those that waited only for this vertex.
-  std::vector<uint32_t> nbs;
-  for (uint32_t slot : v.tris) {
-    for (uint32_t u : m.tris[slot].v) {
-      if (u != id) nbs.push_back(u);
-    }
-  }
-  std::sort(nbs.begin(), nbs.end());
-  nbs.erase(std::unique(nbs.begin(), nbs.end()), nbs.end());
+  // Neighbours: settle those that waited only for this vertex. A neighbour
+  // appears in two triangles of a fan; count each once by marking it.
+  m.to_settle.clear();
   uint32_t waiting = 0;
-  std::vector<uint32_t> to_settle;
-  for (uint32_t u : nbs) {
-    Vert& nv = m.verts.at(u);
-    if (!nv.finalized) {
-      ++waiting;
-    } else if (!nv.settled && --nv.waiting_neighbors == 0) {
-      to_settle.push_back(u);
+  ++m.visit_stamp;
+  for (uint32_t ts : v.tris) {
+    for (uint32_t us : m.tris[ts].vs) {
+      Vert& nv = m.vpool[us];
+      if (us == slot || nv.stamp == m.visit_stamp) continue;
+      nv.stamp = m.visit_stamp;
+      if (!nv.finalized) {
+        ++waiting;
+      } else if (!nv.settled && --nv.waiting_neighbors == 0) {
+        m.to_settle.push_back(us);
+      }
     }
   }
-  m.verts.at(id).waiting_neighbors = waiting;
-  if (waiting == 0) to_settle.push_back(id);
-  for (uint32_t u : to_settle) PSQ_RETURN_IF_ERROR(m.settle(u));
+  v.waiting_neighbors = waiting;
+  if (waiting == 0) m.to_settle.push_back(slot);
+  for (size_t i = 0; i < m.to_settle.size(); ++i) PSQ_RETURN_IF_ERROR(m.settle(m.to_settle[i]));
   return m.drain();
 }
 
 // Phase B: every neighbour is finalized, so every link around the vertex is
 // decided. Its fans become the vertex's segments; the partners of its spokes
 // are set on both triangles.
-Status SequenceConverter::Impl::settle(uint32_t id) {
-  Vert& v = verts.at(id);
+Status SequenceConverter::Impl::settle(uint32_t vslot) {
+  Vert& v = vpool[vslot];
+  const uint32_t id = v.id;
   v.settled = true;
   if (v.tris.empty()) {
     // An isolated vertex: introduced and finalized with no triangle.
@@ -303,68 +404,68 @@ Status SequenceConverter::Impl::settle(uint32_t id) {
     sv.values = v.values;
     PSQ_RETURN_IF_ERROR(out->vertex(sv));
     PSQ_RETURN_IF_ERROR(out->finalize(sv.index));
-    verts.erase(id);
+    release_vertex(vslot);
     return Status();
   }
-  std::vector<Spoke> spokes;
-  spokes_of(id, v, &spokes);
-  size_t n = v.tris.size();
-  // Union-find over the fan's triangles through the links.
-  std::vector<uint32_t> parent(n);
-  for (uint32_t i = 0; i < n; ++i) parent[i] = i;
-  auto find = [&](uint32_t x) {
-    while (parent[x] != x) x = parent[x] = parent[parent[x]];
-    return x;
-  };
+  spokes_of(id, v);
   for (const Spoke& s : spokes) {
     if (id < s.other) {  // each edge once: at the settling of its smaller end
       if (s.count == 1) ++stats.border_edges;
       else if (s.count > 2) ++stats.nonmanifold_edges;
       else if (s.out[0] == s.out[1]) ++stats.misoriented_edges;
     }
-    bool link = is_link(s, id, broken);
-    bool cut = !link && s.count >= 2;
-    if (link) parent[find(s.tris[0])] = find(s.tris[1]);
-    // Mark the edge on each triangle that has it.
-    for (uint32_t i = 0; i < n; ++i) {
-      Tri& t = tris[v.tris[i]];
-      for (int k = 0; k < 3; ++k) {
-        uint32_t a = t.v[k], b = t.v[(k + 1) % 3];
-        if (!((a == id && b == s.other) || (b == id && a == s.other))) continue;
-        if (t.linked_mask & (1u << k)) continue;
-        t.linked_mask |= static_cast<uint8_t>(1u << k);
-        if (link) {
-          t.partner[k] = v.tris[s.tris[0] == i ? s.tris[1] : s.tris[0]];
-        } else if (cut) {
-          t.cut_mask |= static_cast<uint8_t>(1u << k);
-        }
+  }
+  size_t n = v.tris.size();
+  // Union-find over the fan's triangles through the links.
+  parent.resize(n);
+  for (uint32_t i = 0; i < n; ++i) parent[i] = i;
+  auto find = [&](uint32_t x) {
+    while (parent[x] != x) x = parent[x] = parent[parent[x]];
+    return x;
+  };
+  for (uint32_t i = 0; i < n; ++i) {
+    Tri& t = tris[v.tris[i]];
+    int c = t.v[0] == id ? 0 : t.v[1] == id ? 1 : 2;
+    for (int sl = 0; sl < 2; ++sl) {
+      const Spoke& s = spokes[spoke_index[i][sl]];
+      int k = sl == 0 ? c : (c + 2) % 3;  // out-spoke: edge c; in-spoke: edge c-1
+      uint8_t bit = static_cast<uint8_t>(1u << k);
+      bool link = is_link(s, id, broken);
+      if (link) parent[find(s.tris[0])] = find(s.tris[1]);
+      // The edge's partner is decided at whichever end settles first.
+      if (t.linked_mask & bit) continue;
+      t.linked_mask |= bit;
+      if (link) {
+        t.partner[k] = v.tris[s.tris[0] == i ? s.tris[1] : s.tris[0]];
+      } else if (s.count >= 2) {
+        t.cut_mask |= bit;
       }
     }
   }
   // One segment per fan.
-  std::vector<uint32_t> seg_of(n, kNone);
+  seg_of.assign(n, kNone);
   uint32_t fans = 0;
   for (uint32_t i = 0; i < n; ++i) {
     uint32_t r = find(i);
     if (seg_of[r] == kNone) {
-      uint32_t s;
+      uint32_t sg;
       if (!free_segs.empty()) {
-        s = free_segs.back();
+        sg = free_segs.back();
         free_segs.pop_back();
-        segs[s] = Seg();
+        segs[sg] = Seg();
       } else {
-        s = static_cast<uint32_t>(segs.size());
+        sg = static_cast<uint32_t>(segs.size());
         segs.emplace_back();
       }
-      segs[s].vertex = id;
-      seg_of[r] = s;
+      segs[sg].vertex = id;
+      seg_of[r] = sg;
       ++fans;
     }
-    uint32_t s = seg_of[r];
-    ++segs[s].remaining;
+    uint32_t sg = seg_of[r];
+    ++segs[sg].remaining;
     Tri& t = tris[v.tris[i]];
     for (int k = 0; k < 3; ++k) {
-      if (t.v[k] == id) t.seg[k] = s;
+      if (t.v[k] == id) t.seg[k] = sg;
     }
     if (++t.settled == 3) make_ready(v.tris[i]);
   }
@@ -403,7 +504,7 @@ Status SequenceConverter::Impl::emit(uint32_t slot) {
   for (int k = 0; k < 3; ++k) {
     Seg& s = segs[t.seg[k]];
     if (s.dense == kNone) {
-      Vert& v = verts.at(t.v[k]);
+      Vert& v = vpool[t.vs[k]];
       s.dense = next_dense++;
       sv.index = s.dense;
       sv.reappears = v.first_dense;
@@ -454,8 +555,8 @@ Status SequenceConverter::Impl::emit(uint32_t slot) {
       PSQ_RETURN_IF_ERROR(out->finalize(s.dense));
       free_segs.push_back(t.seg[k]);
     }
-    Vert& v = verts.at(t.v[k]);
-    if (--v.unemitted == 0 && v.settled) verts.erase(t.v[k]);
+    Vert& v = vpool[t.vs[k]];
+    if (--v.unemitted == 0 && v.settled) release_vertex(t.vs[k]);
   }
   --waiting;
   --ready;
@@ -510,13 +611,13 @@ Status SequenceConverter::finish() {
   // Finalize what the caller left open (a source that finalizes nothing
   // leaves the whole mesh to this point).
   std::vector<uint32_t> open;
-  for (const auto& kv : m.verts) {
-    if (!kv.second.finalized) open.push_back(kv.first);
-  }
+  m.ids.for_each([&](uint32_t id, uint32_t slot) {
+    if (!m.vpool[slot].finalized) open.push_back(id);
+  });
   std::sort(open.begin(), open.end());
   for (uint32_t id : open) PSQ_RETURN_IF_ERROR(finalize(id));
   PSQ_RETURN_IF_ERROR(m.drain());
-  if (m.waiting != 0 || !m.verts.empty()) {
+  if (m.waiting != 0 || m.ids.size() != 0) {
     return Status(ErrorCode::kInternal, std::to_string(m.waiting) + " triangles left in the waiting area");
   }
   return m.out->finish();
