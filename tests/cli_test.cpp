@@ -7,9 +7,11 @@
 #include <algorithm>
 #include <regex>
 #include <set>
+#include <sstream>
 #include <string>
 
 #include "psq/ply.h"
+#include "psq/sequence_check.h"
 #include "test_util.h"
 
 namespace psq {
@@ -206,6 +208,146 @@ TEST(Cli, EveryBadFileFailsWithOneLine) {
     rc = run_psq("convert " + dir_path + "/" + f + " " + tmp.file("o.ply"), &out, &err);
     EXPECT_EQ(rc, 1) << f;
     EXPECT_TRUE(tmp.entries().empty()) << f;
+  }
+}
+
+}  // namespace
+}  // namespace psq
+
+namespace psq {
+namespace {
+
+// Parses a psq-dump text into the checker; fills triangles as position
+// triples (rotated so the smallest comes first) for comparison with input.
+using PosTri = std::array<std::array<double, 3>, 3>;
+
+Status check_dump(const std::string& text, SequenceChecker* checker, std::vector<PosTri>* tris) {
+  std::istringstream in(text);
+  std::string line;
+  if (!std::getline(in, line) || line != "psq-dump 1") return Status(ErrorCode::kBadSequence, "bad first line");
+  PSQ_RETURN_IF_ERROR(checker->begin(MeshSchema()));
+  std::vector<std::array<double, 3>> pos;
+  std::vector<int> uses;
+  bool fresh_since_triangle = false;
+  std::vector<char> fresh;
+  while (std::getline(in, line)) {
+    std::istringstream ls(line);
+    std::string kind;
+    ls >> kind;
+    if (kind == "v") {
+      SequenceVertex v;
+      v.index = static_cast<uint32_t>(pos.size());
+      // %.9g of a float reads back exactly as a float (the meshes here are float).
+      for (int k = 0; k < 3; ++k) {
+        std::string num;
+        ls >> num;
+        v.position[k] = std::strtof(num.c_str(), nullptr);
+      }
+      std::string tok;
+      if (ls >> tok && tok[0] == '~') v.reappears = static_cast<uint32_t>(std::stoul(tok.substr(1)));
+      pos.push_back({v.position[0], v.position[1], v.position[2]});
+      fresh.push_back(1);
+      fresh_since_triangle = true;
+      PSQ_RETURN_IF_ERROR(checker->vertex(v));
+    } else if (kind == "t") {
+      SequenceTriangle t;
+      std::string op;
+      unsigned mask;
+      ls >> t.v[0] >> t.v[1] >> t.v[2] >> op >> mask;
+      const char* names[] = {"start", "add", "join", "fill", "end"};
+      int o = static_cast<int>(std::find(names, names + 5, op) - names);
+      if (o == 5) return Status(ErrorCode::kBadSequence, "bad op " + op);
+      t.op = static_cast<Op>(o);
+      t.border_mask = static_cast<uint8_t>(mask);
+      for (int k = 0; k < 3; ++k) {
+        if (t.v[k] >= pos.size()) return Status(ErrorCode::kBadSequence, "index out of range");
+        if (fresh[t.v[k]]) t.new_mask |= static_cast<uint8_t>(1 << k);
+      }
+      for (int k = 0; k < 3; ++k) fresh[t.v[k]] = 0;
+      fresh_since_triangle = false;
+      PSQ_RETURN_IF_ERROR(checker->triangle(t));
+      PosTri pt = {pos[t.v[0]], pos[t.v[1]], pos[t.v[2]]};
+      while (pt[0] > pt[1] || pt[0] > pt[2]) std::rotate(pt.begin(), pt.begin() + 1, pt.end());
+      tris->push_back(pt);
+    } else if (kind == "x") {
+      uint32_t a;
+      ls >> a;
+      PSQ_RETURN_IF_ERROR(checker->finalize(a));
+    } else {
+      return Status(ErrorCode::kBadSequence, "bad line: " + line);
+    }
+  }
+  (void)fresh_since_triangle;
+  return checker->finish();
+}
+
+std::vector<PosTri> input_triangles(const test::Mesh& m) {
+  std::vector<PosTri> out;
+  for (const auto& t : m.triangles) {
+    if (t[0] == t[1] || t[1] == t[2] || t[2] == t[0]) continue;
+    PosTri pt = {m.positions[t[0]], m.positions[t[1]], m.positions[t[2]]};
+    while (pt[0] > pt[1] || pt[0] > pt[2]) std::rotate(pt.begin(), pt.begin() + 1, pt.end());
+    out.push_back(pt);
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+TEST(CliDump, ShippedAndSharedMeshesDumpValidSequences) {
+  std::vector<std::string> files = {std::string(PSQ_TEST_DATA) + "/max_export_nm.ply",
+                                    std::string(PSQ_TEST_DATA) + "/spider.ply",
+                                    std::string(PSQ_TEST_DATA) + "/nonmanifold_wrap.ply",
+                                    std::string(PSQ_TEST_DATA) + "/cube_quads.obj"};
+  for (const char* f : {"meshes/bunny.ply", "meshes/boeing.ply", "meshes/blobby_shuffled.ply", "meshes/b9_mesh.ply",
+                        "meshes/iso_labyrinth_200k.ply"}) {
+    if (test::file_exists(shared(f))) files.push_back(shared(f));
+  }
+  for (const std::string& f : files) {
+    std::string out, err;
+    ASSERT_EQ(run_psq("dump " + f, &out, &err), 0) << f << ": " << err;
+    SequenceChecker checker;
+    std::vector<PosTri> tris;
+    Status s = check_dump(out, &checker, &tris);
+    ASSERT_TRUE(s.ok()) << f << ": " << s.to_string();
+    std::sort(tris.begin(), tris.end());
+    Mesh m;
+    ASSERT_TRUE(test::load_mesh(f, &m).ok());
+    EXPECT_EQ(tris, input_triangles(m)) << f;
+  }
+}
+
+TEST(CliDump, SortPathUnderSmallMemoryAndPipes) {
+  test::TempDir dir;
+  std::string ply = write_sphere(dir, "s.ply");
+  std::string a, b, err;
+  ASSERT_EQ(run_psq("dump " + ply, &a, &err), 0) << err;
+  ASSERT_EQ(run_psq("dump --sort --memory 1M --tmpdir " + dir.path() + " -", &b, &err, ply), 0) << err;
+  for (const std::string* text : {&a, &b}) {
+    SequenceChecker checker;
+    std::vector<PosTri> tris;
+    ASSERT_TRUE(check_dump(*text, &checker, &tris).ok());
+    EXPECT_EQ(checker.stats().components, 1u);
+  }
+  EXPECT_EQ(dir.entries(), (std::vector<std::string>{"s.ply"}));  // temporary files are gone
+  EXPECT_EQ(run_psq("dump --memory 12Q " + ply, &a, &err), 2);
+}
+
+TEST(CliInfo, SequenceStatisticsOfSharedMeshes) {
+  if (!test::file_exists(shared("meshes/cheese.ply"))) GTEST_SKIP() << "../shared/data not present";
+  struct Row {
+    const char* file;
+    const char* expect[4];
+  } rows[] = {
+      {"meshes/cheese.ply", {"\"components\": 1,", "\"handles\": 133,", "\"border_edges\": 0,", "\"nonmanifold_edges\": 0,"}},
+      {"meshes/bunny.ply", {"\"components\": 1,", "\"border_edges\": 223,", "\"border_loops\": 5,", "\"handles\": 0,"}},
+      {"meshes/bones.ply", {"\"components\": 26,", "\"border_edges\": 0,", "\"handles\": 0,", "\"nonmanifold_edges\": 0,"}},
+      {"meshes/max_export_nm.ply", {"\"components\": 24,", "\"nonmanifold_edges\": 16,", "\"border_edges\": 0,", "\"misoriented_edges\": 0,"}},
+      {"meshes/blobby_shuffled.ply", {"\"components\": 1,", "\"misoriented_edges\": 3069,", "\"border_edges\": 0,", "\"nonmanifold_edges\": 0,"}},
+  };
+  for (const Row& r : rows) {
+    std::string out, err;
+    ASSERT_EQ(run_psq("info --json " + shared(r.file), &out, &err), 0) << err;
+    for (const char* e : r.expect) EXPECT_NE(out.find(e), std::string::npos) << r.file << " lacks " << e << "\n" << out;
   }
 }
 

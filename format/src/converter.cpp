@@ -48,6 +48,14 @@ struct Tri {
   }
 };
 
+// One spoke of a vertex: the neighbour and the triangles using that edge.
+struct Spoke {
+  uint32_t other;
+  uint32_t tris[2];    // the first two triangles (local indices)
+  bool out[2];         // the triangle's edge runs vertex -> other
+  uint32_t count = 0;  // triangles on the edge
+};
+
 struct Vert {
   uint32_t id = kNone;
   bool has_data = false;
@@ -60,6 +68,10 @@ struct Vert {
   uint32_t first_dense = kNone;   // dense index of its first fan emitted
   uint32_t unemitted = 0;
   uint64_t stamp = 0;             // marks visits during one finalization
+  // Its spokes, computed at finalization and kept until it settles (its
+  // triangles do not change in between): see spokes_of().
+  std::vector<Spoke> spokes;
+  std::vector<std::array<uint32_t, 2>> spoke_index;
 };
 
 struct Seg {
@@ -68,13 +80,6 @@ struct Seg {
   uint32_t remaining = 0;   // triangles of the fan not yet emitted
 };
 
-// One spoke of a vertex: the neighbour and the triangles using that edge.
-struct Spoke {
-  uint32_t other;
-  uint32_t tris[2];    // the first two triangles (local indices)
-  bool out[2];         // the triangle's edge runs vertex -> other
-  uint32_t count = 0;  // triangles on the edge
-};
 
 // Input vertex id -> slot in the vertex pool: open addressing with linear
 // probing and backward-shift deletion, so that the waiting area costs no
@@ -164,17 +169,15 @@ struct SequenceConverter::Impl {
   SequenceTriangle st;  // reused
   SequenceVertex sv;
 
-  std::vector<Spoke> spokes;            // scratch
   std::vector<uint32_t> to_settle;      // scratch
   std::vector<uint32_t> parent, seg_of; // scratch
   uint64_t visit_stamp = 0;
-  std::vector<std::array<uint32_t, 2>> spoke_index;  // scratch: per fan triangle, its out and in spoke
 
   uint32_t vertex_slot(uint32_t id);  // existing or new
   void release_vertex(uint32_t slot);
   Status settle(uint32_t slot);
   void split_fans(uint32_t id, Vert& v);
-  void spokes_of(uint32_t id, const Vert& v);
+  void spokes_of(uint32_t id, Vert& v);
   void make_ready(uint32_t t);
   int classify(const Tri& t) const;
   Status emit(uint32_t t);
@@ -203,13 +206,21 @@ void SequenceConverter::Impl::release_vertex(uint32_t slot) {
   // Keep the vectors' capacity for the next vertex in this slot.
   std::vector<uint32_t> tris_keep;
   PropertyValues values_keep;
+  std::vector<Spoke> spokes_keep;
+  std::vector<std::array<uint32_t, 2>> index_keep;
   tris_keep.swap(v.tris);
   values_keep.swap(v.values);
+  spokes_keep.swap(v.spokes);
+  index_keep.swap(v.spoke_index);
   v = Vert();
   tris_keep.clear();
   values_keep.clear();
+  spokes_keep.clear();
+  index_keep.clear();
   v.tris.swap(tris_keep);
   v.values.swap(values_keep);
+  v.spokes.swap(spokes_keep);
+  v.spoke_index.swap(index_keep);
   free_verts.push_back(slot);
 }
 
@@ -269,9 +280,11 @@ Status SequenceConverter::triangle(const uint32_t id[3], const PropertyValues& v
 }
 
 // The spokes (edges) of vertex `id` over its waiting triangles, into
-// `spokes`; spoke_index[i] names the out-spoke (id -> next) and in-spoke
+// v.spokes; v.spoke_index[i] names the out-spoke (id -> next) and in-spoke
 // (prev -> id) of its i-th triangle.
-void SequenceConverter::Impl::spokes_of(uint32_t id, const Vert& v) {
+void SequenceConverter::Impl::spokes_of(uint32_t id, Vert& v) {
+  std::vector<Spoke>& spokes = v.spokes;
+  std::vector<std::array<uint32_t, 2>>& spoke_index = v.spoke_index;
   spokes.clear();
   spoke_index.resize(v.tris.size());
   for (uint32_t i = 0; i < v.tris.size(); ++i) {
@@ -306,6 +319,8 @@ static bool is_nonmanifold(const Spoke& s) { return s.count >= 3 || (s.count == 
 // both would use the same edge of the sequence.
 void SequenceConverter::Impl::split_fans(uint32_t id, Vert& v) {
   spokes_of(id, v);
+  const std::vector<Spoke>& spokes = v.spokes;
+  const std::vector<std::array<uint32_t, 2>>& spoke_index = v.spoke_index;
   bool any_nonmanifold = false;
   for (const Spoke& s : spokes) any_nonmanifold = any_nonmanifold || is_nonmanifold(s);
   if (!any_nonmanifold) return;  // a disk or half-disk, or only broken links
@@ -407,7 +422,9 @@ Status SequenceConverter::Impl::settle(uint32_t vslot) {
     release_vertex(vslot);
     return Status();
   }
-  spokes_of(id, v);
+  // v.spokes were computed at its finalization.
+  const std::vector<Spoke>& spokes = v.spokes;
+  const std::vector<std::array<uint32_t, 2>>& spoke_index = v.spoke_index;
   for (const Spoke& s : spokes) {
     if (id < s.other) {  // each edge once: at the settling of its smaller end
       if (s.count == 1) ++stats.border_edges;
