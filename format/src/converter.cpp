@@ -309,7 +309,7 @@ void SequenceConverter::Impl::spokes_of(uint32_t id, Vert& v) {
 // A spoke links its two triangles when it has exactly two, of opposite
 // orientation, and no fan split broke the link.
 static bool is_link(const Spoke& s, uint32_t id, const std::unordered_set<uint64_t>& broken) {
-  return s.count == 2 && s.out[0] != s.out[1] && !broken.count(edge_key(id, s.other));
+  return s.count == 2 && s.out[0] != s.out[1] && (broken.empty() || !broken.count(edge_key(id, s.other)));
 }
 
 static bool is_nonmanifold(const Spoke& s) { return s.count >= 3 || (s.count == 2 && s.out[0] == s.out[1]); }
