@@ -49,12 +49,17 @@ void unregister_pending(const std::string& path) {
   }
 }
 
-Status write_all(int fd, const uint8_t* p, size_t n, const std::string& name) {
+}  // namespace
+
+namespace detail {
+
+Status write_all(int fd, const void* data, size_t n, const std::string& what) {
+  const auto* p = static_cast<const uint8_t*>(data);
   while (n > 0) {
     ssize_t w = ::write(fd, p, n);
     if (w < 0) {
       if (errno == EINTR) continue;
-      return io_error("cannot write", name);
+      return io_error("cannot write", what);
     }
     p += w;
     n -= static_cast<size_t>(w);
@@ -62,7 +67,41 @@ Status write_all(int fd, const uint8_t* p, size_t n, const std::string& name) {
   return Status();
 }
 
-}  // namespace
+Status create_unlinked_temp(const std::string& dir, const char* prefix, int* fd) {
+  std::string d = dir;
+  if (d.empty()) {
+    const char* env = std::getenv("TMPDIR");
+    d = (env != nullptr && *env != '\0') ? env : "/tmp";
+  }
+  std::string tmpl = d + "/" + prefix + "-XXXXXX";
+  std::vector<char> name(tmpl.begin(), tmpl.end());
+  name.push_back('\0');
+  int f = ::mkostemp(name.data(), O_CLOEXEC);
+  if (f < 0) return Status(ErrorCode::kIo, "cannot create a temporary file in " + d + ": " + std::strerror(errno));
+  ::unlink(name.data());
+  *fd = f;
+  return Status();
+}
+
+Status pread_exact(int fd, uint64_t offset, void* dst, size_t n) {
+  auto* p = static_cast<uint8_t*>(dst);
+  while (n > 0) {
+    ssize_t r = ::pread(fd, p, n, static_cast<off_t>(offset));
+    if (r < 0) {
+      if (errno == EINTR) continue;
+      return Status(ErrorCode::kIo, std::string("cannot read a temporary file: ") + std::strerror(errno), offset);
+    }
+    if (r == 0) return Status(ErrorCode::kTruncated, "temporary file ends early", offset);
+    p += r;
+    n -= static_cast<size_t>(r);
+    offset += static_cast<uint64_t>(r);
+  }
+  return Status();
+}
+
+}  // namespace detail
+
+using detail::write_all;
 
 void remove_pending_outputs_from_signal() {
   for (int i = 0; i < kMaxPending; ++i) {
@@ -330,17 +369,7 @@ SpoolFile::~SpoolFile() {
 }
 
 Status SpoolFile::create(const std::string& dir) {
-  std::string d = dir;
-  if (d.empty()) {
-    const char* env = std::getenv("TMPDIR");
-    d = (env != nullptr && *env != '\0') ? env : "/tmp";
-  }
-  std::string tmpl = d + "/psq-spool-XXXXXX";
-  std::vector<char> name(tmpl.begin(), tmpl.end());
-  name.push_back('\0');
-  fd_ = ::mkstemp(name.data());
-  if (fd_ < 0) return Status(ErrorCode::kIo, "cannot create a temporary file in " + d + ": " + std::strerror(errno));
-  ::unlink(name.data());
+  PSQ_RETURN_IF_ERROR(detail::create_unlinked_temp(dir, "psq-spool", &fd_));
   buffer_.reserve(kBufferSize);
   return Status();
 }
@@ -367,19 +396,7 @@ Status SpoolFile::rewind() {
 }
 
 Status SpoolFile::read_at(uint64_t offset, void* dst, size_t n) const {
-  auto* p = static_cast<uint8_t*>(dst);
-  while (n > 0) {
-    ssize_t r = ::pread(fd_, p, n, static_cast<off_t>(offset));
-    if (r < 0) {
-      if (errno == EINTR) continue;
-      return io_error("cannot read", "temporary file");
-    }
-    if (r == 0) return Status(ErrorCode::kTruncated, "temporary file ends early", offset);
-    p += r;
-    n -= static_cast<size_t>(r);
-    offset += static_cast<uint64_t>(r);
-  }
-  return Status();
+  return detail::pread_exact(fd_, offset, dst, n);
 }
 
 }  // namespace psq

@@ -19,6 +19,11 @@ int report_error(const std::string& file, const Status& status) {
   return status.code() == ErrorCode::kUsage ? kExitUsage : kExitFailure;
 }
 
+int report_pipeline_error(const std::string& in, const std::string& out, const Status& status) {
+  bool about_input = status.line() != Status::kNoPlace || status.offset() != Status::kNoPlace;
+  return report_error(about_input ? in : out, status);
+}
+
 int usage_error(const std::string& command, const std::string& message) {
   std::fprintf(stderr, "psq: error: %s\n", message.c_str());
   std::fprintf(stderr, "Try 'psq %s--help' for more information.\n", command.empty() ? "" : (command + " ").c_str());

@@ -18,6 +18,9 @@ constexpr int kExitUsage = 2;
 
 // Prints "psq: error: FILE: <status>" and returns the exit code for it.
 int report_error(const std::string& file, const Status& status);
+// For an error of a pipeline from IN to OUT: a status that names a place
+// (line or byte) is about IN, any other (a write failure) about OUT.
+int report_pipeline_error(const std::string& in, const std::string& out, const Status& status);
 // Prints "psq: error: MESSAGE" and a hint to the command's --help; returns 2.
 int usage_error(const std::string& command, const std::string& message);
 // Prints "psq: warning: FILE: MESSAGE".

@@ -96,8 +96,7 @@ int cmd_convert(int argc, char** argv) {
   // Errors of the sink are about OUT unless they carry an input place.
   if (!s.ok()) {
     output.discard();
-    bool about_input = s.line() != Status::kNoPlace || s.offset() != Status::kNoPlace;
-    return report_error(about_input ? in : out, s);
+    return report_pipeline_error(in, out, s);
   }
   s = output.commit();
   if (!s.ok()) return report_error(out, s);

@@ -66,8 +66,7 @@ int cmd_dump(int argc, char** argv) {
   s = build_sequence(*mesh.source, writer, options, &report);
   if (!s.ok()) {
     out.discard();
-    bool about_input = s.line() != Status::kNoPlace || s.offset() != Status::kNoPlace;
-    return report_error(about_input ? in : out_path, s);
+    return report_pipeline_error(in, out_path, s);
   }
   s = out.commit();
   if (!s.ok()) return report_error(out_path, s);

@@ -150,6 +150,19 @@ class SpoolFile {
   InputStream in_;
 };
 
+namespace detail {
+
+// Creates a temporary file named PREFIX-XXXXXX in `dir` (empty: $TMPDIR, or
+// /tmp) and unlinks it at once, so that it disappears with its descriptor
+// whatever happens. Sets *fd (close-on-exec). Errors: kIo.
+Status create_unlinked_temp(const std::string& dir, const char* prefix, int* fd);
+// Reads exactly `n` bytes at `offset` of `fd`. Errors: kIo, kTruncated when
+// the file ends first.
+Status pread_exact(int fd, uint64_t offset, void* dst, size_t n);
+// Writes all `n` bytes to `fd`. Errors: kIo (naming `what`).
+Status write_all(int fd, const void* data, size_t n, const std::string& what);
+
+}  // namespace detail
 }  // namespace psq
 
 #endif  // PSQ_IO_H_
