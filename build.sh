@@ -3,6 +3,7 @@
 #   ./build.sh demo       install what is missing, build (Release), run the main job
 #   ./build.sh test       install what is missing, build (Release), run the whole test suite
 #   ./build.sh sanitize   the same suite built with AddressSanitizer + UBSan
+#   ./build.sh fuzz       clang + libFuzzer: build the fuzz targets, run each for 20 s (ctest -L fuzz)
 #   ./build.sh build      just build (Release) into build/
 # Dependencies come from Debian 12's packages only.
 set -euo pipefail
@@ -64,8 +65,15 @@ case "$cmd" in
     configure_build build-sanitize -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPSQ_SANITIZE=ON
     (cd build-sanitize && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 ctest --output-on-failure -j "$JOBS")
     ;;
+  fuzz)
+    PACKAGES+=(clang libclang-rt-14-dev)
+    install_deps
+    CC=clang CXX=clang++ cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPSQ_FUZZ=ON -DPSQ_BUILD_TESTS=OFF -DPSQ_BUILD_BENCH=OFF >/dev/null
+    cmake --build build-fuzz -j "$JOBS"
+    (cd build-fuzz && ctest -L fuzz --output-on-failure -j "$JOBS")
+    ;;
   *)
-    echo "usage: ./build.sh [demo|test|sanitize|build]" >&2
+    echo "usage: ./build.sh [demo|test|sanitize|fuzz|build]" >&2
     exit 2
     ;;
 esac

@@ -2,7 +2,7 @@
 //
 // The mesh is the boundary of a "foam ball": the solid where |gyroid(p)| >
 // theta(p), clipped by a sphere. The gyroid's two labyrinths are networks
-// with about three handles per period cell; theta varies slowly in space (a
+// with handles in every period cell; theta varies slowly in space (a
 // few random plane waves), so that where it is low the labyrinths are thick
 // tubes (handles) and where it is high they pinch off into separate blobs
 // (components). The field is fixed by --seed; --res only samples it more
@@ -15,8 +15,11 @@
 // share faces and every lattice edge p -> p + e (e a nonzero 0/1 vector: 3
 // axes, 3 face diagonals, 1 body diagonal) carries at most one vertex, shared
 // by every tetrahedron around it: the surface is closed and manifold without
-// any ambiguity table. A grid point is inside when f < 0, so no vertex lies
-// exactly on a grid point and every triangle has three distinct vertices.
+// any ambiguity table. The three vertices of a triangle lie on three
+// different edges, so no triangle repeats an index, and vertices are kept a
+// thousandth of an edge away from the grid points, so no two coincide.
+// Triangles face outward: the table orients them from inside (f < 0) to
+// outside.
 //
 // Memory is bounded by two z-layers of the grid, never by the mesh: a sweep
 // over z keeps the sign bits of the two layers around the current slab of
@@ -29,13 +32,14 @@
 //
 // --order shuffled permutes vertices and triangles with keyed bijections on
 // [0, n) (a Feistel network with cycle walking, O(1) memory) and puts them in
-// place with the external sorter under --memory.
+// place under --memory: in an array when they fit, otherwise with the
+// external sorter.
 #include <signal.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <array>
-#include <cerrno>
+#include <cctype>
 #include <charconv>
 #include <chrono>
 #include <cmath>
@@ -43,6 +47,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -58,10 +63,19 @@ constexpr int kExitOk = 0;
 constexpr int kExitFailure = 1;
 constexpr int kExitUsage = 2;
 
-// Above this the grid layers alone take gigabytes and the vertex count
-// overflows PLY's int indices long before.
-constexpr uint32_t kMaxRes = 8192;
-constexpr uint32_t kMinRes = 4;
+// Resolutions are kept in hundredths of a cube per axis: --triangles can
+// then hit small targets closely (a whole step changes the count by about
+// 2 / res, 17% at res 12), and the printed value reproduces the mesh.
+// Above the maximum the grid layers alone take gigabytes and the vertex
+// count overflows PLY's int indices long before.
+constexpr uint32_t kMaxRes100 = 8192 * 100;
+constexpr uint32_t kMinRes100 = 4 * 100;
+
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_BIG_ENDIAN__
+constexpr bool kLittleEndian = false;
+#else
+constexpr bool kLittleEndian = true;
+#endif
 
 const char kHelp[] =
     "Usage: psq-meshgen [--triangles N | --res R] [OPTIONS] [-o OUT.ply]\n"
@@ -70,14 +84,17 @@ const char kHelp[] =
     "mesh: the surface of a 'foam ball', a gyroid foam of varying thickness\n"
     "clipped by a sphere, with hundreds of handles and many components. It is\n"
     "written as binary little-endian PLY (float x, y, z; list uchar int\n"
-    "vertex_indices), streaming: memory is bounded by two layers of the grid,\n"
-    "not by the mesh, so meshes of hundreds of millions of triangles work.\n"
+    "vertex_indices), streaming: memory is bounded by two layers of the grid\n"
+    "(about 11 bytes x res^2: 25 MB at 200M triangles), not by the mesh.\n"
     "The same --seed gives the same field; --res samples it more finely.\n"
     "\n"
     "Options:\n"
     "  --triangles N    about N triangles (within a few percent); suffixes\n"
     "                   k, M, G are powers of 1000 (default 200k)\n"
-    "  --res R          grid resolution R (cubes per axis, 4..8192) instead\n"
+    "  --res R          grid resolution instead: R cubes across the box\n"
+    "                   [-1, 1]^3, 4..8192 in steps of 0.01 (the summary\n"
+    "                   prints the one --triangles chose); about 90 R^2\n"
+    "                   triangles; PLY's int indices stop R near 6700\n"
     "  --seed S         field seed (default 1)\n"
     "  --order ORDER    coherent (default): vertices and triangles in sweep\n"
     "                   order; shuffled: both randomly permuted (by the seed)\n"
@@ -101,7 +118,9 @@ uint64_t mix64(uint64_t z) {
 }
 
 // SplitMix64: tiny, and the same sequence on every platform (unlike the
-// standard library's distributions), so a seed means one mesh everywhere.
+// standard library's engines and distributions, whose output is not fully
+// specified), so a seed means one field everywhere; the mesh is the same
+// wherever libm's sin and cos agree too.
 class SplitMix {
  public:
   explicit SplitMix(uint64_t seed) : state_(seed) {}
@@ -151,32 +170,60 @@ class Permutation {
   std::array<uint64_t, 4> keys_{};
 };
 
+// Population count, inline: the generic x86-64 target has no popcnt
+// instruction and __builtin_popcountll becomes a libgcc call, which cost 15%
+// of the run.
+inline uint32_t popcount(uint64_t x) {
+#if defined(__POPCNT__) || !(defined(__x86_64__) || defined(__i386__))
+  return static_cast<uint32_t>(__builtin_popcountll(x));
+#else
+  x = x - ((x >> 1) & 0x5555555555555555ULL);
+  x = (x & 0x3333333333333333ULL) + ((x >> 2) & 0x3333333333333333ULL);
+  x = (x + (x >> 4)) & 0x0f0f0f0f0f0f0f0fULL;
+  return static_cast<uint32_t>((x * 0x0101010101010101ULL) >> 56);
+#endif
+}
+
 // ------------------------------------------------------------------- field
 
 // The scalar field, separable along the axes so that a grid point costs a
 // few multiply-adds on per-axis tables instead of trigonometry (at res 2000
 // the grid has 8e9 points; the mesh only 1e8 triangles).
+//
+//   f(p) = max(theta(p) - |gyroid(p)|, sphere_scale * (|p|^2 - radius^2))
+//   theta(p) = theta_mid + theta_span * s(sharpness * (waves(p) + bias))
+//
+// with s a tanh-like sigmoid and waves(p) a sum of plane waves
+// sin(k.p + phase). The gyroid (range [-1.5, 1.5]) pinches off
+// its labyrinths' tubes near |g| = 1.41: theta swings between two plateaus,
+// 0.95 (thick networks: handles) and 1.45 (separate blobs around the
+// maxima: components), with thin transition shells, so little of the
+// volume sits near the pinch-off value where the topology depends on the
+// grid. Inside is f < 0; the sphere term closes the surface.
 struct Field {
   static constexpr int kWaves = 4;
   double gyroid_freq = 0;        // radians per unit: pi * periods across [-1, 1]
   double gyroid_phase[3] = {};   // x, y, z
   double wave[kWaves][3] = {};   // wave vectors of theta's plane waves
   double wave_phase[kWaves] = {};
-  double wave_amp = 0;           // per wave
-  double theta0 = 0;
+  double wave_amp = 0;
+  double bias = 0;        // moves the plateaus' share of the volume
+  double sharpness = 0;
+  double theta_mid = 0;
+  double theta_span = 0;
   double radius = 0;
   double sphere_scale = 0;  // makes the sphere term's slope like the foam's
 
   explicit Field(uint64_t seed) {
-    // Parameters chosen by measuring psq info: at 200K triangles the ball
-    // has hundreds of handles and about a hundred components (see
-    // meshgen_README.md).
+    // Tuned with psq info (see meshgen_README.md): at 200K triangles about
+    // 400 handles and 150 to 300 components, depending on the seed, and
+    // the same order of magnitude at every size.
     SplitMix rng(mix64(seed ^ 0x5eed0f0a3ba11ULL));
     const double pi = 3.14159265358979323846;
-    gyroid_freq = pi * 5.0;
+    gyroid_freq = pi * 6.0;
     for (double& p : gyroid_phase) p = 2 * pi * rng.uniform();
     for (int m = 0; m < kWaves; ++m) {
-      // Uniform direction on the sphere, about 1.5 periods across the ball.
+      // Uniform direction on the sphere, 1.6 periods across the box.
       double z = 2 * rng.uniform() - 1, a = 2 * pi * rng.uniform();
       double s = std::sqrt(1 - z * z), k = pi * 1.6;
       wave[m][0] = k * s * std::cos(a);
@@ -184,8 +231,11 @@ struct Field {
       wave[m][2] = k * z;
       wave_phase[m] = 2 * pi * rng.uniform();
     }
-    theta0 = 0.85;
-    wave_amp = 0.45 / std::sqrt(static_cast<double>(kWaves));
+    wave_amp = 1.0 / std::sqrt(static_cast<double>(kWaves));
+    bias = -0.5;  // about two thirds of the ball is network
+    sharpness = 4.0;
+    theta_mid = 1.2;
+    theta_span = 0.25;
     radius = 0.92;
     sphere_scale = gyroid_freq / (2 * radius);
   }
@@ -208,6 +258,9 @@ struct CubeTable {
   // triangles as edge codes, outward (counter-clockwise seen from outside).
   std::array<std::array<uint8_t, 36>, 256> triangles{};
   std::array<uint8_t, 256> count{};
+  // Per configuration, the edges its triangles use (bit = edge code): each
+  // id is looked up once per cube, not once per triangle corner.
+  std::array<uint32_t, 256> used{};
 };
 
 CubeTable make_cube_table() {
@@ -289,6 +342,7 @@ CubeTable make_cube_table() {
       }
     }
     table.count[config] = static_cast<uint8_t>(k / 3);
+    for (int c = 0; c < k; ++c) table.used[config] |= uint32_t{1} << table.triangles[config][c];
   }
   return table;
 }
@@ -314,10 +368,13 @@ struct Counts {
 
 class Grid {
  public:
-  Grid(const Field& field, uint32_t res, const CubeTable& table)
-      : field_(field), res_(res), table_(table) {
-    const uint32_t points = res + 1;
-    h_ = 2.0 / res;
+  // `res100`: the resolution in hundredths: the grid spacing is 2 / res
+  // and the grid has ceil(res) cubes per axis, centred on the ball.
+  Grid(const Field& field, uint32_t res100, const CubeTable& table)
+      : field_(field), res_((res100 + 99) / 100), table_(table) {
+    const uint32_t points = res_ + 1;
+    h_ = 200.0 / res100;
+    origin_ = -0.5 * h_ * res_;
     words_ = (points + 63) / 64;
     bit_words_ = words_ + 1;  // a zero word so that "bit i + 1" never reads past
     coord_.resize(points);
@@ -350,19 +407,11 @@ class Grid {
       }
     }
     row_.resize(points);
+    inside_.resize(size_t{words_} * 64);
     // Only points within this distance of the centre can be, or neighbour,
     // an inside point (the sphere term is positive beyond the radius, and
     // a lattice edge is at most sqrt(3) h long).
     reach_ = field.radius + 2 * h_;
-  }
-
-  // Bytes the sweep's arrays take for `pass` (for the summary).
-  uint64_t memory(Pass pass) const {
-    uint64_t points = uint64_t{res_ + 1} * (res_ + 1);
-    uint64_t rows = res_ + 2;
-    uint64_t m = 2 * rows * bit_words_ * 8 + 2 * (res_ + 1) * uint64_t{words_} * 7 * (8 + 4);
-    if (pass == Pass::kVertices) m += 2 * points * 4;
-    return m;
   }
 
   Status sweep(Pass pass, MeshOut* out, Counts* counts) {
@@ -376,8 +425,9 @@ class Grid {
     out_ = out;
     pass_ = pass;
     next_id_ = 0;
-    vbuf_.clear();
-    tbuf_.clear();
+    vbuf_.assign(kBatch + 3 * 64, 0.0f);
+    tbuf_.assign(kBatch + 36 * 64, 0);
+    vsize_ = tsize_ = 0;
     *counts = Counts();
 
     // Layer 0 lies on the grid's boundary, outside the sphere: its in-layer
@@ -390,7 +440,7 @@ class Grid {
       eval_layer(s + 1, hi);
       crossings(lo, hi, hi);
       uint64_t slab_vertices = 0;
-      for (uint64_t w : cross_[hi]) slab_vertices += static_cast<uint64_t>(__builtin_popcountll(w));
+      for (uint64_t w : cross_[hi]) slab_vertices += popcount(w);
       counts->vertices += slab_vertices;
       if (pass == Pass::kVertices) {
         PSQ_RETURN_IF_ERROR(slab_vertices_out(s, lo, hi));
@@ -400,19 +450,53 @@ class Grid {
       PSQ_RETURN_IF_ERROR(cubes(lo, hi, counts));
       lo = hi;
     }
-    if (pass == Pass::kVertices && !vbuf_.empty()) {
-      PSQ_RETURN_IF_ERROR(out_->vertices(vbuf_.data(), vbuf_.size() / 3));
-    }
-    if (pass == Pass::kTriangles && !tbuf_.empty()) {
-      PSQ_RETURN_IF_ERROR(out_->triangles(tbuf_.data(), tbuf_.size() / 3));
-    }
+    if (vsize_ > 0) PSQ_RETURN_IF_ERROR(out_->vertices(vbuf_.data(), vsize_ / 3));
+    if (tsize_ > 0) PSQ_RETURN_IF_ERROR(out_->triangles(tbuf_.data(), tsize_ / 3));
     return Status();
   }
 
  private:
   static constexpr size_t kBatch = 3 * 16384;
 
-  double coordinate(uint32_t i) const { return -1.0 + h_ * i; }
+  double coordinate(uint32_t i) const { return origin_ + h_ * i; }
+
+  // What the field of a row needs besides the per-x tables.
+  struct RowConstants {
+    float A, B, C;  // gyroid = sx * A + cx * C + B
+    float yz;       // sphere term minus its x part
+    float q0, theta_mid, theta_span;
+    float w_re[Field::kWaves], w_im[Field::kWaves];  // wave factors of y, z
+  };
+
+  // f over [i0, i_end) of one row; r and m are the real and imaginary
+  // parts of the waves' x factors. The loop is written for the vectorizer:
+  // restrict pointers (too many streams for runtime alias checks), a
+  // half-open bound (with i <= i1 the trip count could overflow), no libm
+  // call and no nested ?: (GCC treats either as control flow).
+  static void eval_row(float* __restrict f, const float* __restrict sx, const float* __restrict cx,
+                       const float* __restrict xx, const float* __restrict r0, const float* __restrict r1,
+                       const float* __restrict r2, const float* __restrict r3, const float* __restrict m0,
+                       const float* __restrict m1, const float* __restrict m2, const float* __restrict m3,
+                       const RowConstants& k, uint32_t i0, uint32_t i_end) {
+    static_assert(Field::kWaves == 4, "the loop below unrolls the waves");
+    const float A = k.A, B = k.B, C = k.C, yz = k.yz, q0 = k.q0;
+    const float theta_mid = k.theta_mid, theta_span = k.theta_span;
+    const float a0 = k.w_re[0], a1 = k.w_re[1], a2 = k.w_re[2], a3 = k.w_re[3];
+    const float b0 = k.w_im[0], b1 = k.w_im[1], b2 = k.w_im[2], b3 = k.w_im[3];
+    for (uint32_t i = i0; i < i_end; ++i) {
+      const float g = sx[i] * A + cx[i] * C + B;
+      const float q = q0 + (a0 * m0[i] + b0 * r0[i]) + (a1 * m1[i] + b1 * r1[i]) + (a2 * m2[i] + b2 * r2[i]) +
+                      (a3 * m3[i] + b3 * r3[i]);
+      // tanh(q) by its (3, 2) Pade approximant, clamped to [-3, 3] where it
+      // meets +-1 with zero slope; the clamp is written with fabs.
+      const float x = 0.5f * (std::fabs(q + 3.0f) - std::fabs(q - 3.0f));
+      const float x2 = x * x;
+      const float theta = theta_mid + theta_span * (x * (27.0f + x2) / (27.0f + 9.0f * x2));
+      const float foam = theta - std::fabs(g);
+      const float sphere = xx[i] + yz;
+      f[i] = foam > sphere ? foam : sphere;
+    }
+  }
 
   // Evaluates z-layer k into bits_[slot] (and values_[slot] when kept).
   // The same code computes every pass, so the three sweeps see the same
@@ -425,7 +509,9 @@ class Grid {
     const double z = coord_[k];
     const double reach2 = reach_ * reach_;
     const float R2 = static_cast<float>(field_.sphere_scale * field_.radius * field_.radius);
-    const float theta0 = static_cast<float>(field_.theta0);
+    const float theta_mid = static_cast<float>(field_.theta_mid);
+    const float theta_span = static_cast<float>(field_.theta_span);
+    const float q0 = static_cast<float>(field_.sharpness * field_.bias);
     for (uint32_t j = 0; j < points; ++j) {
       float* row_values = values ? values + size_t{j} * points : nullptr;
       const double y = coord_[j];
@@ -435,47 +521,52 @@ class Grid {
         continue;
       }
       const double half = std::sqrt(reach2 - yz2);
-      const uint32_t i0 = static_cast<uint32_t>(std::max(0.0, std::floor((1.0 - half) / h_)));
-      const uint32_t i1 = static_cast<uint32_t>(std::min<double>(res_, std::ceil((1.0 + half) / h_)));
+      const uint32_t i0 = static_cast<uint32_t>(std::max(0.0, std::floor((-half - origin_) / h_)));
+      const uint32_t i1 = static_cast<uint32_t>(std::min<double>(res_, std::ceil((half - origin_) / h_)));
 
       // Row constants: gyroid = sx*cy + sy*cz + sz*cx = sx*A + cx*C + B; each
       // wave sin(kx x + ky y + kz z + phi) = Im(W * e^{i kx x}).
-      const float A = cy_[j], B = sy_[j] * cz_[k], C = sz_[k];
-      const float yz = static_cast<float>(field_.sphere_scale * yz2) - R2;
-      float w_re[Field::kWaves], w_im[Field::kWaves];
+      RowConstants rc;
+      rc.A = cy_[j];
+      rc.B = sy_[j] * cz_[k];
+      rc.C = sz_[k];
+      rc.yz = static_cast<float>(field_.sphere_scale * yz2) - R2;
+      rc.q0 = q0;
+      rc.theta_mid = theta_mid;
+      rc.theta_span = theta_span;
       for (int m = 0; m < Field::kWaves; ++m) {
-        double a = field_.wave[m][1] * y + field_.wave[m][2] * z + field_.wave_phase[m];
-        w_re[m] = static_cast<float>(field_.wave_amp * std::cos(a));
-        w_im[m] = static_cast<float>(field_.wave_amp * std::sin(a));
+        const double a = field_.wave[m][1] * y + field_.wave[m][2] * z + field_.wave_phase[m];
+        const double amp = field_.sharpness * field_.wave_amp;
+        rc.w_re[m] = static_cast<float>(amp * std::cos(a));
+        rc.w_im[m] = static_cast<float>(amp * std::sin(a));
       }
-      float* f = row_.data();
-      const float* sx = sx_.data();
-      const float* cx = cx_.data();
-      const float* xx = xx_.data();
-      const float *r0 = wx_re_[0].data(), *r1 = wx_re_[1].data(), *r2 = wx_re_[2].data(),
-                  *r3 = wx_re_[3].data();
-      const float *m0 = wx_im_[0].data(), *m1 = wx_im_[1].data(), *m2 = wx_im_[2].data(),
-                  *m3 = wx_im_[3].data();
-      static_assert(Field::kWaves == 4, "the loop below unrolls the waves");
-      for (uint32_t i = i0; i <= i1; ++i) {
-        float g = sx[i] * A + cx[i] * C + B;
-        float theta = theta0 + (w_re[0] * m0[i] + w_im[0] * r0[i]) + (w_re[1] * m1[i] + w_im[1] * r1[i]) +
-                      (w_re[2] * m2[i] + w_im[2] * r2[i]) + (w_re[3] * m3[i] + w_im[3] * r3[i]);
-        float foam = theta - std::fabs(g);
-        float sphere = xx[i] + yz;
-        f[i] = foam > sphere ? foam : sphere;
-      }
+      const uint32_t i_end = i1 + 1;
+      eval_row(row_.data(), sx_.data(), cx_.data(), xx_.data(), wx_re_[0].data(), wx_re_[1].data(),
+               wx_re_[2].data(), wx_re_[3].data(), wx_im_[0].data(), wx_im_[1].data(), wx_im_[2].data(),
+               wx_im_[3].data(), rc, i0, i_end);
+      const float* f = row_.data();
 
+      // Sign bits, 8 at a time: a byte 0/1 per point, then the multiply
+      // gathers the low bit of 8 bytes into the top byte of the product.
+      uint8_t* in = inside_.data();
+      const uint32_t w0 = i0 / 64, w1 = i1 / 64;
+      std::fill(in + 64 * w0, in + i0, uint8_t{0});
+      for (uint32_t i = i0; i < i_end; ++i) in[i] = f[i] < 0.0f;
+      std::fill(in + i1 + 1, in + 64 * (w1 + 1), uint8_t{0});
       uint64_t* row_bits = bits + size_t{j} * bit_words_;
-      for (uint32_t w = i0 / 64; w <= i1 / 64; ++w) {
-        const uint32_t begin = std::max(i0, w * 64), end = std::min(i1 + 1, w * 64 + 64);
+      for (uint32_t w = w0; w <= w1; ++w) {
         uint64_t word = 0;
-        for (uint32_t i = begin; i < end; ++i) word |= static_cast<uint64_t>(f[i] < 0.0f) << (i & 63);
+        for (uint32_t b = 0; b < 8; ++b) {
+          uint64_t bytes;
+          std::memcpy(&bytes, in + 64 * w + 8 * b, 8);
+          if (!kLittleEndian) bytes = __builtin_bswap64(bytes);
+          word |= ((bytes * 0x0102040810204080ULL) >> 56) << (8 * b);
+        }
         row_bits[w] = word;
       }
       if (row_values) {
         std::fill(row_values, row_values + i0, 1.0f);
-        std::copy(f + i0, f + i1 + 1, row_values + i0);
+        std::copy(f + i0, f + i_end, row_values + i0);
         std::fill(row_values + i1 + 1, row_values + points, 1.0f);
       }
     }
@@ -517,7 +608,7 @@ class Grid {
     uint32_t id = static_cast<uint32_t>(next_id_);
     for (size_t k = 0; k < n; ++k) {
       base[k] = id;
-      id += static_cast<uint32_t>(__builtin_popcountll(cross[k]));
+      id += popcount(cross[k]);
     }
     next_id_ = id;
   }
@@ -544,13 +635,15 @@ class Grid {
             // Keep vertices off the grid points so that no two coincide.
             double t = static_cast<double>(f0) / (static_cast<double>(f0) - f1);
             t = std::min(std::max(t, 1e-3), 1.0 - 1e-3);
-            vbuf_.push_back(static_cast<float>(coordinate(i) + t * h_ * (e & 1)));
-            vbuf_.push_back(static_cast<float>(coordinate(j) + t * h_ * ((e >> 1) & 1)));
-            vbuf_.push_back(static_cast<float>(coordinate(k) + t * h_ * ((e >> 2) & 1)));
+            float* v = vbuf_.data() + vsize_;
+            v[0] = static_cast<float>(coordinate(i) + t * h_ * (e & 1));
+            v[1] = static_cast<float>(coordinate(j) + t * h_ * ((e >> 1) & 1));
+            v[2] = static_cast<float>(coordinate(k) + t * h_ * ((e >> 2) & 1));
+            vsize_ += 3;
           }
-          if (vbuf_.size() >= kBatch) {
-            PSQ_RETURN_IF_ERROR(out_->vertices(vbuf_.data(), vbuf_.size() / 3));
-            vbuf_.clear();
+          if (vsize_ >= kBatch) {  // the slack holds one word's 64 vertices
+            PSQ_RETURN_IF_ERROR(out_->vertices(vbuf_.data(), vsize_ / 3));
+            vsize_ = 0;
           }
         }
       }
@@ -563,7 +656,7 @@ class Grid {
     const uint32_t x = i + e.dx;
     const size_t k = (size_t{j + e.dy} * words_ + x / 64) * 7 + e.dir;
     const uint64_t below = (uint64_t{1} << (x & 63)) - 1;
-    return base_[rec][k] + static_cast<uint32_t>(__builtin_popcountll(cross_[rec][k] & below));
+    return base_[rec][k] + popcount(cross_[rec][k] & below);
   }
 
   // Walks the cubes of the slab between layers lo and hi that the surface
@@ -590,14 +683,19 @@ class Grid {
           counts->triangles += n;
           if (pass_ != Pass::kTriangles) continue;
           const uint32_t i = w * 64 + static_cast<uint32_t>(b);
-          const uint8_t* t = table_.triangles[config].data();
-          for (unsigned k = 0; k < 3 * n; ++k) {
-            tbuf_.push_back(vertex_id(table_.edges[t[k]], i, j, lo, hi));
+          uint32_t ids[19];
+          for (uint32_t used = table_.used[config]; used != 0; used &= used - 1) {
+            const int e = __builtin_ctz(used);
+            ids[e] = vertex_id(table_.edges[e], i, j, lo, hi);
           }
+          const uint8_t* t = table_.triangles[config].data();
+          uint32_t* out = tbuf_.data() + tsize_;
+          for (unsigned k = 0; k < 3 * n; ++k) out[k] = ids[t[k]];
+          tsize_ += 3 * n;
         }
-        if (tbuf_.size() >= kBatch) {
-          PSQ_RETURN_IF_ERROR(out_->triangles(tbuf_.data(), tbuf_.size() / 3));
-          tbuf_.clear();
+        if (tsize_ >= kBatch) {  // the slack holds one word's 64 cubes
+          PSQ_RETURN_IF_ERROR(out_->triangles(tbuf_.data(), tsize_ / 3));
+          tsize_ = 0;
         }
       }
     }
@@ -607,14 +705,16 @@ class Grid {
   const Field& field_;
   const uint32_t res_;
   const CubeTable& table_;
-  double h_ = 0;
+  double h_ = 0;       // grid spacing
+  double origin_ = 0;  // coordinate of grid point 0 on every axis
   double reach_ = 0;
   uint32_t words_ = 0;      // 64-point words per row
   uint32_t bit_words_ = 0;  // words_ + 1
   std::vector<double> coord_;
   std::vector<float> sx_, cx_, sy_, cy_, sz_, cz_, xx_;
   std::vector<float> wx_re_[Field::kWaves], wx_im_[Field::kWaves];
-  std::vector<float> row_;
+  std::vector<float> row_;      // field values of one row
+  std::vector<uint8_t> inside_;  // f < 0 of one row, padded to whole words
 
   // Two of each, indexed by slot; the slots swap roles every slab.
   std::vector<uint64_t> bits_[2];    // sign bits per layer: (res + 2) rows
@@ -625,8 +725,10 @@ class Grid {
   Pass pass_ = Pass::kCount;
   MeshOut* out_ = nullptr;
   uint64_t next_id_ = 0;
-  std::vector<float> vbuf_;
-  std::vector<uint32_t> tbuf_;
+  std::vector<float> vbuf_;      // vertices waiting for out_, with slack
+  std::vector<uint32_t> tbuf_;   // triangles waiting for out_, with slack
+  size_t vsize_ = 0;             // floats used in vbuf_
+  size_t tsize_ = 0;             // ids used in tbuf_
 };
 
 // ------------------------------------------------------------------ output
@@ -722,17 +824,52 @@ struct ByPosition {
   bool operator()(const T& a, const T& b) const { return a.position < b.position; }
 };
 
+// Puts n records in the order of their positions, which are a permutation
+// of [0, n): by a scatter into an array when the n records fit in the
+// budget (no sort, no file), otherwise through the external sorter. Both
+// give the same output.
+template <class T>
+class Shuffler {
+ public:
+  Shuffler(uint64_t n, const ExternalSortOptions& options) {
+    if (n * sizeof(T) <= options.memory_budget) {
+      in_memory_ = true;
+      records_.resize(n);
+    } else {
+      sorter_ = std::make_unique<ExternalSorter<T, ByPosition>>(options);
+    }
+  }
+  Status add(const T& r) {
+    if (!in_memory_) return sorter_->add(r);
+    if (r.position >= records_.size()) return Status(ErrorCode::kInternal, "shuffle position out of range");
+    records_[r.position] = r;
+    return Status();
+  }
+  Status finish() { return in_memory_ ? Status() : sorter_->finish(); }
+  Status next(T* r, bool* done) {
+    if (!in_memory_) return sorter_->next(r, done);
+    *done = next_ == records_.size();
+    if (!*done) *r = records_[next_++];
+    return Status();
+  }
+
+ private:
+  bool in_memory_ = false;
+  std::vector<T> records_;
+  size_t next_ = 0;
+  std::unique_ptr<ExternalSorter<T, ByPosition>> sorter_;
+};
+
 class ShuffleOut : public MeshOut {
  public:
   ShuffleOut(const Permutation* vperm, const Permutation* tperm, uint64_t rotate_key,
-             ExternalSorter<VertexRecord, ByPosition>* vsort,
-             ExternalSorter<TriangleRecord, ByPosition>* tsort)
-      : vperm_(vperm), tperm_(tperm), rotate_key_(rotate_key), vsort_(vsort), tsort_(tsort) {}
+             Shuffler<VertexRecord>* vertices, Shuffler<TriangleRecord>* triangles)
+      : vperm_(vperm), tperm_(tperm), rotate_key_(rotate_key), vout_(vertices), tout_(triangles) {}
 
   Status vertices(const float* xyz, size_t n) override {
     for (size_t k = 0; k < n; ++k, ++vertex_) {
       VertexRecord r{static_cast<uint32_t>((*vperm_)(vertex_)), {xyz[3 * k], xyz[3 * k + 1], xyz[3 * k + 2]}};
-      PSQ_RETURN_IF_ERROR(vsort_->add(r));
+      PSQ_RETURN_IF_ERROR(vout_->add(r));
     }
     return Status();
   }
@@ -743,29 +880,70 @@ class ShuffleOut : public MeshOut {
       const unsigned rot = static_cast<unsigned>(mix64(triangle_ ^ rotate_key_) % 3);
       TriangleRecord r;
       r.position = static_cast<uint32_t>((*tperm_)(triangle_));
-      for (unsigned c = 0; c < 3; ++c) {
-        r.index[c] = static_cast<uint32_t>((*vperm_)(abc[3 * k + (c + rot) % 3]));
-      }
-      PSQ_RETURN_IF_ERROR(tsort_->add(r));
+      for (unsigned c = 0; c < 3; ++c) r.index[c] = new_vertex(abc[3 * k + (c + rot) % 3]);
+      PSQ_RETURN_IF_ERROR(tout_->add(r));
     }
     return Status();
   }
 
  private:
+  // The sweep's triangles use the vertices of about two slabs, each about
+  // six times: a direct-mapped cache saves most of the Feistel rounds.
+  uint32_t new_vertex(uint32_t old) {
+    uint64_t& slot = cache_[old & (kCache - 1)];
+    if ((slot >> 32) != old) slot = uint64_t{old} << 32 | (*vperm_)(old);
+    return static_cast<uint32_t>(slot);
+  }
+
+  static constexpr size_t kCache = size_t{1} << 16;
   const Permutation* vperm_;
   const Permutation* tperm_;
   uint64_t rotate_key_;
-  ExternalSorter<VertexRecord, ByPosition>* vsort_;
-  ExternalSorter<TriangleRecord, ByPosition>* tsort_;
+  Shuffler<VertexRecord>* vout_;
+  Shuffler<TriangleRecord>* tout_;
   uint64_t vertex_ = 0;
   uint64_t triangle_ = 0;
+  // Entries are old << 32 | new; old ids are < 2^31, so ~0 is no entry.
+  std::vector<uint64_t> cache_ = std::vector<uint64_t>(kCache, ~uint64_t{0});
 };
+
+// Writes the shuffled mesh: for each kind, one sweep into its shuffler,
+// then the records in order. One shuffler at a time, each with the whole
+// budget.
+Status write_shuffled(Grid* grid, const Counts& counts, uint64_t seed, const ExternalSortOptions& options,
+                      PlyEncoder* encoder, Counts* got) {
+  const Permutation vperm(counts.vertices, mix64(seed ^ 0x7665727465787321ULL));
+  const Permutation tperm(counts.triangles, mix64(seed ^ 0x747269616e676c65ULL));
+  {
+    Shuffler<VertexRecord> vertices(counts.vertices, options);
+    ShuffleOut sink(&vperm, &tperm, 0, &vertices, nullptr);
+    PSQ_RETURN_IF_ERROR(grid->sweep(Pass::kVertices, &sink, got));
+    PSQ_RETURN_IF_ERROR(vertices.finish());
+    VertexRecord r{};
+    for (bool done = false;;) {
+      PSQ_RETURN_IF_ERROR(vertices.next(&r, &done));
+      if (done) break;
+      PSQ_RETURN_IF_ERROR(encoder->vertex(r.xyz[0], r.xyz[1], r.xyz[2]));
+    }
+  }
+  Shuffler<TriangleRecord> triangles(counts.triangles, options);
+  ShuffleOut sink(&vperm, &tperm, mix64(seed + 1), nullptr, &triangles);
+  PSQ_RETURN_IF_ERROR(grid->sweep(Pass::kTriangles, &sink, got));
+  PSQ_RETURN_IF_ERROR(triangles.finish());
+  TriangleRecord r{};
+  for (bool done = false;;) {
+    PSQ_RETURN_IF_ERROR(triangles.next(&r, &done));
+    if (done) break;
+    PSQ_RETURN_IF_ERROR(encoder->triangle(r.index[0], r.index[1], r.index[2]));
+  }
+  return Status();
+}
 
 // ---------------------------------------------------------------- commands
 
 struct Options {
   uint64_t triangles = 200000;
-  uint32_t res = 0;  // 0: from triangles
+  uint32_t res100 = 0;  // resolution in hundredths; 0: from triangles
   uint64_t seed = 1;
   bool shuffled = false;
   uint64_t memory = uint64_t{256} << 20;
@@ -775,46 +953,71 @@ struct Options {
   bool quiet = false;
 };
 
-Counts count(const Field& field, uint32_t res, const CubeTable& table) {
-  Grid grid(field, res, table);
+Counts count(const Field& field, uint32_t res100, const CubeTable& table) {
+  Grid grid(field, res100, table);
   Counts c;
   grid.sweep(Pass::kCount, nullptr, &c);  // counting writes nothing: cannot fail
   return c;
 }
 
-// Picks the resolution for about `target` triangles: T grows as res^2 once
-// the grid resolves the field, so scale from cheap probes, then correct with
-// the count at the chosen resolution (which the writing needs anyway).
+// "12.37", "463": a resolution in hundredths, as --res takes it.
+std::string res_text(uint32_t res100) {
+  std::string s = std::to_string(res100 / 100);
+  if (res100 % 100 != 0) {
+    char frac[4];
+    std::snprintf(frac, sizeof frac, "%02u", res100 % 100);
+    s += '.';
+    s += frac[1] == '0' ? std::string(1, frac[0]) : std::string(frac);
+  }
+  return s;
+}
+
+// Picks the resolution (in hundredths) for about `target` triangles: T grows
+// as res^2 once the grid resolves the field (faster below), so scale from
+// cheap probes with the exponent measured between the last two counts, and
+// stop at the first count within 2% (for large targets the first count at
+// the final resolution, which the writing needs anyway).
 uint32_t choose_res(const Field& field, uint64_t target, const CubeTable& table, Counts* at_res) {
-  auto scale = [&](uint32_t r, uint64_t t) {
-    double est = r * std::sqrt(static_cast<double>(target) / std::max<uint64_t>(t, 1));
-    return static_cast<uint32_t>(std::clamp(std::lround(est), long{kMinRes}, long{kMaxRes}));
+  std::map<uint32_t, Counts> seen;
+  auto measure = [&](uint32_t r) {
+    auto it = seen.find(r);
+    if (it == seen.end()) it = seen.emplace(r, count(field, r, table)).first;
+    return it->second.triangles;
   };
-  uint32_t r = 64;
-  Counts c = count(field, r, table);
-  for (uint32_t probe_limit : {256u, 512u}) {
-    uint32_t next = scale(r, c.triangles);
-    if (next <= r * 5 / 4 || r >= probe_limit) break;
-    r = std::min(next, probe_limit);
-    c = count(field, r, table);
+  auto error = [&](uint64_t t) { return std::fabs(static_cast<double>(t) / static_cast<double>(target) - 1.0); };
+  auto scaled = [&](uint32_t r, uint64_t t, double exponent) {
+    double next = r * std::pow(static_cast<double>(target) / std::max<uint64_t>(t, 1), 1.0 / exponent);
+    return static_cast<uint32_t>(std::clamp(std::llround(next), static_cast<long long>(kMinRes100),
+                                            static_cast<long long>(kMaxRes100)));
+  };
+
+  uint32_t r_prev = 64 * 100;
+  uint64_t t_prev = measure(r_prev);
+  uint32_t r = scaled(r_prev, t_prev, 2.0);
+  if (r > 320 * 100) {
+    // A second probe where the field is resolved: T / res^2 is within ~2%
+    // of its limit from res 250 on.
+    r_prev = 256 * 100;
+    t_prev = measure(r_prev);
+    r = scaled(r_prev, t_prev, 2.0);
   }
-  uint32_t best = r;
-  Counts best_counts = c;
-  for (int iteration = 0; iteration < 6; ++iteration) {
-    uint32_t next = scale(r, c.triangles);
-    if (next == r) break;
-    r = next;
-    c = count(field, r, table);
-    auto error = [&](const Counts& x) {
-      return std::fabs(static_cast<double>(x.triangles) / static_cast<double>(target) - 1.0);
-    };
-    if (error(c) < error(best_counts)) {
-      best = r;
-      best_counts = c;
+  uint32_t best = r_prev;
+  for (int iteration = 0; iteration < 12; ++iteration) {
+    const uint64_t t = measure(r);
+    if (error(t) < error(seen[best].triangles)) best = r;
+    if (error(t) < 0.02) break;
+    double exponent = 2.0;
+    if (r != r_prev && t > 0 && t_prev > 0 && t != t_prev) {
+      exponent = std::log(static_cast<double>(t) / t_prev) / std::log(static_cast<double>(r) / r_prev);
+      exponent = std::clamp(exponent, 1.5, 4.0);
     }
-    if (error(c) < 0.03) break;
+    const uint32_t next = scaled(r, t, exponent);
+    if (seen.count(next) != 0) break;
+    r_prev = r;
+    t_prev = t;
+    r = next;
   }
-  *at_res = best_counts;
+  *at_res = seen[best];
   return best;
 }
 
@@ -846,7 +1049,7 @@ int usage_error(const std::string& message) {
 
 int report_error(const std::string& file, const Status& s) {
   std::fprintf(stderr, "psq-meshgen: error: %s: %s\n", file.c_str(), s.to_string().c_str());
-  return kExitFailure;
+  return s.code() == ErrorCode::kUsage ? kExitUsage : kExitFailure;
 }
 
 // Parses argv; returns -1 to go on, or an exit code.
@@ -891,13 +1094,14 @@ int parse_args(int argc, char** argv, Options* o) {
       }
       have_triangles = true;
     } else if (arg == "--res") {
-      uint64_t r = 0;
       if (!take(&v)) return usage_error("--res needs a value");
-      if (!parse_count(v, &r, false) || r < kMinRes || r > kMaxRes) {
-        return usage_error("bad --res '" + v + "' (" + std::to_string(kMinRes) + ".." +
-                           std::to_string(kMaxRes) + ")");
+      char* end = nullptr;
+      const double r = std::strtod(v.c_str(), &end);
+      const bool digits = !v.empty() && v.find_first_not_of("0123456789.") == std::string::npos;
+      if (!digits || end != v.c_str() + v.size() || !(r * 100 >= kMinRes100 && r * 100 <= kMaxRes100)) {
+        return usage_error("bad --res '" + v + "' (4..8192, in steps of 0.01)");
       }
-      o->res = static_cast<uint32_t>(r);
+      o->res100 = static_cast<uint32_t>(std::lround(r * 100));
     } else if (arg == "--seed") {
       if (!take(&v)) return usage_error("--seed needs a value");
       if (!parse_count(v, &o->seed, false) || v.find_first_not_of("0123456789") != std::string::npos) {
@@ -927,7 +1131,7 @@ int parse_args(int argc, char** argv, Options* o) {
       return usage_error("unknown argument '" + arg + "'");
     }
   }
-  if (have_triangles && o->res != 0) return usage_error("give --triangles or --res, not both");
+  if (have_triangles && o->res100 != 0) return usage_error("give --triangles or --res, not both");
   return -1;
 }
 
@@ -947,15 +1151,20 @@ int run(const Options& o) {
   const Field field(o.seed);
   const CubeTable table = make_cube_table();
 
+  // Open first: an existing OUT without -f fails before any counting.
+  OutputFile out;
+  Status s = out.open(o.output, o.force);
+  if (!s.ok()) return report_error(o.output, s);
+
   Counts counts;
-  uint32_t res = o.res;
-  if (res == 0) {
-    res = choose_res(field, o.triangles, table, &counts);
+  uint32_t res100 = o.res100;
+  if (res100 == 0) {
+    res100 = choose_res(field, o.triangles, table, &counts);
   } else {
-    counts = count(field, res, table);
+    counts = count(field, res100, table);
   }
   if (counts.vertices > 0x7fffffffu) {
-    return report_error(o.output, Status(ErrorCode::kLimit, "res " + std::to_string(res) + " gives " +
+    return report_error(o.output, Status(ErrorCode::kLimit, "res " + res_text(res100) + " gives " +
                                                                 std::to_string(counts.vertices) +
                                                                 " vertices, more than PLY int indices hold"));
   }
@@ -963,51 +1172,22 @@ int run(const Options& o) {
     return report_error(o.output, Status(ErrorCode::kLimit, "--order shuffled handles at most 2^32 triangles"));
   }
 
-  OutputFile out;
-  Status s = out.open(o.output, o.force);
-  if (!s.ok()) return report_error(o.output, s);
   auto encoder = std::make_unique<PlyEncoder>(&out);
-  const std::string comment = "psq-meshgen seed " + std::to_string(o.seed) + " res " + std::to_string(res) +
+  const std::string comment = "psq-meshgen seed " + std::to_string(o.seed) + " res " + res_text(res100) +
                               " order " + (o.shuffled ? "shuffled" : "coherent");
   s = encoder->header(counts.vertices, counts.triangles, comment);
 
-  Grid grid(field, res, table);
+  Grid grid(field, res100, table);
   Counts got;
   if (s.ok() && !o.shuffled) {
     CoherentOut sink(encoder.get());
     s = grid.sweep(Pass::kVertices, &sink, &got);
     if (s.ok()) s = grid.sweep(Pass::kTriangles, &sink, &got);
   } else if (s.ok()) {
-    // One sorter at a time, each with the whole budget.
-    const Permutation vperm(counts.vertices, mix64(o.seed ^ 0x7665727465787321ULL));
-    const Permutation tperm(counts.triangles, mix64(o.seed ^ 0x747269616e676c65ULL));
     ExternalSortOptions sort_options;
     sort_options.memory_budget = o.memory;
     sort_options.tmpdir = o.tmpdir;
-    {
-      ExternalSorter<VertexRecord, ByPosition> vsort(sort_options);
-      ShuffleOut sink(&vperm, &tperm, o.seed, &vsort, nullptr);
-      s = grid.sweep(Pass::kVertices, &sink, &got);
-      if (s.ok()) s = vsort.finish();
-      for (bool done = false; s.ok();) {
-        VertexRecord r{};
-        s = vsort.next(&r, &done);
-        if (!s.ok() || done) break;
-        s = encoder->vertex(r.xyz[0], r.xyz[1], r.xyz[2]);
-      }
-    }
-    if (s.ok()) {
-      ExternalSorter<TriangleRecord, ByPosition> tsort(sort_options);
-      ShuffleOut sink(&vperm, &tperm, mix64(o.seed + 1), nullptr, &tsort);
-      s = grid.sweep(Pass::kTriangles, &sink, &got);
-      if (s.ok()) s = tsort.finish();
-      for (bool done = false; s.ok();) {
-        TriangleRecord r{};
-        s = tsort.next(&r, &done);
-        if (!s.ok() || done) break;
-        s = encoder->triangle(r.index[0], r.index[1], r.index[2]);
-      }
-    }
+    s = write_shuffled(&grid, counts, o.seed, sort_options, encoder.get(), &got);
   }
   if (s.ok() && (got.vertices != counts.vertices || got.triangles != counts.triangles)) {
     s = Status(ErrorCode::kInternal, "the sweeps disagree on the counts");
@@ -1022,12 +1202,10 @@ int run(const Options& o) {
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (!o.quiet) {
     std::fprintf(stderr,
-                 "psq-meshgen: %s vertices, %s triangles, res %u, seed %llu, %s, %.2f s (%.1fM triangles/s), "
-                 "grid memory %.0f MiB\n",
-                 with_commas(counts.vertices).c_str(), with_commas(counts.triangles).c_str(), res,
+                 "psq-meshgen: %s vertices, %s triangles, res %s, seed %llu, %s, %.2f s (%.1fM triangles/s)\n",
+                 with_commas(counts.vertices).c_str(), with_commas(counts.triangles).c_str(), res_text(res100).c_str(),
                  static_cast<unsigned long long>(o.seed), o.shuffled ? "shuffled" : "coherent", seconds,
-                 static_cast<double>(counts.triangles) / seconds * 1e-6,
-                 static_cast<double>(grid.memory(Pass::kVertices)) / (1 << 20));
+                 static_cast<double>(counts.triangles) / seconds * 1e-6);
   }
   return kExitOk;
 }

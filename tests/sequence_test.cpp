@@ -155,7 +155,7 @@ TEST(Sequence, GridHasOneBorderLoop) {
 }
 
 TEST(Sequence, ShuffledInputTakesTheSortPathAndStaysValid) {
-  Mesh m = test::make_sphere(40, 60);
+  Mesh m = test::make_sphere(60, 80);
   add_ids(&m);
   Mesh s = shuffled(m, 7);
   test::MemorySource src(s);

@@ -68,10 +68,6 @@ struct Vert {
   uint32_t first_dense = kNone;   // dense index of its first fan emitted
   uint32_t unemitted = 0;
   uint64_t stamp = 0;             // marks visits during one finalization
-  // Its spokes, computed at finalization and kept until it settles (its
-  // triangles do not change in between): see spokes_of().
-  std::vector<Spoke> spokes;
-  std::vector<std::array<uint32_t, 2>> spoke_index;
 };
 
 struct Seg {
@@ -169,6 +165,10 @@ struct SequenceConverter::Impl {
   SequenceTriangle st;  // reused
   SequenceVertex sv;
 
+  // Scratch: the spokes of one vertex, and per triangle of its fan the
+  // out-spoke (id -> next) and in-spoke (prev -> id); see spokes_of().
+  std::vector<Spoke> spokes;
+  std::vector<std::array<uint32_t, 2>> spoke_index;
   std::vector<uint32_t> to_settle;      // scratch
   std::vector<uint32_t> parent, seg_of; // scratch
   uint64_t visit_stamp = 0;
@@ -177,7 +177,7 @@ struct SequenceConverter::Impl {
   void release_vertex(uint32_t slot);
   Status settle(uint32_t slot);
   void split_fans(uint32_t id, Vert& v);
-  void spokes_of(uint32_t id, Vert& v);
+  void spokes_of(uint32_t id, const Vert& v);
   void make_ready(uint32_t t);
   int classify(const Tri& t) const;
   Status emit(uint32_t t);
@@ -206,21 +206,13 @@ void SequenceConverter::Impl::release_vertex(uint32_t slot) {
   // Keep the vectors' capacity for the next vertex in this slot.
   std::vector<uint32_t> tris_keep;
   PropertyValues values_keep;
-  std::vector<Spoke> spokes_keep;
-  std::vector<std::array<uint32_t, 2>> index_keep;
   tris_keep.swap(v.tris);
   values_keep.swap(v.values);
-  spokes_keep.swap(v.spokes);
-  index_keep.swap(v.spoke_index);
   v = Vert();
   tris_keep.clear();
   values_keep.clear();
-  spokes_keep.clear();
-  index_keep.clear();
   v.tris.swap(tris_keep);
   v.values.swap(values_keep);
-  v.spokes.swap(spokes_keep);
-  v.spoke_index.swap(index_keep);
   free_verts.push_back(slot);
 }
 
@@ -280,11 +272,9 @@ Status SequenceConverter::triangle(const uint32_t id[3], const PropertyValues& v
 }
 
 // The spokes (edges) of vertex `id` over its waiting triangles, into
-// v.spokes; v.spoke_index[i] names the out-spoke (id -> next) and in-spoke
+// `spokes`; spoke_index[i] names the out-spoke (id -> next) and in-spoke
 // (prev -> id) of its i-th triangle.
-void SequenceConverter::Impl::spokes_of(uint32_t id, Vert& v) {
-  std::vector<Spoke>& spokes = v.spokes;
-  std::vector<std::array<uint32_t, 2>>& spoke_index = v.spoke_index;
+void SequenceConverter::Impl::spokes_of(uint32_t id, const Vert& v) {
   spokes.clear();
   spoke_index.resize(v.tris.size());
   for (uint32_t i = 0; i < v.tris.size(); ++i) {
@@ -319,8 +309,6 @@ static bool is_nonmanifold(const Spoke& s) { return s.count >= 3 || (s.count == 
 // both would use the same edge of the sequence.
 void SequenceConverter::Impl::split_fans(uint32_t id, Vert& v) {
   spokes_of(id, v);
-  const std::vector<Spoke>& spokes = v.spokes;
-  const std::vector<std::array<uint32_t, 2>>& spoke_index = v.spoke_index;
   bool any_nonmanifold = false;
   for (const Spoke& s : spokes) any_nonmanifold = any_nonmanifold || is_nonmanifold(s);
   if (!any_nonmanifold) return;  // a disk or half-disk, or only broken links
@@ -422,9 +410,7 @@ Status SequenceConverter::Impl::settle(uint32_t vslot) {
     release_vertex(vslot);
     return Status();
   }
-  // v.spokes were computed at its finalization.
-  const std::vector<Spoke>& spokes = v.spokes;
-  const std::vector<std::array<uint32_t, 2>>& spoke_index = v.spoke_index;
+  spokes_of(id, v);
   for (const Spoke& s : spokes) {
     if (id < s.other) {  // each edge once: at the settling of its smaller end
       if (s.count == 1) ++stats.border_edges;
@@ -497,6 +483,18 @@ void SequenceConverter::Impl::make_ready(uint32_t slot) {
   int c = classify(t);
   if (c >= 0 && c < 4) buckets[c].push_back(slot);
   starts.push_back(slot);
+  // Entries of emitted triangles, or of triangles that touch an emitted fan
+  // (growth reaches those), stay in `starts` until a start is needed, which
+  // coherent input rarely needs: drop them now and then so that the queue
+  // stays proportional to the waiting area, not to the mesh.
+  if (starts.size() > 2 * ready + 4096) {
+    std::deque<uint32_t> keep;
+    for (uint32_t x : starts) {
+      const Tri& tx = tris[x];
+      if (!tx.emitted && tx.ready && classify(tx) == 4) keep.push_back(x);
+    }
+    starts.swap(keep);
+  }
 }
 
 // 0 end, 1 fill, 2 join, 3 add, 4 start, -1 not emittable now.

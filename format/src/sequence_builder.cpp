@@ -60,19 +60,25 @@ struct TriangleKey {
   bool operator<(const TriangleKey& o) const { return rank != o.rank ? rank < o.rank : offset < o.offset; }
 };
 
+// Triangles are grouped in blocks for finalization: after block b every
+// vertex below the smallest index that any later block uses is final.
+constexpr uint64_t kBlock = 4096;
+
 struct Spooled {
   SpoolFile vertices;
   SpoolFile triangles;
   uint64_t nv = 0, nt = 0;
   double lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
-  uint64_t lag = 0, span = 0;
+  std::vector<uint32_t> block_min;  // smallest index a block of triangles uses
+  std::vector<uint32_t> block_max;  // largest
+  std::vector<uint32_t> later_min;  // [b]: smallest index used after block b (nv if none)
+  uint64_t window = 0;              // most vertices fed but not yet final (coherent path)
 };
 
 Status spool_input(MeshSource& source, const BuildOptions& options, Spooled* s) {
   PSQ_RETURN_IF_ERROR(s->vertices.create(options.tmpdir));
   PSQ_RETURN_IF_ERROR(s->triangles.create(options.tmpdir));
   MeshItem item;
-  uint64_t running_min = 0;  // running maximum of the triangles' smallest index
   for (;;) {
     PSQ_RETURN_IF_ERROR(source.next(&item));
     if (item.kind == MeshItem::Kind::kEnd) break;
@@ -93,22 +99,36 @@ Status spool_input(MeshSource& source, const BuildOptions& options, Spooled* s) 
       PSQ_RETURN_IF_ERROR(put_values(s->triangles, item.values));
       uint32_t mn = std::min({item.index[0], item.index[1], item.index[2]});
       uint32_t mx = std::max({item.index[0], item.index[1], item.index[2]});
-      running_min = std::max<uint64_t>(running_min, mn);
-      s->lag = std::max<uint64_t>(s->lag, running_min - mn);
-      s->span = std::max<uint64_t>(s->span, mx - mn);
+      if (s->nt % kBlock == 0) {
+        s->block_min.push_back(mn);
+        s->block_max.push_back(mx);
+      }
+      s->block_min.back() = std::min(s->block_min.back(), mn);
+      s->block_max.back() = std::max(s->block_max.back(), mx);
       ++s->nt;
     }
+  }
+  // Suffix minima, and the window the coherent path would hold: vertices
+  // fed (up to the largest index used so far) but not final after a block.
+  size_t blocks = s->block_min.size();
+  s->later_min.assign(blocks, static_cast<uint32_t>(std::min<uint64_t>(s->nv, 0xffffffffu)));
+  for (size_t b = blocks; b-- > 1;) s->later_min[b - 1] = std::min(s->later_min[b], s->block_min[b]);
+  uint64_t fed = 0;
+  for (size_t b = 0; b < blocks; ++b) {
+    fed = std::max<uint64_t>(fed, uint64_t{s->block_max[b]} + 1);
+    if (fed > s->later_min[b]) s->window = std::max<uint64_t>(s->window, fed - s->later_min[b]);
   }
   PSQ_RETURN_IF_ERROR(s->vertices.rewind());
   return s->triangles.rewind();
 }
 
-// Coherent path: triangles in file order, vertices in index order, vertex v
-// final once the running maximum of smallest indices exceeds v + lag.
+// Coherent path: triangles in file order, vertices in index order as the
+// triangles reach them; after each block of triangles, every vertex below
+// the smallest index of all later blocks is final.
 Status feed_coherent(Spooled& s, SequenceConverter& conv) {
   InputStream& vin = s.vertices.stream();
   InputStream& tin = s.triangles.stream();
-  uint64_t fed = 0, finalized = 0, running_min = 0;
+  uint64_t fed = 0, finalized = 0;
   double pos[3];
   PropertyValues values;
   auto feed_until = [&](uint64_t end) -> Status {
@@ -120,20 +140,20 @@ Status feed_coherent(Spooled& s, SequenceConverter& conv) {
     }
     return Status();
   };
+  auto finalize_below = [&](uint64_t end) -> Status {
+    PSQ_RETURN_IF_ERROR(feed_until(end));
+    while (finalized < end) PSQ_RETURN_IF_ERROR(conv.finalize(static_cast<uint32_t>(finalized++)));
+    return Status();
+  };
   for (uint64_t t = 0; t < s.nt; ++t) {
     uint32_t idx[3];
     PSQ_RETURN_IF_ERROR(tin.read_exact(idx, 12));
     PSQ_RETURN_IF_ERROR(get_values(tin, &values));
-    uint32_t mn = std::min({idx[0], idx[1], idx[2]});
-    uint32_t mx = std::max({idx[0], idx[1], idx[2]});
-    PSQ_RETURN_IF_ERROR(feed_until(uint64_t{mx} + 1));
+    PSQ_RETURN_IF_ERROR(feed_until(uint64_t{std::max({idx[0], idx[1], idx[2]})} + 1));
     PSQ_RETURN_IF_ERROR(conv.triangle(idx, values));
-    running_min = std::max<uint64_t>(running_min, mn);
-    while (finalized + s.lag < running_min) PSQ_RETURN_IF_ERROR(conv.finalize(static_cast<uint32_t>(finalized++)));
+    if ((t + 1) % kBlock == 0 || t + 1 == s.nt) PSQ_RETURN_IF_ERROR(finalize_below(s.later_min[t / kBlock]));
   }
-  PSQ_RETURN_IF_ERROR(feed_until(s.nv));
-  while (finalized < s.nv) PSQ_RETURN_IF_ERROR(conv.finalize(static_cast<uint32_t>(finalized++)));
-  return Status();
+  return finalize_below(s.nv);
 }
 
 // Sort path.
@@ -230,13 +250,13 @@ Status build_sequence(MeshSource& source, SequenceSink& sink, const BuildOptions
   if (s.nv > 0xffffffffull) return Status(ErrorCode::kLimit, "more than 4294967295 vertices");
   SequenceConverter conv(&sink);
   PSQ_RETURN_IF_ERROR(conv.begin(source.schema()));
-  // Coherent enough when the vertices the lag and the triangles' spread keep
-  // waiting fit a small share of the budget (about 200 bytes each).
-  uint64_t window = std::max<uint64_t>(4096, options.memory_budget / 4 / 200);
-  bool sorted = options.force_sort || s.lag + s.span > window;
+  // Coherent enough when the vertices the window keeps waiting fit a small
+  // share of the budget (a waiting vertex and its triangles take about
+  // 400 bytes).
+  uint64_t limit = std::max<uint64_t>(1024, options.memory_budget / 4 / 400);
+  bool sorted = options.force_sort || s.window > limit;
   report->sorted = sorted;
-  report->lag = s.lag;
-  report->span = s.span;
+  report->window = s.window;
   report->vertices = s.nv;
   report->triangles = s.nt;
   PSQ_RETURN_IF_ERROR(sorted ? feed_sorted(s, options, conv) : feed_coherent(s, conv));

@@ -139,6 +139,9 @@ int cmd_info(int argc, char** argv) {
          ", \"join\": " + std::to_string(q.ops[2]) + ", \"fill\": " + std::to_string(q.ops[3]) +
          ", \"end\": " + std::to_string(q.ops[4]) + "},\n";
     o += std::string("  \"sequence_order\": \"") + (build.sorted ? "sorted" : "coherent") + "\",\n";
+    o += "  \"coherence_window\": " + std::to_string(build.window) + ",\n";
+    o += "  \"max_waiting_triangles\": " + std::to_string(c.max_waiting_triangles) + ",\n";
+    o += "  \"max_waiting_vertices\": " + std::to_string(c.max_waiting_vertices) + ",\n";
     o += "  \"vertex_properties\": " + json_props(r.schema.vertex_properties) + ",\n";
     o += "  \"face_properties\": " + json_props(r.schema.face_properties) + ",\n";
     o += "  \"notes\": [";

@@ -7,10 +7,12 @@
 // It spools the input once to unlinked temporary files, then takes one of
 // two paths:
 //
-// - Coherent input (one pass): when every triangle's smallest vertex index
-//   is at most `lag` below the largest smallest index seen before it, vertex
-//   v is final once that running maximum passes v + lag. The triangles are
-//   fed in file order and the vertices in index order. Memory is the
+// - Coherent input (one pass): the triangles are fed in file order and the
+//   vertices in index order as triangles reach them. While spooling, the
+//   smallest index of each block of 4096 triangles is kept (4 bytes per
+//   block); after block b, every vertex below the smallest index of all
+//   later blocks is final. The input is coherent when the vertices this
+//   keeps waiting (the window) fit a share of `memory_budget`. Memory is the
 //   waiting area, never the mesh.
 // - Any other input (external spatial sort): vertices are sorted along the
 //   longest axis of the bounding box, triangles by the rank of their first
@@ -38,8 +40,7 @@ struct BuildOptions {
 
 struct BuildReport {
   bool sorted = false;        // the external sort path was taken
-  uint64_t lag = 0;           // measured index lag of the input
-  uint64_t span = 0;          // largest index spread within one triangle
+  uint64_t window = 0;        // most vertices the coherent path keeps waiting
   uint64_t vertices = 0;
   uint64_t triangles = 0;
   ConverterStats converter;
