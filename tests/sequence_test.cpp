@@ -277,3 +277,81 @@ TEST(SequenceShared, EveryMeshGivesAValidSequence) {
 
 }  // namespace
 }  // namespace psq
+
+namespace psq {
+namespace {
+
+// Connectivity reconstruction through boundary slots (paper section 3): a
+// consumer that stores, per edge slot, the triangle that entered the edge
+// finds each triangle's neighbour when the edge completes, and per vertex
+// slot counts its triangles, without hashing any index. Compared with the
+// same computed by hashing.
+class SlotUser : public SequenceSink {
+ public:
+  Status begin(const MeshSchema&) override { return Status(); }
+  Status vertex(const SequenceVertex& v) override {
+    valence_[v.slot] = 0;
+    return Status();
+  }
+  Status triangle(const SequenceTriangle& t) override {
+    uint32_t me = triangles++;
+    for (int k = 0; k < 3; ++k) {
+      ++valence_[t.vslot[k]];
+      if (t.entering_mask & (1u << k)) entered_by_[t.eslot[k]] = me;
+      if (t.leaving_mask & (1u << k)) neighbours.push_back({entered_by_[t.eslot[k]], me});
+      // The same, by hashing the edge's dense vertex pair.
+      uint32_t a = t.v[k], b = t.v[(k + 1) % 3];
+      if (t.border_mask & (1u << k)) continue;
+      auto it = by_hash_.find(key(b, a));
+      if (it != by_hash_.end()) {
+        hashed.push_back({it->second, me});
+        by_hash_.erase(it);
+      } else {
+        by_hash_[key(a, b)] = me;
+      }
+    }
+    for (int k = 0; k < 3; ++k) last_valence_[t.v[k]] = valence_[t.vslot[k]];
+    return Status();
+  }
+  Status finalize(uint32_t index) override {
+    valences.push_back(last_valence_[index]);
+    return Status();
+  }
+  Status finish() override { return Status(); }
+
+  uint32_t triangles = 0;
+  std::vector<std::pair<uint32_t, uint32_t>> neighbours, hashed;
+  std::vector<uint32_t> valences;
+
+ private:
+  static uint64_t key(uint32_t a, uint32_t b) { return (uint64_t{a} << 32) | b; }
+  BoundaryData<uint32_t> valence_;
+  BoundaryData<uint32_t> entered_by_;
+  std::map<uint64_t, uint32_t> by_hash_;
+  std::map<uint32_t, uint32_t> last_valence_;
+};
+
+TEST(Sequence, BoundarySlotsReconstructConnectivity) {
+  Mesh m = test::make_sphere(30, 40);
+  add_ids(&m);
+  for (bool sort : {false, true}) {
+    test::MemorySource src(shuffled(m, 5));
+    SlotUser user;
+    BuildOptions o;
+    o.force_sort = sort;
+    BuildReport r;
+    ASSERT_TRUE(build_sequence(src, user, o, &r).ok());
+    std::sort(user.neighbours.begin(), user.neighbours.end());
+    std::sort(user.hashed.begin(), user.hashed.end());
+    EXPECT_EQ(user.neighbours, user.hashed);
+    EXPECT_EQ(user.neighbours.size(), 3 * m.triangles.size() / 2);
+    // Every vertex of a closed sphere has 4 to 40 triangles (poles: 40).
+    for (uint32_t v : user.valences) {
+      EXPECT_GE(v, 4u);
+      EXPECT_LE(v, 40u);
+    }
+  }
+}
+
+}  // namespace
+}  // namespace psq

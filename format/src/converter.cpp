@@ -29,6 +29,7 @@ struct Tri {
   uint32_t vs[3] = {kNone, kNone, kNone};       // their slots in the vertex pool
   uint32_t seg[3] = {kNone, kNone, kNone};      // fan of each corner, once settled
   uint32_t partner[3] = {kNone, kNone, kNone};  // triangle across edge k (k: corner k to k+1)
+  uint32_t eslot[3] = {kNone, kNone, kNone};    // boundary slot of edge k once its partner entered it
   uint8_t cut_mask = 0;     // edge k is non-manifold (cut)
   uint8_t linked_mask = 0;  // edge k's partner is decided (set from either end)
   uint8_t done_mask = 0;    // edge k's partner was emitted
@@ -151,8 +152,10 @@ struct SequenceConverter::Impl {
   std::vector<uint32_t> free_verts;
   std::vector<Tri> tris;
   std::vector<uint32_t> free_tris;
-  std::vector<Seg> segs;
+  std::vector<Seg> segs;          // a fan's index is its vertex's boundary slot
   std::vector<uint32_t> free_segs;
+  uint32_t edge_slots = 0;        // boundary edge slots handed out so far
+  std::vector<uint32_t> free_edge_slots;
   std::unordered_set<uint64_t> broken;  // manifold edges whose link a fan split cut
   // Emission candidates by op preference: end, fill, join, add.
   std::deque<uint32_t> buckets[4];
@@ -400,8 +403,18 @@ Status SequenceConverter::Impl::settle(uint32_t vslot) {
   const uint32_t id = v.id;
   v.settled = true;
   if (v.tris.empty()) {
-    // An isolated vertex: introduced and finalized with no triangle.
+    // An isolated vertex: introduced and finalized with no triangle. It
+    // takes a slot like any vertex (free again at once).
+    uint32_t sg;
+    if (!free_segs.empty()) {
+      sg = free_segs.back();
+    } else {
+      sg = static_cast<uint32_t>(segs.size());
+      segs.emplace_back();
+      free_segs.push_back(sg);
+    }
     sv.index = next_dense++;
+    sv.slot = sg;
     sv.reappears = kNone;
     std::copy(v.position, v.position + 3, sv.position);
     sv.values = v.values;
@@ -522,6 +535,7 @@ Status SequenceConverter::Impl::emit(uint32_t slot) {
       Vert& v = vpool[t.vs[k]];
       s.dense = next_dense++;
       sv.index = s.dense;
+      sv.slot = t.seg[k];
       sv.reappears = v.first_dense;
       if (v.first_dense == kNone) v.first_dense = s.dense;
       std::copy(v.position, v.position + 3, sv.position);
@@ -530,17 +544,26 @@ Status SequenceConverter::Impl::emit(uint32_t slot) {
       st.new_mask |= static_cast<uint8_t>(1u << k);
     }
     st.v[k] = s.dense;
+    st.vslot[k] = t.seg[k];
     if (s.remaining == 1) st.final_mask |= static_cast<uint8_t>(1u << k);
   }
   for (int k = 0; k < 3; ++k) {
     uint8_t bit = static_cast<uint8_t>(1u << k);
+    st.eslot[k] = kNone;
     if (t.partner[k] == kNone) {
       st.border_mask |= bit;
       if (t.cut_mask & bit) st.nonmanifold_mask |= bit;
     } else if (t.done_mask & bit) {
       st.leaving_mask |= bit;
+      st.eslot[k] = t.eslot[k];
     } else {
       st.entering_mask |= bit;
+      if (!free_edge_slots.empty()) {
+        st.eslot[k] = free_edge_slots.back();
+        free_edge_slots.pop_back();
+      } else {
+        st.eslot[k] = edge_slots++;
+      }
     }
   }
   st.values.swap(t.values);
@@ -552,8 +575,10 @@ Status SequenceConverter::Impl::emit(uint32_t slot) {
     if (p == kNone || (t.done_mask & (1u << k))) continue;
     Tri& pt = tris[p];
     for (int j = 0; j < 3; ++j) {
-      if (pt.partner[j] == slot && !(pt.done_mask & (1u << j))) {
+      // The same edge, reversed (two triangles may share more than one edge).
+      if (pt.partner[j] == slot && pt.v[j] == t.v[(k + 1) % 3] && pt.v[(j + 1) % 3] == t.v[k]) {
         pt.done_mask |= static_cast<uint8_t>(1u << j);
+        pt.eslot[j] = st.eslot[k];
         ++pt.completed;
         break;
       }
@@ -562,6 +587,10 @@ Status SequenceConverter::Impl::emit(uint32_t slot) {
       int c = classify(pt);
       if (c >= 0 && c < 4) buckets[c].push_back(p);
     }
+  }
+  // Edges this triangle completed leave the boundary: their slots are free.
+  for (int k = 0; k < 3; ++k) {
+    if (st.leaving_mask & (1u << k)) free_edge_slots.push_back(st.eslot[k]);
   }
   // Finalize fans that this triangle completes; forget finished vertices.
   for (int k = 0; k < 3; ++k) {

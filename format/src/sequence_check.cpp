@@ -5,6 +5,7 @@
 
 #include <string>
 #include <unordered_map>
+#include <unordered_map>
 #include <unordered_set>
 #include <vector>
 
@@ -43,6 +44,7 @@ class UnionFind {
 };
 
 struct Active {
+  uint32_t slot = kNoSlot;      // as the producer gave it
   uint32_t uses = 0;            // triangles so far
   uint32_t open_edges = 0;      // boundary edges (entering, not yet completed) at this vertex
   bool fresh = true;            // introduced, not yet used by a triangle
@@ -80,7 +82,9 @@ struct SequenceChecker::Impl {
   SequenceStats stats;
   uint64_t introduced = 0;
   std::unordered_map<uint32_t, Active> active;
-  std::unordered_set<uint64_t> boundary;  // directed edges waiting for their partner
+  std::unordered_map<uint64_t, uint32_t> boundary;  // directed edges waiting for their partner -> edge slot
+  std::unordered_set<uint32_t> vertex_slots;        // slots of active vertices
+  std::unordered_set<uint32_t> edge_slots;          // slots of open boundary edges
   std::unordered_set<uint64_t> borders;   // undirected border edges between active vertices
   UnionFind components;                   // by dense vertex, cut vertices joined to their origin
   UnionFind loops;                        // by dense vertex, over border edges (cut mesh)
@@ -127,7 +131,12 @@ Status SequenceChecker::vertex(const SequenceVertex& v) {
   m.holes.add();
   m.components.add();
   m.loops.add();
-  m.active.emplace(v.index, Active());
+  if (v.slot != kNoSlot && !m.vertex_slots.insert(v.slot).second) {
+    return m.bad("vertex " + std::to_string(v.index) + " takes slot " + std::to_string(v.slot) + ", which an active vertex holds");
+  }
+  Active fresh;
+  fresh.slot = v.slot;
+  m.active.emplace(v.index, fresh);
   m.stats.max_boundary_vertices = std::max<uint64_t>(m.stats.max_boundary_vertices, m.active.size());
   return Status();
 }
@@ -146,6 +155,11 @@ Status SequenceChecker::triangle(const SequenceTriangle& t) {
 
   int n = 0, e = 0;
   uint8_t leaving = 0, entering = 0;
+  for (int k = 0; k < 3; ++k) {
+    if (t.vslot[k] != kNoSlot && t.vslot[k] != a[k]->slot) {
+      return m.bad("corner " + std::to_string(k) + " names slot " + std::to_string(t.vslot[k]) + ", not its vertex's");
+    }
+  }
   for (int k = 0; k < 3; ++k) {
     bool is_new = a[k]->fresh;
     if (is_new != (((t.new_mask >> k) & 1) != 0)) {
@@ -193,11 +207,20 @@ Status SequenceChecker::triangle(const SequenceTriangle& t) {
   for (int k = 0; k < 3; ++k) {
     uint32_t x = t.v[k], y = t.v[(k + 1) % 3];
     if ((leaving >> k) & 1) {
-      m.boundary.erase(directed(y, x));
+      auto it = m.boundary.find(directed(y, x));
+      if (t.eslot[k] != kNoSlot && t.eslot[k] != it->second) {
+        return m.bad("edge " + std::to_string(k) + " completes an edge of slot " + std::to_string(it->second) +
+                     " but names slot " + std::to_string(t.eslot[k]));
+      }
+      m.edge_slots.erase(it->second);
+      m.boundary.erase(it);
       --a[k]->open_edges;
       --a[(k + 1) % 3]->open_edges;
     } else if ((entering >> k) & 1) {
-      m.boundary.insert(directed(x, y));
+      if (t.eslot[k] != kNoSlot && !m.edge_slots.insert(t.eslot[k]).second) {
+        return m.bad("edge " + std::to_string(k) + " enters with slot " + std::to_string(t.eslot[k]) + ", which an open edge holds");
+      }
+      m.boundary.emplace(directed(x, y), t.eslot[k]);
       ++a[k]->open_edges;
       ++a[(k + 1) % 3]->open_edges;
     } else {
@@ -241,6 +264,7 @@ Status SequenceChecker::finalize(uint32_t index) {
                  " boundary edges still open (they should be flagged border)");
   }
   if (a.uses == 0) ++m.stats.isolated_vertices;
+  if (a.slot != kNoSlot) m.vertex_slots.erase(a.slot);
   for (uint64_t key : a.border) m.borders.erase(key);
   m.active.erase(it);
   return Status();

@@ -28,7 +28,9 @@
 #ifndef PSQ_SEQUENCE_H_
 #define PSQ_SEQUENCE_H_
 
+#include <algorithm>
 #include <cstdint>
+#include <vector>
 
 #include "psq/indexed_mesh.h"
 #include "psq/status.h"
@@ -41,9 +43,23 @@ enum class Op : uint8_t { kStart = 0, kAdd = 1, kJoin = 2, kFill = 3, kEnd = 4 }
 const char* op_name(Op op);
 
 constexpr uint32_t kNoVertex = 0xffffffffu;
+constexpr uint32_t kNoSlot = 0xffffffffu;
+
+// Boundary slots (paper section 3, "connectivity reconstruction"): every
+// active vertex and every open boundary edge has a small slot number, unique
+// while the element is active and recycled after it leaves the boundary (a
+// vertex at its finalization, an edge when a triangle completes it). An
+// algorithm keeps its own per-vertex and per-edge data in arrays indexed by
+// slot (BoundaryData below): it finds what it stored at a vertex's or edge's
+// first appearance when the element appears again, in constant time and
+// without hashing global indices. Slots stay below the size of the
+// producer's working set (the boundary for a decoder, the waiting area for
+// the converter), so the arrays stay that small. Producers that have no
+// slots (a parsed dump) leave them kNoSlot.
 
 struct SequenceVertex {
   uint32_t index = 0;              // dense index
+  uint32_t slot = kNoSlot;         // its boundary slot until finalized
   uint32_t reappears = kNoVertex;  // dense index of the first occurrence, for a cut vertex
   double position[3] = {0, 0, 0};
   PropertyValues values;           // per the schema's vertex properties
@@ -59,7 +75,28 @@ struct SequenceTriangle {
   uint8_t nonmanifold_mask = 0; // bit k: edge k is a border only because the input was cut
   uint8_t leaving_mask = 0;     // bit k: edge k completes a boundary edge (it leaves the boundary)
   uint8_t entering_mask = 0;    // bit k: edge k enters the boundary (a later triangle completes it)
+  uint32_t vslot[3] = {kNoSlot, kNoSlot, kNoSlot};  // boundary slot of corner k's vertex
+  // Boundary slot of edge k: a new slot for an entering edge; for a leaving
+  // edge, the slot it had when it entered (free again after this triangle);
+  // kNoSlot for a border edge.
+  uint32_t eslot[3] = {kNoSlot, kNoSlot, kNoSlot};
   PropertyValues values;        // per the schema's face properties
+};
+
+// Per-slot user data of type T (a vertex or edge slot of a sequence): grows
+// to the largest slot used; the caller resets an entry when its slot is
+// given out again.
+template <class T>
+class BoundaryData {
+ public:
+  T& operator[](uint32_t slot) {
+    if (slot >= data_.size()) data_.resize(std::max<size_t>(slot + 1, 2 * data_.size()));
+    return data_[slot];
+  }
+  size_t capacity() const { return data_.size(); }
+
+ private:
+  std::vector<T> data_;
 };
 
 // Consumer of a processing sequence (push). Call order: begin, then vertex /
