@@ -169,7 +169,9 @@ TEST(Cli, SharedMeshesInfoAgreesWithReadme) {
   } rows[] = {{"meshes/bunny.ply", 35947, 69451},     {"meshes/fandisk.ply", 6475, 12946},
               {"meshes/boeing.ply", 2741, 2564},      {"meshes/nonmanifold_wrap.ply", 10, 12},
               {"inputs/fandisk.obj", 6475, 12946},    {"inputs/bun_zipper_ascii.ply", 35947, 69451},
-              {"inputs/cube_quads.obj", 8, 12},       {"inputs/cube_quads.ply", 8, 12}};
+              {"inputs/cube_quads.obj", 8, 12},       {"inputs/cube_quads.ply", 8, 12},
+              {"inputs/fandisk.off", 6475, 12946},    {"inputs/pig_binary.stl", 8642, 16848},
+              {"inputs/spider_ascii.stl", 722, 1368}, {"inputs/spider_binary.stl", 722, 1368}};
   for (const Row& r : rows) {
     std::string out, err;
     ASSERT_EQ(run_psq("info --json " + shared(r.file), &out, &err), 0) << r.file << ": " << err;

@@ -5,7 +5,9 @@
 #include <cctype>
 
 #include "psq/obj.h"
+#include "psq/off.h"
 #include "psq/ply.h"
+#include "psq/stl.h"
 
 namespace psq {
 
@@ -13,6 +15,8 @@ const char* format_name(MeshFormat f) {
   switch (f) {
     case MeshFormat::kPly: return "ply";
     case MeshFormat::kObj: return "obj";
+    case MeshFormat::kOff: return "off";
+    case MeshFormat::kStl: return "stl";
     case MeshFormat::kUnknown: break;
   }
   return "unknown";
@@ -33,9 +37,15 @@ MeshFormat format_from_extension(const std::string& path) {
   return format_from_name(path.substr(dot + 1));
 }
 
-MeshFormat detect_format(const uint8_t* data, size_t size) {
+MeshFormat detect_format(const uint8_t* data, size_t size, int64_t total_size) {
   if (looks_like_ply(data, size)) return MeshFormat::kPly;
+  // With a known size: a binary STL of exactly the size its count implies
+  // (whatever its header says), or an ascii "solid ... facet".
+  if (total_size >= 0 && looks_like_stl(data, size, total_size)) return MeshFormat::kStl;
+  if (looks_like_off(data, size)) return MeshFormat::kOff;
   if (looks_like_obj(data, size)) return MeshFormat::kObj;
+  // From a pipe, STL (ascii, or binary as the last resort) is asked last.
+  if (total_size < 0 && looks_like_stl(data, size, total_size)) return MeshFormat::kStl;
   return MeshFormat::kUnknown;
 }
 
@@ -46,7 +56,11 @@ Status open_mesh(const std::string& path, const OpenOptions& options, OpenedMesh
   // which case looks_like_obj() sees only comment text and says no.
   size_t avail;
   PSQ_RETURN_IF_ERROR(out->stream->fill(4096, &avail));
-  out->format = detect_format(out->stream->cursor(), avail);
+  // fill() stops short only at the end of the input: then the whole input
+  // is in view and its size is known even from a pipe.
+  int64_t total = out->stream->size();
+  if (total < 0 && avail < 4096) total = static_cast<int64_t>(avail);
+  out->format = detect_format(out->stream->cursor(), avail, total);
   switch (out->format) {
     case MeshFormat::kPly: {
       auto reader = std::make_unique<PlyReader>();
@@ -60,10 +74,22 @@ Status open_mesh(const std::string& path, const OpenOptions& options, OpenedMesh
       out->source = std::move(reader);
       return Status();
     }
+    case MeshFormat::kOff: {
+      auto reader = std::make_unique<OffReader>();
+      PSQ_RETURN_IF_ERROR(reader->open(out->stream.get()));
+      out->source = std::move(reader);
+      return Status();
+    }
+    case MeshFormat::kStl: {
+      auto reader = std::make_unique<StlReader>();
+      PSQ_RETURN_IF_ERROR(reader->open(out->stream.get()));
+      out->source = std::move(reader);
+      return Status();
+    }
     case MeshFormat::kUnknown: break;
   }
   if (avail == 0) return Status(ErrorCode::kUnknownFormat, "empty input", 0);
-  return Status(ErrorCode::kUnknownFormat, "not a PLY or OBJ file (unrecognised content)", 0);
+  return Status(ErrorCode::kUnknownFormat, "not a PLY, OBJ, OFF or STL file (unrecognised content)", 0);
 }
 
 std::unique_ptr<MeshSink> make_mesh_writer(MeshFormat format, OutputFile* out, const WriteOptions& options) {
@@ -75,6 +101,8 @@ std::unique_ptr<MeshSink> make_mesh_writer(MeshFormat format, OutputFile* out, c
       return std::make_unique<PlyWriter>(out, o);
     }
     case MeshFormat::kObj: return std::make_unique<ObjWriter>(out);
+    case MeshFormat::kOff:
+    case MeshFormat::kStl:
     case MeshFormat::kUnknown: break;
   }
   return nullptr;

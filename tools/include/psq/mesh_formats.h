@@ -2,7 +2,8 @@
 // reader or writer for it.
 //
 // Input formats are recognised by content, never by file name; output
-// formats by an explicit name or the file extension.
+// formats by an explicit name or the file extension. OFF and STL are input
+// formats only.
 #ifndef PSQ_MESH_FORMATS_H_
 #define PSQ_MESH_FORMATS_H_
 
@@ -14,16 +15,21 @@
 
 namespace psq {
 
-enum class MeshFormat { kUnknown, kPly, kObj };
+enum class MeshFormat { kUnknown, kPly, kObj, kOff, kStl };
 
-// "ply", "obj" or "unknown".
+// "ply", "obj", "off", "stl" or "unknown".
 const char* format_name(MeshFormat f);
-// The format named `name` ("ply", "obj"; case-insensitive), or kUnknown.
+// The output format named `name` ("ply", "obj"; case-insensitive), or
+// kUnknown (also for "off" and "stl", which psq does not write).
 MeshFormat format_from_name(const std::string& name);
 // The format of an output path by its extension, or kUnknown.
 MeshFormat format_from_extension(const std::string& path);
 // The format of input whose first bytes are `data`, or kUnknown.
-MeshFormat detect_format(const uint8_t* data, size_t size);
+// `total_size` is the whole input's size, or -1 when unknown (a pipe): a
+// binary STL has no magic and is recognised by its size (84 + 50 * count),
+// or, from a pipe, as the last resort for 84 bytes or more that match no
+// other format.
+MeshFormat detect_format(const uint8_t* data, size_t size, int64_t total_size = -1);
 
 // An open input: the byte stream and the source reading it.
 struct OpenedMesh {
@@ -46,7 +52,7 @@ struct WriteOptions {
 };
 
 // A sink writing `format` to `out`, which must outlive it. Never null for
-// kPly and kObj; null for kUnknown.
+// kPly and kObj; null for kUnknown, kOff and kStl (input formats only).
 std::unique_ptr<MeshSink> make_mesh_writer(MeshFormat format, OutputFile* out,
                                            const WriteOptions& options);
 
