@@ -173,6 +173,9 @@ struct SequenceConverter::Impl {
   std::vector<Spoke> spokes;
   std::vector<std::array<uint32_t, 2>> spoke_index;
   std::vector<uint32_t> to_settle;      // scratch
+  std::vector<uint32_t> fan_next, fan_prev;  // scratch: neighbours after / before a vertex in its triangles
+  std::vector<std::array<int, 2>> mate;      // scratch: linked fan triangle per spoke side
+  std::vector<std::array<bool, 2>> cut;      // scratch: the spoke side is cut
   std::vector<uint32_t> parent, seg_of; // scratch
   uint64_t visit_stamp = 0;
 
@@ -181,6 +184,7 @@ struct SequenceConverter::Impl {
   Status settle(uint32_t slot);
   void split_fans(uint32_t id, Vert& v);
   void spokes_of(uint32_t id, const Vert& v);
+  bool fan_neighbours(uint32_t id, const Vert& v);
   void make_ready(uint32_t t);
   int classify(const Tri& t) const;
   Status emit(uint32_t t);
@@ -244,10 +248,11 @@ Status SequenceConverter::triangle(const uint32_t id[3], const PropertyValues& v
     ++m.stats.degenerate_dropped;
     return Status();
   }
+  uint32_t vs[3];
   for (int k = 0; k < 3; ++k) {
     if (id[k] == kNone) return Status(ErrorCode::kBadIndex, "vertex id 4294967295 is reserved");
-    uint32_t vs = m.ids.find(id[k]);
-    if (vs != kNone && m.vpool[vs].finalized) {
+    vs[k] = m.vertex_slot(id[k]);
+    if (m.vpool[vs[k]].finalized) {
       return Status(ErrorCode::kBadIndex, "a triangle uses vertex " + std::to_string(id[k]) + " after its finalization");
     }
   }
@@ -263,7 +268,7 @@ Status SequenceConverter::triangle(const uint32_t id[3], const PropertyValues& v
   Tri& t = m.tris[slot];
   for (int k = 0; k < 3; ++k) {
     t.v[k] = id[k];
-    t.vs[k] = m.vertex_slot(id[k]);
+    t.vs[k] = vs[k];
     Vert& v = m.vpool[t.vs[k]];
     v.tris.push_back(slot);
     ++v.unemitted;
@@ -299,6 +304,28 @@ void SequenceConverter::Impl::spokes_of(uint32_t id, const Vert& v) {
   }
 }
 
+// Fills fan_next/fan_prev with the neighbour after and before vertex `id`
+// in each of its triangles; returns true when one repeats on a side, the
+// only way a spoke can have more than one triangle on a side (non-manifold
+// or misoriented).
+bool SequenceConverter::Impl::fan_neighbours(uint32_t id, const Vert& v) {
+  size_t n = v.tris.size();
+  fan_next.resize(n);
+  fan_prev.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    const Tri& t = tris[v.tris[i]];
+    int c = t.v[0] == id ? 0 : t.v[1] == id ? 1 : 2;
+    fan_next[i] = t.v[(c + 1) % 3];
+    fan_prev[i] = t.v[(c + 2) % 3];
+  }
+  for (size_t i = 0; i < n; ++i) {
+    for (size_t j = i + 1; j < n; ++j) {
+      if (fan_next[i] == fan_next[j] || fan_prev[i] == fan_prev[j]) return true;
+    }
+  }
+  return false;
+}
+
 // A spoke links its two triangles when it has exactly two, of opposite
 // orientation, and no fan split broke the link.
 static bool is_link(const Spoke& s, uint32_t id, const std::unordered_set<uint64_t>& broken) {
@@ -311,6 +338,8 @@ static bool is_nonmanifold(const Spoke& s) { return s.count >= 3 || (s.count == 
 // that no fan holds two triangles that share a non-manifold spoke; otherwise
 // both would use the same edge of the sequence.
 void SequenceConverter::Impl::split_fans(uint32_t id, Vert& v) {
+  // Only a repeated neighbour makes a spoke non-manifold.
+  if (!fan_neighbours(id, v)) return;
   spokes_of(id, v);
   bool any_nonmanifold = false;
   for (const Spoke& s : spokes) any_nonmanifold = any_nonmanifold || is_nonmanifold(s);
@@ -423,15 +452,50 @@ Status SequenceConverter::Impl::settle(uint32_t vslot) {
     release_vertex(vslot);
     return Status();
   }
-  spokes_of(id, v);
-  for (const Spoke& s : spokes) {
-    if (id < s.other) {  // each edge once: at the settling of its smaller end
-      if (s.count == 1) ++stats.border_edges;
-      else if (s.count > 2) ++stats.nonmanifold_edges;
-      else if (s.out[0] == s.out[1]) ++stats.misoriented_edges;
+  // For each triangle's out-spoke (sl 0: id -> next) and in-spoke (sl 1:
+  // prev -> id): the fan triangle it links to (or -1), or whether it is cut.
+  size_t n = v.tris.size();
+  mate.resize(n);
+  cut.resize(n);
+  if (!fan_neighbours(id, v)) {
+    // Fast path, every spoke has at most one triangle on each side: a spoke
+    // with two links them (unless a fan split broke the link), one with a
+    // single triangle is a border.
+    for (uint32_t i = 0; i < n; ++i) {
+      for (int sl = 0; sl < 2; ++sl) {
+        uint32_t w = sl == 0 ? fan_next[i] : fan_prev[i];
+        const std::vector<uint32_t>& other_side = sl == 0 ? fan_prev : fan_next;
+        int j = -1;
+        for (uint32_t k = 0; k < n; ++k) {
+          if (other_side[k] == w) {
+            j = static_cast<int>(k);
+            break;
+          }
+        }
+        bool link = j >= 0 && (broken.empty() || !broken.count(edge_key(id, w)));
+        mate[i][sl] = link ? j : -1;
+        cut[i][sl] = j >= 0 && !link;
+        if (j < 0 && id < w) ++stats.border_edges;  // each edge once: at its smaller end
+      }
+    }
+  } else {
+    spokes_of(id, v);
+    for (const Spoke& sp : spokes) {
+      if (id < sp.other) {  // each edge once: at the settling of its smaller end
+        if (sp.count == 1) ++stats.border_edges;
+        else if (sp.count > 2) ++stats.nonmanifold_edges;
+        else if (sp.out[0] == sp.out[1]) ++stats.misoriented_edges;
+      }
+    }
+    for (uint32_t i = 0; i < n; ++i) {
+      for (int sl = 0; sl < 2; ++sl) {
+        const Spoke& sp = spokes[spoke_index[i][sl]];
+        bool link = is_link(sp, id, broken);
+        mate[i][sl] = link ? static_cast<int>(sp.tris[0] == i ? sp.tris[1] : sp.tris[0]) : -1;
+        cut[i][sl] = !link && sp.count >= 2;
+      }
     }
   }
-  size_t n = v.tris.size();
   // Union-find over the fan's triangles through the links.
   parent.resize(n);
   for (uint32_t i = 0; i < n; ++i) parent[i] = i;
@@ -443,17 +507,16 @@ Status SequenceConverter::Impl::settle(uint32_t vslot) {
     Tri& t = tris[v.tris[i]];
     int c = t.v[0] == id ? 0 : t.v[1] == id ? 1 : 2;
     for (int sl = 0; sl < 2; ++sl) {
-      const Spoke& s = spokes[spoke_index[i][sl]];
       int k = sl == 0 ? c : (c + 2) % 3;  // out-spoke: edge c; in-spoke: edge c-1
       uint8_t bit = static_cast<uint8_t>(1u << k);
-      bool link = is_link(s, id, broken);
-      if (link) parent[find(s.tris[0])] = find(s.tris[1]);
+      int j = mate[i][sl];
+      if (j >= 0) parent[find(i)] = find(static_cast<uint32_t>(j));
       // The edge's partner is decided at whichever end settles first.
       if (t.linked_mask & bit) continue;
       t.linked_mask |= bit;
-      if (link) {
-        t.partner[k] = v.tris[s.tris[0] == i ? s.tris[1] : s.tris[0]];
-      } else if (s.count >= 2) {
+      if (j >= 0) {
+        t.partner[k] = v.tris[j];
+      } else if (cut[i][sl]) {
         t.cut_mask |= bit;
       }
     }
