@@ -69,6 +69,7 @@ struct Vert {
   uint32_t first_dense = kNone;   // dense index of its first fan emitted
   uint32_t unemitted = 0;
   uint64_t stamp = 0;             // marks visits during one finalization
+  bool repeats = false;           // a neighbour repeats on a side (found at finalization)
 };
 
 struct Seg {
@@ -176,7 +177,7 @@ struct SequenceConverter::Impl {
   std::vector<uint32_t> fan_next, fan_prev;  // scratch: neighbours after / before a vertex in its triangles
   std::vector<std::array<int, 2>> mate;      // scratch: linked fan triangle per spoke side
   std::vector<std::array<bool, 2>> cut;      // scratch: the spoke side is cut
-  std::vector<uint32_t> parent, seg_of; // scratch
+  std::vector<uint32_t> stack, seg_of;  // scratch
   uint64_t visit_stamp = 0;
 
   uint32_t vertex_slot(uint32_t id);  // existing or new
@@ -184,10 +185,12 @@ struct SequenceConverter::Impl {
   Status settle(uint32_t slot);
   void split_fans(uint32_t id, Vert& v);
   void spokes_of(uint32_t id, const Vert& v);
-  bool fan_neighbours(uint32_t id, const Vert& v);
+  // With `check` false, returns what the check found at finalization.
+  bool fan_neighbours(uint32_t id, const Vert& v, bool check);
   void make_ready(uint32_t t);
   int classify(const Tri& t) const;
-  Status emit(uint32_t t);
+  // Emits triangle `t`, whose classify() is `cls` (0..4).
+  Status emit(uint32_t t, int cls);
   Status drain();
 };
 
@@ -308,7 +311,7 @@ void SequenceConverter::Impl::spokes_of(uint32_t id, const Vert& v) {
 // in each of its triangles; returns true when one repeats on a side, the
 // only way a spoke can have more than one triangle on a side (non-manifold
 // or misoriented).
-bool SequenceConverter::Impl::fan_neighbours(uint32_t id, const Vert& v) {
+bool SequenceConverter::Impl::fan_neighbours(uint32_t id, const Vert& v, bool check) {
   size_t n = v.tris.size();
   fan_next.resize(n);
   fan_prev.resize(n);
@@ -318,6 +321,7 @@ bool SequenceConverter::Impl::fan_neighbours(uint32_t id, const Vert& v) {
     fan_next[i] = t.v[(c + 1) % 3];
     fan_prev[i] = t.v[(c + 2) % 3];
   }
+  if (!check) return v.repeats;
   for (size_t i = 0; i < n; ++i) {
     for (size_t j = i + 1; j < n; ++j) {
       if (fan_next[i] == fan_next[j] || fan_prev[i] == fan_prev[j]) return true;
@@ -339,7 +343,8 @@ static bool is_nonmanifold(const Spoke& s) { return s.count >= 3 || (s.count == 
 // both would use the same edge of the sequence.
 void SequenceConverter::Impl::split_fans(uint32_t id, Vert& v) {
   // Only a repeated neighbour makes a spoke non-manifold.
-  if (!fan_neighbours(id, v)) return;
+  v.repeats = fan_neighbours(id, v, true);
+  if (!v.repeats) return;
   spokes_of(id, v);
   bool any_nonmanifold = false;
   for (const Spoke& s : spokes) any_nonmanifold = any_nonmanifold || is_nonmanifold(s);
@@ -457,7 +462,7 @@ Status SequenceConverter::Impl::settle(uint32_t vslot) {
   size_t n = v.tris.size();
   mate.resize(n);
   cut.resize(n);
-  if (!fan_neighbours(id, v)) {
+  if (!fan_neighbours(id, v, false)) {
     // Fast path, every spoke has at most one triangle on each side: a spoke
     // with two links them (unless a fan split broke the link), one with a
     // single triangle is a border.
@@ -496,24 +501,17 @@ Status SequenceConverter::Impl::settle(uint32_t vslot) {
       }
     }
   }
-  // Union-find over the fan's triangles through the links.
-  parent.resize(n);
-  for (uint32_t i = 0; i < n; ++i) parent[i] = i;
-  auto find = [&](uint32_t x) {
-    while (parent[x] != x) x = parent[x] = parent[parent[x]];
-    return x;
-  };
+  // Partners and cuts on the triangles.
   for (uint32_t i = 0; i < n; ++i) {
     Tri& t = tris[v.tris[i]];
     int c = t.v[0] == id ? 0 : t.v[1] == id ? 1 : 2;
     for (int sl = 0; sl < 2; ++sl) {
       int k = sl == 0 ? c : (c + 2) % 3;  // out-spoke: edge c; in-spoke: edge c-1
       uint8_t bit = static_cast<uint8_t>(1u << k);
-      int j = mate[i][sl];
-      if (j >= 0) parent[find(i)] = find(static_cast<uint32_t>(j));
       // The edge's partner is decided at whichever end settles first.
       if (t.linked_mask & bit) continue;
       t.linked_mask |= bit;
+      int j = mate[i][sl];
       if (j >= 0) {
         t.partner[k] = v.tris[j];
       } else if (cut[i][sl]) {
@@ -521,26 +519,40 @@ Status SequenceConverter::Impl::settle(uint32_t vslot) {
       }
     }
   }
-  // One segment per fan.
+  // One segment per fan: the triangles connected through links (each has at
+  // most two), found by walking them.
   seg_of.assign(n, kNone);
   uint32_t fans = 0;
-  for (uint32_t i = 0; i < n; ++i) {
-    uint32_t r = find(i);
-    if (seg_of[r] == kNone) {
-      uint32_t sg;
-      if (!free_segs.empty()) {
-        sg = free_segs.back();
-        free_segs.pop_back();
-        segs[sg] = Seg();
-      } else {
-        sg = static_cast<uint32_t>(segs.size());
-        segs.emplace_back();
-      }
-      segs[sg].vertex = id;
-      seg_of[r] = sg;
-      ++fans;
+  for (uint32_t start = 0; start < n; ++start) {
+    if (seg_of[start] != kNone) continue;
+    uint32_t sg;
+    if (!free_segs.empty()) {
+      sg = free_segs.back();
+      free_segs.pop_back();
+      segs[sg] = Seg();
+    } else {
+      sg = static_cast<uint32_t>(segs.size());
+      segs.emplace_back();
     }
-    uint32_t sg = seg_of[r];
+    segs[sg].vertex = id;
+    ++fans;
+    stack.clear();
+    stack.push_back(start);
+    seg_of[start] = sg;
+    while (!stack.empty()) {
+      uint32_t i = stack.back();
+      stack.pop_back();
+      for (int sl = 0; sl < 2; ++sl) {
+        int j = mate[i][sl];
+        if (j >= 0 && seg_of[j] == kNone) {
+          seg_of[j] = sg;
+          stack.push_back(static_cast<uint32_t>(j));
+        }
+      }
+    }
+  }
+  for (uint32_t i = 0; i < n; ++i) {
+    uint32_t sg = seg_of[i];
     ++segs[sg].remaining;
     Tri& t = tris[v.tris[i]];
     for (int k = 0; k < 3; ++k) {
@@ -585,10 +597,9 @@ int SequenceConverter::Impl::classify(const Tri& t) const {
   }
 }
 
-Status SequenceConverter::Impl::emit(uint32_t slot) {
+Status SequenceConverter::Impl::emit(uint32_t slot, int cls) {
   static const Op kOps[] = {Op::kEnd, Op::kFill, Op::kJoin, Op::kAdd, Op::kStart};
   Tri& t = tris[slot];
-  int cls = classify(t);
   if (cls < 0) return Status(ErrorCode::kInternal, "converter emitted a triangle that is none of the five ops");
   st.op = kOps[cls];
   st.new_mask = st.final_mask = st.border_mask = st.nonmanifold_mask = st.leaving_mask = st.entering_mask = 0;
@@ -686,7 +697,7 @@ Status SequenceConverter::Impl::drain() {
           if (c >= 0 && c < 4) buckets[c].push_back(slot);
           continue;
         }
-        PSQ_RETURN_IF_ERROR(emit(slot));
+        PSQ_RETURN_IF_ERROR(emit(slot, c));
         emitted = true;
         break;
       }
@@ -703,7 +714,7 @@ Status SequenceConverter::Impl::drain() {
       Tri& t = tris[slot];
       if (t.emitted || !t.ready) continue;
       if (classify(t) == 4) {
-        PSQ_RETURN_IF_ERROR(emit(slot));
+        PSQ_RETURN_IF_ERROR(emit(slot, 4));
         emitted = true;
         break;
       }
