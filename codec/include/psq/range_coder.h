@@ -1,0 +1,104 @@
+// psq/range_coder.h: the adaptive binary range coder of the .psq codec.
+//
+// A range coder (Martin 1979; the carry handling with a cached byte as in
+// Subbotin's and LZMA's coders) that codes binary decisions with adaptive
+// probabilities, symbols of up to 16 bits as a binary tree of such decisions,
+// raw bits at probability one half, and signed integers as a bit length
+// followed by the bits below the leading one (after the integer coder of
+// LASzip, Isenburg 2013).
+//
+// Probabilities are 12-bit (1/4096 units) and adapt by 1/32 of the error
+// after each decision. The encoder appends to a byte vector; the decoder
+// reads a byte span and never reads outside it: past the end it reads zero
+// bytes and remembers that it overran, which the caller turns into an error
+// (overran()). Decoding is therefore safe on untrusted input; what a corrupt
+// stream decodes to is garbage that the caller's checks must reject.
+//
+// The exact arithmetic (normative for the .psq format) is in spec/.
+#ifndef PSQ_RANGE_CODER_H_
+#define PSQ_RANGE_CODER_H_
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+namespace psq {
+
+// An adaptive binary probability: the chance of a 0, in 1/4096 units.
+struct BitModel {
+  uint16_t p0 = 2048;
+};
+
+// An adaptive model for symbols of `bits` bits (1..16): a binary tree of
+// BitModels, most significant bit first.
+class SymbolModel {
+ public:
+  explicit SymbolModel(int bits = 8);
+  int bits() const { return bits_; }
+  BitModel* tree() { return tree_.data(); }
+
+ private:
+  int bits_;
+  std::vector<BitModel> tree_;  // node 1 is the root; 2^bits entries
+};
+
+// Models for IntegerCoder: the bit length of a value (0..32) and its sign.
+struct IntegerModel {
+  SymbolModel length{6};
+  BitModel sign;
+};
+
+class RangeEncoder {
+ public:
+  // Appends the coded bytes to `out`, which must outlive the encoder.
+  explicit RangeEncoder(std::vector<uint8_t>* out);
+
+  void encode_bit(BitModel& m, int bit);
+  void encode_symbol(SymbolModel& m, uint32_t symbol);  // symbol < 2^bits
+  void encode_raw(uint32_t value, int bits);           // bits 0..32
+  // Codes `value` (any int32) as its bit length, sign and low bits.
+  void encode_int(IntegerModel& m, int32_t value);
+  // Flushes the final state (5 bytes). The encoder must not be used after.
+  void finish();
+
+ private:
+  void shift_low();
+
+  std::vector<uint8_t>* out_;
+  uint64_t low_ = 0;
+  uint32_t range_ = 0xffffffffu;
+  uint8_t cache_ = 0;
+  uint64_t cache_size_ = 1;
+};
+
+class RangeDecoder {
+ public:
+  // Decodes from `size` bytes at `data`, which must outlive the decoder.
+  RangeDecoder(const uint8_t* data, size_t size);
+
+  int decode_bit(BitModel& m);
+  uint32_t decode_symbol(SymbolModel& m);
+  uint32_t decode_raw(int bits);
+  int32_t decode_int(IntegerModel& m);
+
+  // True when decoding needed bytes past the end of the input: the stream
+  // was truncated or corrupt.
+  bool overran() const { return overran_; }
+  // Bytes consumed so far (at most the input size).
+  size_t consumed() const { return pos_; }
+
+ private:
+  uint8_t next_byte();
+  void normalize();
+
+  const uint8_t* data_;
+  size_t size_;
+  size_t pos_ = 0;
+  bool overran_ = false;
+  uint32_t range_ = 0xffffffffu;
+  uint32_t code_ = 0;
+};
+
+}  // namespace psq
+
+#endif  // PSQ_RANGE_CODER_H_

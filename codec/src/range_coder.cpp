@@ -1,0 +1,172 @@
+// The adaptive binary range coder (psq/range_coder.h). A range coder in
+// the style of Martin (1979), with 32-bit range, bottom renormalisation by
+// bytes and carry propagation through a cached byte and a run of 0xff bytes
+// (the scheme of Subbotin's and LZMA's coders); 12-bit adaptive bit models
+// with shift-5 updates; integers as bit length + sign + low bits as in
+// LASzip's integer coder (Isenburg, "LASzip: lossless compression of LiDAR
+// data", 2013).
+#include "psq/range_coder.h"
+
+namespace psq {
+namespace {
+
+constexpr int kProbBits = 12;
+constexpr uint32_t kProbOne = 1u << kProbBits;
+constexpr int kAdaptShift = 5;
+constexpr uint32_t kTop = 1u << 24;
+
+int bit_length(uint32_t v) { return v == 0 ? 0 : 32 - __builtin_clz(v); }
+
+}  // namespace
+
+SymbolModel::SymbolModel(int bits) : bits_(bits < 1 ? 1 : bits > 16 ? 16 : bits), tree_(size_t{1} << bits_) {}
+
+// ------------------------------------------------------------------ encoder
+
+RangeEncoder::RangeEncoder(std::vector<uint8_t>* out) : out_(out) {}
+
+void RangeEncoder::shift_low() {
+  // The top byte of low is final unless a carry may still reach it: hold it
+  // (and any 0xff bytes after it) until the carry is known.
+  if (static_cast<uint32_t>(low_) < 0xff000000u || (low_ >> 32) != 0) {
+    uint8_t carry = static_cast<uint8_t>(low_ >> 32);
+    uint8_t byte = cache_;
+    do {
+      out_->push_back(static_cast<uint8_t>(byte + carry));
+      byte = 0xff;
+    } while (--cache_size_ != 0);
+    cache_ = static_cast<uint8_t>(low_ >> 24);
+  }
+  ++cache_size_;
+  low_ = (low_ & 0x00ffffffu) << 8;
+}
+
+void RangeEncoder::encode_bit(BitModel& m, int bit) {
+  uint32_t bound = (range_ >> kProbBits) * m.p0;
+  if (bit == 0) {
+    range_ = bound;
+    m.p0 = static_cast<uint16_t>(m.p0 + ((kProbOne - m.p0) >> kAdaptShift));
+  } else {
+    low_ += bound;
+    range_ -= bound;
+    m.p0 = static_cast<uint16_t>(m.p0 - (m.p0 >> kAdaptShift));
+  }
+  while (range_ < kTop) {
+    range_ <<= 8;
+    shift_low();
+  }
+}
+
+void RangeEncoder::encode_symbol(SymbolModel& m, uint32_t symbol) {
+  BitModel* tree = m.tree();
+  uint32_t node = 1;
+  for (int i = m.bits() - 1; i >= 0; --i) {
+    int bit = static_cast<int>((symbol >> i) & 1u);
+    encode_bit(tree[node], bit);
+    node = (node << 1) | static_cast<uint32_t>(bit);
+  }
+}
+
+void RangeEncoder::encode_raw(uint32_t value, int bits) {
+  for (int i = bits - 1; i >= 0; --i) {
+    range_ >>= 1;
+    if ((value >> i) & 1u) low_ += range_;
+    while (range_ < kTop) {
+      range_ <<= 8;
+      shift_low();
+    }
+  }
+}
+
+void RangeEncoder::encode_int(IntegerModel& m, int32_t value) {
+  // The magnitude of INT32_MIN does not fit int32: take it in 64 bits.
+  int64_t v = value;
+  uint32_t magnitude = static_cast<uint32_t>(v < 0 ? -v : v);
+  int k = bit_length(magnitude);
+  encode_symbol(m.length, static_cast<uint32_t>(k));
+  if (k == 0) return;
+  encode_bit(m.sign, value < 0 ? 1 : 0);
+  encode_raw(magnitude - (1u << (k - 1)), k - 1);  // the leading one is implied
+}
+
+void RangeEncoder::finish() {
+  for (int i = 0; i < 5; ++i) shift_low();
+}
+
+// ------------------------------------------------------------------ decoder
+
+RangeDecoder::RangeDecoder(const uint8_t* data, size_t size) : data_(data), size_(size) {
+  // The encoder's first byte is the initial (empty) cache; the next four
+  // fill the code register.
+  for (int i = 0; i < 5; ++i) code_ = (code_ << 8) | next_byte();
+}
+
+uint8_t RangeDecoder::next_byte() {
+  if (pos_ < size_) return data_[pos_++];
+  overran_ = true;
+  return 0;
+}
+
+void RangeDecoder::normalize() {
+  while (range_ < kTop) {
+    range_ <<= 8;
+    code_ = (code_ << 8) | next_byte();
+  }
+}
+
+int RangeDecoder::decode_bit(BitModel& m) {
+  uint32_t bound = (range_ >> kProbBits) * m.p0;
+  int bit;
+  if (code_ < bound) {
+    range_ = bound;
+    m.p0 = static_cast<uint16_t>(m.p0 + ((kProbOne - m.p0) >> kAdaptShift));
+    bit = 0;
+  } else {
+    code_ -= bound;
+    range_ -= bound;
+    m.p0 = static_cast<uint16_t>(m.p0 - (m.p0 >> kAdaptShift));
+    bit = 1;
+  }
+  normalize();
+  return bit;
+}
+
+uint32_t RangeDecoder::decode_symbol(SymbolModel& m) {
+  BitModel* tree = m.tree();
+  uint32_t node = 1;
+  for (int i = 0; i < m.bits(); ++i) node = (node << 1) | static_cast<uint32_t>(decode_bit(tree[node]));
+  return node - (1u << m.bits());
+}
+
+uint32_t RangeDecoder::decode_raw(int bits) {
+  uint32_t value = 0;
+  for (int i = 0; i < bits; ++i) {
+    range_ >>= 1;
+    uint32_t bit = code_ >= range_ ? 1u : 0u;
+    if (bit) code_ -= range_;
+    value = (value << 1) | bit;
+    normalize();
+  }
+  return value;
+}
+
+int32_t RangeDecoder::decode_int(IntegerModel& m) {
+  uint32_t k = decode_symbol(m.length);
+  if (k == 0) return 0;
+  if (k > 32) {  // no int32 has more than 32 bits: a corrupt stream
+    overran_ = true;
+    return 0;
+  }
+  int negative = decode_bit(m.sign);
+  uint32_t magnitude = (1u << (k - 1)) | decode_raw(static_cast<int>(k - 1));
+  if (!negative) {
+    if (magnitude > 0x7fffffffu) {
+      overran_ = true;
+      return 0;
+    }
+    return static_cast<int32_t>(magnitude);
+  }
+  return static_cast<int32_t>(-static_cast<int64_t>(magnitude));
+}
+
+}  // namespace psq
