@@ -14,7 +14,8 @@
 // (overran()). Decoding is therefore safe on untrusted input; what a corrupt
 // stream decodes to is garbage that the caller's checks must reject.
 //
-// The exact arithmetic (normative for the .psq format) is in spec/.
+// The exact arithmetic becomes normative in spec/psq-format.md together with
+// the container that uses it (the codec issue).
 #ifndef PSQ_RANGE_CODER_H_
 #define PSQ_RANGE_CODER_H_
 
