@@ -68,9 +68,14 @@ void RangeEncoder::encode_symbol(SymbolModel& m, uint32_t symbol) {
 }
 
 void RangeEncoder::encode_raw(uint32_t value, int bits) {
-  for (int i = bits - 1; i >= 0; --i) {
-    range_ >>= 1;
-    if ((value >> i) & 1u) low_ += range_;
+  // Up to 16 bits at a time: the range keeps at least 2^24 before, so at
+  // least 2^8 after dividing it into 2^16 equal parts.
+  while (bits > 0) {
+    int n = bits > 16 ? 16 : bits;
+    bits -= n;
+    uint32_t part = (value >> bits) & ((1u << n) - 1);
+    range_ >>= n;
+    low_ += static_cast<uint64_t>(part) * range_;
     while (range_ < kTop) {
       range_ <<= 8;
       shift_low();
@@ -140,11 +145,17 @@ uint32_t RangeDecoder::decode_symbol(SymbolModel& m) {
 
 uint32_t RangeDecoder::decode_raw(int bits) {
   uint32_t value = 0;
-  for (int i = 0; i < bits; ++i) {
-    range_ >>= 1;
-    uint32_t bit = code_ >= range_ ? 1u : 0u;
-    if (bit) code_ -= range_;
-    value = (value << 1) | bit;
+  while (bits > 0) {
+    int n = bits > 16 ? 16 : bits;
+    bits -= n;
+    range_ >>= n;
+    uint32_t part = code_ / range_;
+    if (part >> n) {  // only a corrupt stream puts code beyond the range
+      overran_ = true;
+      part = (1u << n) - 1;
+    }
+    code_ -= part * range_;
+    value = (value << n) | part;
     normalize();
   }
   return value;
