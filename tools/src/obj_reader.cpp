@@ -12,9 +12,16 @@
 #include <vector>
 
 #include "psq/obj.h"
+#include "text_parse.h"
 
 namespace psq {
 namespace {
+
+using detail::Parse;
+using detail::parse_float;
+using detail::quoted;
+using detail::parse_int;
+using detail::skip_plus;
 
 // Element counts stay below this so that uint32 indices hold every vertex,
 // normal and texture coordinate, and the values above remain free as markers.
@@ -61,73 +68,6 @@ class Tokens {
   std::string_view s_;
 };
 
-// A token for an error message: short and on one line whatever the input.
-std::string quoted(std::string_view tok) {
-  constexpr size_t kMaxShown = 32;
-  std::string s = "'";
-  for (size_t i = 0; i < tok.size() && i < kMaxShown; ++i) {
-    unsigned char c = static_cast<unsigned char>(tok[i]);
-    s += (c >= 0x20 && c < 0x7f) ? static_cast<char>(c) : '?';
-  }
-  if (tok.size() > kMaxShown) s += "...";
-  s += "'";
-  return s;
-}
-
-// from_chars does not take a leading '+', which OBJ writers do emit.
-bool skip_plus(const char** b, const char* e) {
-  if (*b != e && **b == '+') {
-    ++*b;
-    if (*b == e || **b == '+' || **b == '-') return false;
-  }
-  return true;
-}
-
-enum class Parse { kOk, kMalformed, kOutOfRange };
-
-// Parses a whole token as a float, rounding once from the decimal text.
-// Values too small for float become 0 (or a denormal); values too large are
-// out of range rather than silently infinite.
-Parse parse_float(std::string_view tok, float* out) {
-  const char* b = tok.data();
-  const char* e = b + tok.size();
-  if (!skip_plus(&b, e)) return Parse::kMalformed;
-  float f = 0;
-  auto r = std::from_chars(b, e, f);
-  if (r.ptr != e) return Parse::kMalformed;
-  if (r.ec == std::errc()) {
-    *out = f;
-    return Parse::kOk;
-  }
-  if (r.ec != std::errc::result_out_of_range) return Parse::kMalformed;
-  // Tell underflow from overflow, which from_chars reports alike.
-  double d = 0;
-  auto rd = std::from_chars(b, e, d);
-  if (rd.ec == std::errc()) {
-    if (std::fabs(d) < 1.0) {
-      *out = static_cast<float>(d);
-      return Parse::kOk;
-    }
-    return Parse::kOutOfRange;
-  }
-  for (const char* p = b; p + 1 < e; ++p) {
-    if ((*p == 'e' || *p == 'E') && p[1] == '-') {
-      *out = *b == '-' ? -0.0f : 0.0f;
-      return Parse::kOk;
-    }
-  }
-  return Parse::kOutOfRange;
-}
-
-Parse parse_int(std::string_view tok, int64_t* out) {
-  const char* b = tok.data();
-  const char* e = b + tok.size();
-  if (!skip_plus(&b, e)) return Parse::kMalformed;
-  auto r = std::from_chars(b, e, *out);
-  if (r.ec == std::errc::result_out_of_range && r.ptr == e) return Parse::kOutOfRange;
-  if (r.ec != std::errc() || r.ptr != e) return Parse::kMalformed;
-  return Parse::kOk;
-}
 
 // Removes a trailing comment and trailing whitespace.
 std::string_view strip(std::string_view line) {

@@ -11,9 +11,16 @@
 #include <vector>
 
 #include "psq/off.h"
+#include "text_parse.h"
 
 namespace psq {
 namespace {
+
+using detail::Parse;
+using detail::parse_float;
+using detail::quoted;
+using detail::parse_int;
+using detail::skip_plus;
 
 constexpr uint64_t kMaxVertices = 0xffffffffu;  // indices are 32-bit
 // The fewest bytes a vertex line ("0 0 0\n") or a face line takes; a count
@@ -46,72 +53,6 @@ std::string_view strip_comment(std::string_view line) {
   return hash == std::string_view::npos ? line : line.substr(0, hash);
 }
 
-// A token for an error message: short and on one line whatever the input.
-std::string quoted(std::string_view tok) {
-  constexpr size_t kMaxShown = 32;
-  std::string s = "'";
-  for (size_t i = 0; i < tok.size() && i < kMaxShown; ++i) {
-    unsigned char c = static_cast<unsigned char>(tok[i]);
-    s += (c >= 0x20 && c < 0x7f) ? static_cast<char>(c) : '?';
-  }
-  if (tok.size() > kMaxShown) s += "...";
-  s += "'";
-  return s;
-}
-
-// from_chars does not take a leading '+'.
-bool skip_plus(const char** b, const char* e) {
-  if (*b != e && **b == '+') {
-    ++*b;
-    if (*b == e || **b == '+' || **b == '-') return false;
-  }
-  return true;
-}
-
-enum class Parse { kOk, kMalformed, kOutOfRange };
-
-// Parses a whole token as a float, rounding once from the decimal text.
-// Values too small for float become 0 (or a denormal); values too large are
-// out of range rather than silently infinite.
-Parse parse_float(std::string_view tok, float* out) {
-  const char* b = tok.data();
-  const char* e = b + tok.size();
-  if (!skip_plus(&b, e)) return Parse::kMalformed;
-  float f = 0;
-  auto r = std::from_chars(b, e, f);
-  if (r.ptr != e) return Parse::kMalformed;
-  if (r.ec == std::errc()) {
-    *out = f;
-    return Parse::kOk;
-  }
-  if (r.ec != std::errc::result_out_of_range) return Parse::kMalformed;
-  double d = 0;
-  auto rd = std::from_chars(b, e, d);
-  if (rd.ec == std::errc()) {
-    if (std::fabs(d) < 1.0) {
-      *out = static_cast<float>(d);
-      return Parse::kOk;
-    }
-    return Parse::kOutOfRange;
-  }
-  for (const char* p = b; p + 1 < e; ++p) {
-    if ((*p == 'e' || *p == 'E') && p[1] == '-') {
-      *out = *b == '-' ? -0.0f : 0.0f;
-      return Parse::kOk;
-    }
-  }
-  return Parse::kOutOfRange;
-}
-
-Parse parse_int(std::string_view tok, int64_t* out) {
-  const char* b = tok.data();
-  const char* e = b + tok.size();
-  if (!skip_plus(&b, e)) return Parse::kMalformed;
-  auto r = std::from_chars(b, e, *out);
-  if (r.ec == std::errc::result_out_of_range && r.ptr == e) return Parse::kOutOfRange;
-  if (r.ec != std::errc() || r.ptr != e) return Parse::kMalformed;
-  return Parse::kOk;
-}
 
 // The header keyword: [ST][C][N][4][n]OFF.
 struct Keyword {

@@ -9,9 +9,14 @@
 #include <vector>
 
 #include "psq/stl.h"
+#include "text_parse.h"
 
 namespace psq {
 namespace {
+
+using detail::Parse;
+using detail::parse_float;
+using detail::quoted;
 
 constexpr uint64_t kHeaderBytes = 84;
 constexpr uint64_t kTriangleBytes = 50;
@@ -64,56 +69,6 @@ bool looks_ascii(const uint8_t* data, size_t size) {
   return iequals(word, "facet") || iequals(word, "endsolid");
 }
 
-// A token for an error message: short and on one line whatever the input.
-std::string quoted(std::string_view tok) {
-  constexpr size_t kMaxShown = 32;
-  std::string s = "'";
-  for (size_t i = 0; i < tok.size() && i < kMaxShown; ++i) {
-    unsigned char c = static_cast<unsigned char>(tok[i]);
-    s += (c >= 0x20 && c < 0x7f) ? static_cast<char>(c) : '?';
-  }
-  if (tok.size() > kMaxShown) s += "...";
-  s += "'";
-  return s;
-}
-
-enum class Parse { kOk, kMalformed, kOutOfRange };
-
-// Parses a whole token as a float, rounding once from the decimal text (a
-// leading '+' is accepted). Values too small for float become 0 or a
-// denormal; values too large are out of range.
-Parse parse_float(std::string_view tok, float* out) {
-  const char* b = tok.data();
-  const char* e = b + tok.size();
-  if (b != e && *b == '+') {
-    ++b;
-    if (b == e || *b == '+' || *b == '-') return Parse::kMalformed;
-  }
-  float f = 0;
-  auto r = std::from_chars(b, e, f);
-  if (r.ptr != e) return Parse::kMalformed;
-  if (r.ec == std::errc()) {
-    *out = f;
-    return Parse::kOk;
-  }
-  if (r.ec != std::errc::result_out_of_range) return Parse::kMalformed;
-  double d = 0;
-  auto rd = std::from_chars(b, e, d);
-  if (rd.ec == std::errc()) {
-    if (std::fabs(d) < 1.0) {
-      *out = static_cast<float>(d);
-      return Parse::kOk;
-    }
-    return Parse::kOutOfRange;
-  }
-  for (const char* p = b; p + 1 < e; ++p) {
-    if ((*p == 'e' || *p == 'E') && p[1] == '-') {
-      *out = *b == '-' ? -0.0f : 0.0f;
-      return Parse::kOk;
-    }
-  }
-  return Parse::kOutOfRange;
-}
 
 // Distinct positions, numbered in order of first appearance, found through
 // an open-addressing hash table of vertex numbers (load at most 1/2).
