@@ -8,6 +8,8 @@
 #include <string>
 
 #include "psq/indexed_mesh.h"
+#include "psq/io.h"
+#include "psq/mesh_formats.h"
 #include "psq/sequence.h"
 #include "psq/sequence_builder.h"
 #include "psq/sequence_check.h"
@@ -80,6 +82,38 @@ inline BuildOptions sort_options() {
   o.force_sort = true;
   o.memory_budget = uint64_t{1} << 20;
   return o;
+}
+
+// The whole body of a reader's fuzz target: the reader over the bytes (any
+// Status is fine); when it accepts them, the mesh again into build_sequence,
+// with default options and with the forced external sort, whose sequence
+// must pass SequenceChecker. Meshes over `max_elements` skip the second part
+// (it would only be slower).
+template <class Reader>
+int fuzz_reader(const uint8_t* data, size_t size, const char* format, uint64_t max_elements = 100000) {
+  (void)detect_format(data, size);  // content sniffing is a parser too
+  DiscardSink sink;
+  {
+    InputStream in;
+    in.open_memory(data, size, "<fuzz>");
+    Reader reader;
+    if (!reader.open(&in).ok()) return 0;
+    if (!pump(reader, sink).ok()) return 0;
+    (void)reader.report();
+  }
+  if (sink.vertices > max_elements || sink.triangles > max_elements) return 0;
+  const BuildOptions options[2] = {BuildOptions(), sort_options()};
+  const char* paths[2] = {"build_sequence (default)", "build_sequence (force_sort, 1 MiB)"};
+  for (int i = 0; i < 2; ++i) {
+    InputStream in;
+    in.open_memory(data, size, "<fuzz>");
+    Reader reader;
+    Status s = reader.open(&in);
+    if (!s.ok()) die("input accepted once, rejected the second time", s);
+    std::string what = std::string(format) + " -> " + paths[i];
+    check_sequence(reader, options[i], what.c_str());
+  }
+  return 0;
 }
 
 }  // namespace psq::fuzz

@@ -13,37 +13,6 @@
 #include "psq/mesh_formats.h"
 #include "psq/obj.h"
 
-namespace {
-
-constexpr uint64_t kOracleMaxElements = 100000;
-
-}  // namespace
-
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
-  (void)psq::detect_format(data, size);
-
-  psq::fuzz::DiscardSink sink;
-  {
-    psq::InputStream in;
-    in.open_memory(data, size, "<fuzz>");
-    psq::ObjReader reader;
-    // A memory stream can rewind, so nothing is ever spooled.
-    if (!reader.open(&in).ok()) return 0;
-    (void)reader.schema();
-    if (!psq::pump(reader, sink).ok()) return 0;
-    (void)reader.report();
-  }
-  if (sink.vertices > kOracleMaxElements || sink.triangles > kOracleMaxElements) return 0;
-
-  const psq::BuildOptions options[2] = {psq::BuildOptions(), psq::fuzz::sort_options()};
-  const char* names[2] = {"OBJ -> build_sequence (default)", "OBJ -> build_sequence (force_sort, 1 MiB)"};
-  for (int i = 0; i < 2; ++i) {
-    psq::InputStream in;
-    in.open_memory(data, size, "<fuzz>");
-    psq::ObjReader reader;
-    psq::Status s = reader.open(&in);
-    if (!s.ok()) psq::fuzz::die("OBJ accepted once, rejected the second time", s);
-    psq::fuzz::check_sequence(reader, options[i], names[i]);
-  }
-  return 0;
+  return psq::fuzz::fuzz_reader<psq::ObjReader>(data, size, "OBJ");
 }

@@ -13,40 +13,6 @@
 #include "psq/mesh_formats.h"
 #include "psq/ply.h"
 
-namespace {
-
-// Meshes above this size skip the sequence oracle (the sort path's rank
-// array under 1 MiB holds 131072 vertices; the fuzzer's inputs are far
-// smaller anyway).
-constexpr uint64_t kOracleMaxElements = 100000;
-
-}  // namespace
-
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
-  (void)psq::detect_format(data, size);  // content sniffing is a parser too
-
-  psq::fuzz::DiscardSink sink;
-  {
-    psq::InputStream in;
-    in.open_memory(data, size, "<fuzz>");
-    psq::PlyReader reader;
-    if (!reader.open(&in).ok()) return 0;
-    (void)reader.encoding();
-    (void)reader.schema();
-    if (!psq::pump(reader, sink).ok()) return 0;
-    (void)reader.report();
-  }
-  if (sink.vertices > kOracleMaxElements || sink.triangles > kOracleMaxElements) return 0;
-
-  const psq::BuildOptions options[2] = {psq::BuildOptions(), psq::fuzz::sort_options()};
-  const char* names[2] = {"PLY -> build_sequence (default)", "PLY -> build_sequence (force_sort, 1 MiB)"};
-  for (int i = 0; i < 2; ++i) {
-    psq::InputStream in;
-    in.open_memory(data, size, "<fuzz>");
-    psq::PlyReader reader;
-    psq::Status s = reader.open(&in);
-    if (!s.ok()) psq::fuzz::die("PLY header accepted once, rejected the second time", s);
-    psq::fuzz::check_sequence(reader, options[i], names[i]);
-  }
-  return 0;
+  return psq::fuzz::fuzz_reader<psq::PlyReader>(data, size, "PLY");
 }
