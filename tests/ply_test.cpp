@@ -257,6 +257,16 @@ TEST(Ply, MalformedInputGivesCleanErrors) {
   }
 }
 
+TEST(Ply, HugeElementWithoutPropertiesIsSkippedAtOnce) {
+  // No property: the element takes no bytes, whatever its count claims.
+  std::string f = header("binary_little_endian",
+                         "element junk 18446744073709551615\nelement vertex 0\nproperty float x\nproperty float y\nproperty float z\n");
+  Mesh m;
+  Status s = read_ply(f, &m);
+  EXPECT_TRUE(s.ok()) << s.to_string();
+  EXPECT_TRUE(m.positions.empty());
+}
+
 TEST(Ply, ErrorsNameTheLineOrOffset) {
   Mesh m;
   Status s = read_ply(tri_header() + "0 0 0\n1 0 0\n0 1 0\n3 0 1 9\n", &m);

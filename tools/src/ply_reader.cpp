@@ -659,6 +659,13 @@ Status PlyReader::Impl::next(MeshItem* out) {
       return Status();
     }
     const PlyElement& e = elements[elem];
+    if (e.props.empty()) {
+      // An element with no properties takes no bytes in binary (and an empty
+      // line per item in ascii, which the next element's reading skips):
+      // skip it whole instead of looping over a count the header may inflate.
+      item = e.count;
+      continue;
+    }
     bool yields = false;
     if (encoding == PlyEncoding::kAscii) {
       PSQ_RETURN_IF_ERROR(read_element_ascii(e, out, &yields));
