@@ -130,12 +130,12 @@ Status feed_coherent(Spooled& s, SequenceConverter& conv) {
   InputStream& tin = s.triangles.stream();
   uint64_t fed = 0, finalized = 0;
   double pos[3];
-  PropertyValues values;
+  PropertyValues values, vertex_values;  // apart: feeding vertices must not clobber a triangle's
   auto feed_until = [&](uint64_t end) -> Status {
     while (fed < end) {
       PSQ_RETURN_IF_ERROR(vin.read_exact(pos, 24));
-      PSQ_RETURN_IF_ERROR(get_values(vin, &values));
-      PSQ_RETURN_IF_ERROR(conv.vertex(static_cast<uint32_t>(fed), pos, values));
+      PSQ_RETURN_IF_ERROR(get_values(vin, &vertex_values));
+      PSQ_RETURN_IF_ERROR(conv.vertex(static_cast<uint32_t>(fed), pos, vertex_values));
       ++fed;
     }
     return Status();
@@ -249,7 +249,19 @@ Status build_sequence(MeshSource& source, SequenceSink& sink, const BuildOptions
   PSQ_RETURN_IF_ERROR(spool_input(source, options, &s));
   if (s.nv > 0xffffffffull) return Status(ErrorCode::kLimit, "more than 4294967295 vertices");
   SequenceConverter conv(&sink);
-  PSQ_RETURN_IF_ERROR(conv.begin(source.schema()));
+  // The spool pass knows the bounding box before the first vertex goes on:
+  // the .psq encoder places its quantization grid on it. Counts are the
+  // input's; the sequence may add re-appearances and drop degenerate
+  // triangles, so they are not promised.
+  MeshSchema schema = source.schema();
+  schema.vertex_count = MeshSchema::kUnknown;
+  schema.triangle_count = MeshSchema::kUnknown;
+  if (s.nv > 0) {
+    schema.has_bounds = true;
+    std::copy(s.lo, s.lo + 3, schema.bounds_min);
+    std::copy(s.hi, s.hi + 3, schema.bounds_max);
+  }
+  PSQ_RETURN_IF_ERROR(conv.begin(schema));
   // Coherent enough when the vertices the window keeps waiting fit a small
   // share of the budget (a waiting vertex and its triangles take about
   // 400 bytes).

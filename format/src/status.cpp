@@ -16,6 +16,7 @@ const char* error_name(ErrorCode code) {
     case ErrorCode::kUsage: return "usage";
     case ErrorCode::kInternal: return "internal";
     case ErrorCode::kBadSequence: return "bad_sequence";
+    case ErrorCode::kChecksum: return "checksum";
   }
   return "unknown";
 }

@@ -2,12 +2,15 @@
 #include <unistd.h>
 
 #include <cstdio>
+#include <cstdlib>
 #include <string>
 
 #include "cli_util.h"
 #include "commands.h"
 #include "psq/mesh_formats.h"
 #include "psq/obj.h"
+#include "psq/psq_codec.h"
+#include "psq/sequence_builder.h"
 
 namespace psq::cli {
 namespace {
@@ -17,18 +20,68 @@ const char kHelp[] =
     "\n"
     "Converts IN to OUT, streaming: one element in memory at a time (an OBJ\n"
     "with normals or texture coordinates is read in memory; see README).\n"
-    "The input format is recognised by content; the output format comes\n"
-    "from --to or OUT's extension (.ply, .obj). IN and OUT may be '-'.\n"
-    "The output is written to a temporary file and renamed on success.\n"
+    "The input format is recognised by content (PLY, OBJ, OFF, STL, .psq);\n"
+    "the output format comes from --to or OUT's extension (.ply, .obj,\n"
+    ".psq). IN and OUT may be '-'. To .psq, the mesh goes through the\n"
+    "processing-sequence converter (one pass when coherent, else an external\n"
+    "sort within --memory). The output is written to a temporary file and\n"
+    "renamed on success.\n"
     "\n"
     "Options:\n"
-    "  --to FORMAT    output format: ply or obj (needed when OUT is '-')\n"
+    "  --to FORMAT    output format: ply, obj or psq (needed when OUT is '-')\n"
+    "  --bits N       .psq: quantize positions to N bits, 1..31 (default 16)\n"
+    "  --lossless     .psq: keep positions bit-exact instead of quantizing\n"
+    "  --memory SIZE  memory budget of the external sort (default 512M)\n"
     "  --ascii        write ascii PLY instead of binary little-endian\n"
     "  --tmpdir DIR   directory for temporary spool files (default $TMPDIR)\n"
     "  -f, --force    overwrite OUT if it exists\n"
     "  -q, --quiet    print no notes\n"
     "  --json         print a JSON summary on standard output (not with OUT '-')\n"
     "  -h, --help     show this help\n";
+
+// IN (any mesh, or .psq) to a .psq OUT: the processing sequence of the
+// mesh, or the decoded sequence of a .psq, into the encoder.
+int to_psq(const std::string& in, const std::string& out, OpenedMesh& mesh, OutputFile& output,
+           const EncodeOptions& encode_options, const BuildOptions& build_options, bool quiet, bool json) {
+  FileWriter writer(&output);
+  PsqEncoder encoder(&writer, encode_options);
+  Status s;
+  BuildReport report;
+  if (mesh.decoder) {
+    s = pump_sequence(*mesh.decoder, encoder);
+  } else {
+    s = build_sequence(*mesh.source, encoder, build_options, &report);
+  }
+  if (!s.ok()) {
+    output.discard();
+    return report_pipeline_error(in, out, s);
+  }
+  s = output.commit();
+  if (!s.ok()) return report_error(out, s);
+  const PsqStats& st = encoder.stats();
+  std::vector<std::string> notes = mesh.source->report().notes;
+  if (report.converter.degenerate_dropped)
+    notes.push_back(std::to_string(report.converter.degenerate_dropped) + " degenerate triangle(s) dropped");
+  if (!quiet)
+    for (const std::string& n : notes) note(in, n);
+  const double nv = st.vertices ? static_cast<double>(st.vertices) : 1.0;
+  if (json) {
+    std::string o = "{\"input\": \"" + json_escape(in) + "\", \"output\": \"" + json_escape(out) +
+                    "\", \"input_format\": \"" + format_name(mesh.format) +
+                    "\", \"output_format\": \"psq\", \"vertices\": " + std::to_string(st.vertices) +
+                    ", \"triangles\": " + std::to_string(st.triangles) + ", \"bytes_out\": " +
+                    std::to_string(output.size()) + ", \"bits_per_vertex\": " + json_number(8.0 * st.total_bytes / nv) +
+                    ", \"connectivity_bits_per_vertex\": " + json_number(st.connectivity_bits / nv) +
+                    ", \"geometry_bits_per_vertex\": " + json_number(st.geometry_bits / nv) +
+                    ", \"property_bits_per_vertex\": " + json_number(8.0 * st.property_bytes / nv) +
+                    ", \"lossless\": " + (encode_options.lossless ? "true" : "false") +
+                    ", \"bits\": " + std::to_string(encode_options.lossless ? 0 : encode_options.bits) + ", \"notes\": [";
+    for (size_t i = 0; i < notes.size(); ++i) o += (i ? ", \"" : "\"") + json_escape(notes[i]) + "\"";
+    o += "]}\n";
+    std::fputs(o.c_str(), stdout);
+  }
+  return kExitOk;
+}
 
 }  // namespace
 
@@ -42,18 +95,34 @@ int cmd_convert(int argc, char** argv) {
   bool quiet = args.flag("--quiet", "-q");
   bool json = args.flag("--json");
   bool ascii = args.flag("--ascii");
+  bool lossless = args.flag("--lossless");
   std::string to = args.option("--to");
   std::string tmpdir = args.option("--tmpdir");
+  std::string bits_text = args.option("--bits", "16");
+  std::string memory = args.option("--memory", "512M");
   std::vector<std::string> files = args.positionals();
   if (!args.error().empty()) return usage_error("convert", args.error());
   if (files.size() != 2) return usage_error("convert", "convert takes IN and OUT");
   const std::string& in = files[0];
   const std::string& out = files[1];
+  EncodeOptions encode_options;
+  encode_options.lossless = lossless;
+  {
+    char* end = nullptr;
+    long b = std::strtol(bits_text.c_str(), &end, 10);
+    if (bits_text.empty() || *end != 0 || b < 1 || b > 31)
+      return usage_error("convert", "bad --bits '" + bits_text + "' (1..31)");
+    encode_options.bits = static_cast<int>(b);
+  }
+  BuildOptions build_options;
+  build_options.tmpdir = tmpdir;
+  if (!parse_size(memory, &build_options.memory_budget))
+    return usage_error("convert", "bad --memory '" + memory + "' (e.g. 256M, 2G)");
 
   MeshFormat out_format = to.empty() ? format_from_extension(out) : format_from_name(to);
   if (out_format == MeshFormat::kUnknown) {
-    if (!to.empty()) return usage_error("convert", "unknown output format '" + to + "' (ply or obj)");
-    return usage_error("convert", "cannot tell the output format from '" + out + "': use --to ply|obj");
+    if (!to.empty()) return usage_error("convert", "unknown output format '" + to + "' (ply, obj or psq)");
+    return usage_error("convert", "cannot tell the output format from '" + out + "': use --to ply|obj|psq");
   }
   if (same_file(in, out)) return usage_error("convert", "IN and OUT are the same file");
   if (out == "-" && json) return usage_error("convert", "--json needs OUT to be a file (stdout carries the mesh)");
@@ -70,6 +139,7 @@ int cmd_convert(int argc, char** argv) {
   OutputFile output;
   s = output.open(out, force);
   if (!s.ok()) return report_error(out, s);
+  if (out_format == MeshFormat::kPsq) return to_psq(in, out, mesh, output, encode_options, build_options, quiet, json);
   WriteOptions write_options;
   write_options.ascii = ascii;
   write_options.spool_dir = tmpdir;

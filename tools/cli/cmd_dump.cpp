@@ -14,13 +14,13 @@ namespace {
 const char kHelp[] =
     "Usage: psq dump IN [OPTIONS]\n"
     "\n"
-    "Prints the processing sequence of IN (PLY or OBJ; '-' for standard\n"
-    "input) as text, one event a line (format: spec/psq-dump.md):\n"
+    "Prints the processing sequence of IN (PLY, OBJ, OFF, STL or .psq; '-'\n"
+    "for standard input) as text, one event a line (format: spec/psq-dump.md):\n"
     "  v X Y Z [~K] [NAME=VALUE ...]   a new vertex (~K: re-appears vertex K)\n"
     "  t A B C OP M [NAME=VALUE ...]   a triangle, its op and border mask\n"
     "  x A                             vertex A is finalized\n"
-    "Coherent input converts in one pass; other input goes through an\n"
-    "external sort within --memory.\n"
+    "A .psq prints as stored. Coherent mesh input converts in one pass;\n"
+    "other input goes through an external sort within --memory.\n"
     "\n"
     "Options:\n"
     "  -o FILE        write to FILE instead of standard output\n"
@@ -63,7 +63,9 @@ int cmd_dump(int argc, char** argv) {
   if (!s.ok()) return report_error(out_path, s);
   DumpWriter writer(&out);
   BuildReport report;
-  s = build_sequence(*mesh.source, writer, options, &report);
+  // A .psq holds a processing sequence already: print it as decoded.
+  if (mesh.decoder) s = pump_sequence(*mesh.decoder, writer);
+  else s = build_sequence(*mesh.source, writer, options, &report);
   if (!s.ok()) {
     out.discard();
     return report_pipeline_error(in, out_path, s);

@@ -15,12 +15,14 @@ namespace {
 const char kHelp[] =
     "Usage: psq info FILE [--json]\n"
     "\n"
-    "Reads FILE (PLY or OBJ, recognised by content; '-' for standard input)\n"
-    "and prints its vertex and triangle counts, properties, bounding box,\n"
+    "Reads FILE (PLY, OBJ, OFF, STL or .psq, recognised by content; '-' for\n"
+    "standard input) and prints its vertex and triangle counts, properties, bounding box,\n"
     "unreferenced vertices and degenerate triangles (a repeated vertex\n"
     "index), and, from its processing sequence (paper Table 1): components,\n"
     "border loops (holes), handles (genus), non-manifold vertices and edges,\n"
     "and the longest processing boundary (most vertices active at once).\n"
+    "For .psq: the format version, quantization, size and bits per vertex\n"
+    "split into connectivity, geometry, properties and framing.\n"
     "\n"
     "Options:\n"
     "  --json         print one JSON object instead of text\n"
@@ -100,6 +102,7 @@ int cmd_info(int argc, char** argv) {
   open_options.spool_dir = build_options.tmpdir;
   Status s = open_mesh(file, open_options, &mesh);
   if (!s.ok()) return report_error(file, s);
+  if (mesh.decoder) mesh.decoder->measure_costs(true);
   MeshStats stats;
   TeeSource tee(mesh.source.get(), &stats);
   SequenceChecker checker;
@@ -144,6 +147,20 @@ int cmd_info(int argc, char** argv) {
     o += "  \"max_waiting_vertices\": " + std::to_string(c.max_waiting_vertices) + ",\n";
     o += "  \"vertex_properties\": " + json_props(r.schema.vertex_properties) + ",\n";
     o += "  \"face_properties\": " + json_props(r.schema.face_properties) + ",\n";
+    if (mesh.decoder) {
+      const PsqHeader& h = mesh.decoder->header();
+      const PsqStats& p = mesh.decoder->stats();
+      const double nv = p.vertices ? static_cast<double>(p.vertices) : 1.0;
+      o += "  \"psq\": {\"version\": \"" + std::to_string(h.version_major) + "." + std::to_string(h.version_minor) +
+           "\", \"lossless\": " + (h.lossless ? "true" : "false") + ", \"bits\": " + std::to_string(h.bits) +
+           ", \"step\": " + json_number(h.step) + ", \"chunks\": " + std::to_string(p.chunks) +
+           ", \"bytes\": " + std::to_string(p.total_bytes) + ", \"sequence_vertices\": " + std::to_string(p.vertices) +
+           ", \"bits_per_vertex\": " + json_number(8.0 * p.total_bytes / nv) +
+           ", \"connectivity_bits_per_vertex\": " + json_number(p.connectivity_bits / nv) +
+           ", \"geometry_bits_per_vertex\": " + json_number(p.geometry_bits / nv) +
+           ", \"property_bits_per_vertex\": " + json_number(8.0 * p.property_bytes / nv) +
+           ", \"overhead_bits_per_vertex\": " + json_number(8.0 * (p.header_bytes + p.chunk_overhead_bytes) / nv) + "},\n";
+    }
     o += "  \"notes\": [";
     for (size_t i = 0; i < rep.notes.size(); ++i) o += (i ? ", \"" : "\"") + json_escape(rep.notes[i]) + "\"";
     o += "]\n}\n";
@@ -182,6 +199,21 @@ int cmd_info(int argc, char** argv) {
     std::printf("sequence order         %s\n", build.sorted ? "sorted (external sort)" : "coherent (file order)");
     std::printf("vertex properties      %s\n", type_list(r.schema.vertex_properties).c_str());
     std::printf("face properties        %s\n", type_list(r.schema.face_properties).c_str());
+    if (mesh.decoder) {
+      const PsqHeader& h = mesh.decoder->header();
+      const PsqStats& p = mesh.decoder->stats();
+      const double nv = p.vertices ? static_cast<double>(p.vertices) : 1.0;
+      std::printf("psq version            %d.%d\n", h.version_major, h.version_minor);
+      if (h.lossless) std::printf("positions              lossless\n");
+      else std::printf("positions              quantized to %d bits (step %.9g)\n", h.bits, h.step);
+      std::printf("size                   %llu bytes in %llu chunks, %.3f bits/vertex\n",
+                  static_cast<unsigned long long>(p.total_bytes), static_cast<unsigned long long>(p.chunks),
+                  8.0 * p.total_bytes / nv);
+      std::printf("  connectivity         %.3f bits/vertex\n", p.connectivity_bits / nv);
+      std::printf("  geometry             %.3f bits/vertex\n", p.geometry_bits / nv);
+      std::printf("  properties           %.3f bits/vertex\n", 8.0 * p.property_bytes / nv);
+      std::printf("  framing              %.3f bits/vertex\n", 8.0 * (p.header_bytes + p.chunk_overhead_bytes) / nv);
+    }
     for (const std::string& n : rep.notes) std::printf("note                   %s\n", n.c_str());
   }
   std::fflush(stdout);

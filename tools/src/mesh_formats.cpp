@@ -1,5 +1,6 @@
 // Format detection by content and the reader/writer factory (psq/mesh_formats.h).
 #include "psq/mesh_formats.h"
+#include "psq/psq_mesh.h"
 
 #include <algorithm>
 #include <cctype>
@@ -17,6 +18,7 @@ const char* format_name(MeshFormat f) {
     case MeshFormat::kObj: return "obj";
     case MeshFormat::kOff: return "off";
     case MeshFormat::kStl: return "stl";
+    case MeshFormat::kPsq: return "psq";
     case MeshFormat::kUnknown: break;
   }
   return "unknown";
@@ -27,6 +29,7 @@ MeshFormat format_from_name(const std::string& name) {
   std::transform(n.begin(), n.end(), n.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   if (n == "ply") return MeshFormat::kPly;
   if (n == "obj") return MeshFormat::kObj;
+  if (n == "psq") return MeshFormat::kPsq;
   return MeshFormat::kUnknown;
 }
 
@@ -38,6 +41,7 @@ MeshFormat format_from_extension(const std::string& path) {
 }
 
 MeshFormat detect_format(const uint8_t* data, size_t size, int64_t total_size) {
+  if (is_psq(data, size)) return MeshFormat::kPsq;
   if (looks_like_ply(data, size)) return MeshFormat::kPly;
   // With a known size: a binary STL of exactly the size its count implies
   // (whatever its header says), or an ascii "solid ... facet".
@@ -86,6 +90,12 @@ Status open_mesh(const std::string& path, const OpenOptions& options, OpenedMesh
       out->source = std::move(reader);
       return Status();
     }
+    case MeshFormat::kPsq: {
+      out->decoder = std::make_unique<PsqDecoder>();
+      PSQ_RETURN_IF_ERROR(out->decoder->open(out->stream.get()));
+      out->source = std::make_unique<PsqMeshSource>(out->decoder.get());
+      return Status();
+    }
     case MeshFormat::kUnknown: break;
   }
   if (avail == 0) return Status(ErrorCode::kUnknownFormat, "empty input", 0);
@@ -103,6 +113,7 @@ std::unique_ptr<MeshSink> make_mesh_writer(MeshFormat format, OutputFile* out, c
     case MeshFormat::kObj: return std::make_unique<ObjWriter>(out);
     case MeshFormat::kOff:
     case MeshFormat::kStl:
+    case MeshFormat::kPsq:
     case MeshFormat::kUnknown: break;
   }
   return nullptr;

@@ -69,6 +69,12 @@ struct MeshSchema {
   int64_t vertex_count = kUnknown;
   int64_t triangle_count = kUnknown;
   std::vector<std::string> comments;  // free text kept from the input header
+  // The bounding box of all positions, when the source knows it before its
+  // first vertex (the sequence builder, which spools the input first; a
+  // quantized .psq). The .psq encoder places its quantization grid on it.
+  bool has_bounds = false;
+  double bounds_min[3] = {0, 0, 0};
+  double bounds_max[3] = {0, 0, 0};
 };
 
 // Flattened property values of one element: for each property of the schema

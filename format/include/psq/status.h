@@ -28,6 +28,7 @@ enum class ErrorCode : uint16_t {
   kUsage = 9,          // the caller passed invalid arguments
   kInternal = 10,      // a psq bug: an invariant did not hold
   kBadSequence = 11,   // events that do not form a valid processing sequence
+  kChecksum = 12,      // stored data does not match its checksum
 };
 
 // Returns the stable name of a code, e.g. "truncated". Never null.

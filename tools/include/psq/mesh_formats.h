@@ -12,15 +12,16 @@
 
 #include "psq/indexed_mesh.h"
 #include "psq/io.h"
+#include "psq/psq_codec.h"
 
 namespace psq {
 
-enum class MeshFormat { kUnknown, kPly, kObj, kOff, kStl };
+enum class MeshFormat { kUnknown, kPly, kObj, kOff, kStl, kPsq };
 
-// "ply", "obj", "off", "stl" or "unknown".
+// "ply", "obj", "off", "stl", "psq" or "unknown".
 const char* format_name(MeshFormat f);
-// The output format named `name` ("ply", "obj"; case-insensitive), or
-// kUnknown (also for "off" and "stl", which psq does not write).
+// The output format named `name` ("ply", "obj", "psq"; case-insensitive),
+// or kUnknown (also for "off" and "stl", which psq does not write).
 MeshFormat format_from_name(const std::string& name);
 // The format of an output path by its extension, or kUnknown.
 MeshFormat format_from_extension(const std::string& path);
@@ -34,6 +35,9 @@ MeshFormat detect_format(const uint8_t* data, size_t size, int64_t total_size = 
 // An open input: the byte stream and the source reading it.
 struct OpenedMesh {
   std::unique_ptr<InputStream> stream;
+  // For .psq input: the decoder, open. Commands that want the processing
+  // sequence itself pull it; `source` reads it as a mesh (psq/psq_mesh.h).
+  std::unique_ptr<PsqDecoder> decoder;
   std::unique_ptr<MeshSource> source;
   MeshFormat format = MeshFormat::kUnknown;
 };
@@ -52,7 +56,8 @@ struct WriteOptions {
 };
 
 // A sink writing `format` to `out`, which must outlive it. Never null for
-// kPly and kObj; null for kUnknown, kOff and kStl (input formats only).
+// kPly and kObj; null for kUnknown, kOff and kStl (input formats only) and
+// kPsq (a sequence format: its writer is PsqEncoder).
 std::unique_ptr<MeshSink> make_mesh_writer(MeshFormat format, OutputFile* out,
                                            const WriteOptions& options);
 

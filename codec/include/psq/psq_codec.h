@@ -1,0 +1,173 @@
+// psq/psq_codec.h: the .psq encoder (a SequenceSink) and decoder (a
+// SequenceSource), specified in spec/psq-format.md.
+//
+// The encoder takes a processing sequence (psq/sequence.h) event by event
+// and writes the compressed stream in one pass: it never seeks, so its
+// output may be a pipe. Its memory is the processing boundary plus one
+// chunk (spec 4.3). The decoder reads the stream in one pass from any
+// InputStream (file, pipe or memory) and yields the same sequence with the
+// same memory bound. Both treat their input as hostile: the encoder checks
+// the sequence it is given (kBadSequence), the decoder checks every field,
+// checksum and limit of the stream and reports the byte offset of the first
+// problem.
+//
+// What a decoded sequence keeps of the encoded one (spec 2.3): every
+// triangle with its orientation, op and border and cut flags; every vertex
+// with its properties, its position (bit-exact when lossless, else on the
+// quantization grid) and its re-appearance reference; every face property.
+// Vertices are numbered in the order the decoder introduces them, which is
+// the encoder's input order. A triangle's first corner is the decoder's
+// choice (its gate edge first) unless the mesh has face properties, which
+// may depend on it: then the input's rotation is kept too.
+#ifndef PSQ_PSQ_CODEC_H_
+#define PSQ_PSQ_CODEC_H_
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "psq/io.h"
+#include "psq/sequence.h"
+#include "psq/status.h"
+
+namespace psq {
+
+// The first 8 bytes of every .psq stream (spec 4.1).
+extern const uint8_t kPsqMagic[8];
+
+// Where the encoder's bytes go.
+class ByteWriter {
+ public:
+  virtual ~ByteWriter() = default;
+  virtual Status write(const void* data, size_t size) = 0;
+};
+
+// Appends to a vector.
+class VectorWriter : public ByteWriter {
+ public:
+  explicit VectorWriter(std::vector<uint8_t>* out) : out_(out) {}
+  Status write(const void* data, size_t size) override;
+
+ private:
+  std::vector<uint8_t>* out_;
+};
+
+// Writes to an OutputFile (which its owner commits).
+class FileWriter : public ByteWriter {
+ public:
+  explicit FileWriter(OutputFile* out) : out_(out) {}
+  Status write(const void* data, size_t size) override { return out_->write(data, size); }
+
+ private:
+  OutputFile* out_;
+};
+
+struct EncodeOptions {
+  // Quantization bits per coordinate, 1..31 (spec 7.1). Ignored when
+  // lossless.
+  int bits = 16;
+  // Keep positions bit-exact (spec 7.2).
+  bool lossless = false;
+  // zstd level of the property streams (spec 8), 1..22.
+  int zstd_level = 9;
+  // A chunk is closed after the record that brings its coded connectivity
+  // and geometry to this many bytes (spec 4.3).
+  uint32_t chunk_bytes = 1u << 20;
+  // The boundary limit written to the header (spec 4.2): the most active
+  // vertices and open edges the stream may have at once. The encoder fails
+  // with kLimit when the sequence exceeds it.
+  uint32_t boundary_limit = 1u << 24;
+};
+
+// Sizes and counts of an encoded or decoded stream.
+struct PsqStats {
+  uint64_t vertices = 0;
+  uint64_t triangles = 0;
+  uint64_t chunks = 0;
+  uint64_t header_bytes = 0;
+  uint64_t chunk_overhead_bytes = 0;   // chunk fields, checksums, the end record
+  uint64_t record_bytes = 0;           // range-coded connectivity and geometry
+  uint64_t property_bytes = 0;         // zstd-compressed properties
+  uint64_t total_bytes = 0;
+  // The record bytes split by the information content of what was coded:
+  double connectivity_bits = 0;
+  double geometry_bits = 0;
+  uint32_t max_active_vertices = 0;
+  uint32_t max_open_edges = 0;
+  // Gate symbols by kind: offset 0, other offsets, far, start (diagnostics).
+  uint64_t gates[4] = {0, 0, 0, 0};
+};
+
+class PsqEncoder : public SequenceSink {
+ public:
+  // `out` must outlive the encoder.
+  PsqEncoder(ByteWriter* out, const EncodeOptions& options);
+  ~PsqEncoder() override;
+
+  // Writes the header. Errors: kUsage (bad options; quantization without
+  // the schema's bounds), kLimit (schema too large), the writer's.
+  Status begin(const MeshSchema& schema) override;
+  // Errors for the events: kBadSequence when they do not form a valid
+  // processing sequence (spec/psq-dump.md A.2), kLimit when the boundary
+  // exceeds the limit, kBadValue for a position that is not finite or not of
+  // the position type, and the writer's errors. Errors are sticky.
+  Status vertex(const SequenceVertex& v) override;
+  Status triangle(const SequenceTriangle& t) override;
+  Status finalize(uint32_t index) override;
+  // Writes the last chunk and the end record.
+  Status finish() override;
+
+  const PsqStats& stats() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// The header of a .psq stream (spec 4.2).
+struct PsqHeader {
+  int version_major = 1;
+  int version_minor = 0;
+  bool lossless = false;
+  bool rotation = false;  // triangle rotations are coded (face properties)
+  int bits = 0;           // 0 when lossless
+  double origin[3] = {0, 0, 0};
+  double step = 0;
+  uint32_t boundary_limit = 0;
+  MeshSchema schema;
+};
+
+class PsqDecoder : public SequenceSource {
+ public:
+  PsqDecoder();
+  ~PsqDecoder() override;
+
+  // Reads and checks the header from `in`, which must outlive the decoder.
+  // Errors (with the byte offset): kUnknownFormat (no magic), kUnsupported
+  // (version or flags), kBadHeader, kLimit, kChecksum, kTruncated, kIo.
+  Status open(InputStream* in);
+
+  const PsqHeader& header() const;
+  const MeshSchema& schema() const override;
+  // The next event; after the last, Kind::kEnd. Errors (sticky, with the
+  // byte offset): kTruncated, kChecksum, kBadValue (corrupt records),
+  // kLimit, kBadHeader (bad chunk or end fields), kIo.
+  Status next(SequenceEvent* event) override;
+
+  // Enables the connectivity/geometry cost split in stats() (slower).
+  void measure_costs(bool on);
+  // Complete once next() returned Kind::kEnd.
+  const PsqStats& stats() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// True when `data` (at least 8 bytes) starts with the .psq magic.
+bool is_psq(const uint8_t* data, size_t size);
+
+}  // namespace psq
+
+#endif  // PSQ_PSQ_CODEC_H_

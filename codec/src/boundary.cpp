@@ -1,0 +1,194 @@
+// codec/src/boundary.cpp: see boundary.h; the rules are spec/psq-format.md
+// section 6.1.
+#include "boundary.h"
+
+namespace psq {
+namespace codec {
+
+uint32_t Boundary::new_vertex(uint32_t index, uint32_t key, const int64_t pos[3]) {
+  uint32_t slot;
+  if (!free_vertices_.empty()) {
+    slot = free_vertices_.back();
+    free_vertices_.pop_back();
+  } else {
+    if (vertices_.size() >= limit_) return kNone;
+    slot = static_cast<uint32_t>(vertices_.size());
+    vertices_.emplace_back();
+    vlive_.push_back(0);
+  }
+  BVertex& v = vertices_[slot];
+  v = BVertex();
+  v.index = index;
+  v.key = key;
+  for (int i = 0; i < 3; ++i) v.pos[i] = pos[i];
+  vlive_[slot] = 1;
+  ++active_vertices_;
+  return slot;
+}
+
+void Boundary::free_vertex(uint32_t slot) {
+  vlive_[slot] = 0;
+  --active_vertices_;
+  free_vertices_.push_back(slot);
+}
+
+uint32_t Boundary::alloc_edge() {
+  uint32_t slot;
+  if (!free_edges_.empty()) {
+    slot = free_edges_.back();
+    free_edges_.pop_back();
+  } else {
+    if (edges_.size() >= limit_) return kNone;
+    slot = static_cast<uint32_t>(edges_.size());
+    edges_.emplace_back();
+  }
+  edges_[slot] = BEdge();
+  edges_[slot].live = true;
+  ++open_edges_;
+  return slot;
+}
+
+uint32_t Boundary::find_edge(uint32_t a, uint32_t b) const {
+  for (uint32_t e = vertices_[a].first_out; e != kNone; e = edges_[e].next_out)
+    if (edges_[e].dst == b) return e;
+  return kNone;
+}
+
+bool Boundary::find_completions(BTriangle& t) const {
+  for (int k = 0; k < 3; ++k) {
+    const uint32_t u = t.c[k], w = t.c[(k + 1) % 3];
+    t.completes[k] = kNone;
+    if (t.is_new[k] || t.is_new[(k + 1) % 3]) {
+      t.state[k] = t.border[k] ? EdgeState::kBorder : EdgeState::kEnters;
+      continue;
+    }
+    // Spec 6.1.3: u->w must not be open already (it would be on the
+    // boundary twice); w->u open means this edge completes it.
+    if (find_edge(u, w) != kNone) return false;
+    t.completes[k] = find_edge(w, u);
+    t.state[k] = t.completes[k] != kNone ? EdgeState::kCompletes
+                 : t.border[k]           ? EdgeState::kBorder
+                                         : EdgeState::kEnters;
+  }
+  return true;
+}
+
+// Makes q follow p on its loop (either may be kNone), first detaching
+// whatever followed p and whatever preceded q, so that next and prev stay
+// mutual (spec 6.1.2).
+void Boundary::link(uint32_t p, uint32_t q) {
+  if (p != kNone) {
+    uint32_t old = edges_[p].next;
+    if (old != kNone && edges_[old].prev == p) edges_[old].prev = kNone;
+    edges_[p].next = q;
+  }
+  if (q != kNone) {
+    uint32_t old = edges_[q].prev;
+    if (old != kNone && edges_[old].next == q) edges_[old].next = kNone;
+    edges_[q].prev = p;
+  }
+}
+
+void Boundary::free_edge(uint32_t slot) {
+  BEdge& e = edges_[slot];
+  if (e.next != kNone && edges_[e.next].prev == slot) edges_[e.next].prev = kNone;
+  if (e.prev != kNone && edges_[e.prev].next == slot) edges_[e.prev].next = kNone;
+  // Unlink from the out-list of org and the in-list of dst.
+  uint32_t* p = &vertices_[e.org].first_out;
+  while (*p != slot) p = &edges_[*p].next_out;
+  *p = e.next_out;
+  p = &vertices_[e.dst].first_in;
+  while (*p != slot) p = &edges_[*p].next_in;
+  *p = e.next_in;
+  --vertices_[e.org].open;
+  --vertices_[e.dst].open;
+  e.live = false;
+  --open_edges_;
+  free_edges_.push_back(slot);
+}
+
+bool Boundary::apply(BTriangle& t) {
+  // References to edges entering with this triangle, before they have slots.
+  constexpr uint32_t kNewBase = 0xfffffff0u;
+  auto is_completed = [&](uint32_t e) {
+    return e != kNone && e < kNewBase &&
+           (e == t.completes[0] || e == t.completes[1] || e == t.completes[2]);
+  };
+  // Spec 6.1.2: the links at each corner, computed from the old links.
+  uint32_t lp[4], lq[4];
+  int nlinks = 0;
+  for (int k = 0; k < 3; ++k) {
+    const int a = (k + 2) % 3;  // the triangle's edge entering corner k
+    const int b = k;            // the triangle's edge leaving corner k
+    uint32_t P = kNone, Q = kNone;
+    if (t.state[a] == EdgeState::kCompletes) P = edges_[t.completes[a]].prev;
+    else if (t.state[a] == EdgeState::kEnters) P = kNewBase + a;
+    if (t.state[b] == EdgeState::kCompletes) Q = edges_[t.completes[b]].next;
+    else if (t.state[b] == EdgeState::kEnters) Q = kNewBase + b;
+    if (is_completed(P)) P = kNone;
+    if (is_completed(Q)) Q = kNone;
+    if (t.state[a] != EdgeState::kCompletes && t.state[b] != EdgeState::kCompletes &&
+        !t.is_new[k] && t.join_edge != kNone) {
+      // The triangle goes into the gap (gi, go) at an old vertex.
+      const BEdge& j = edges_[t.join_edge];
+      uint32_t gi, go;
+      if (j.org == t.c[k]) { go = t.join_edge; gi = j.prev; }
+      else { gi = t.join_edge; go = j.next; }
+      if (is_completed(gi)) gi = kNone;
+      if (is_completed(go)) go = kNone;
+      lp[nlinks] = P; lq[nlinks] = go; ++nlinks;
+      lp[nlinks] = gi; lq[nlinks] = Q; ++nlinks;
+    } else {
+      lp[nlinks] = P; lq[nlinks] = Q; ++nlinks;
+    }
+  }
+  uint32_t fresh[3] = {kNone, kNone, kNone};
+  reference_ = kNone;
+  for (int k = 0; k < 3; ++k) {
+    if (t.state[k] != EdgeState::kEnters) {
+      if (t.state[k] == EdgeState::kBorder) t.eslot[k] = kNone;
+      continue;
+    }
+    uint32_t s = alloc_edge();
+    if (s == kNone) return false;
+    BEdge& e = edges_[s];
+    e.org = t.c[k];
+    e.dst = t.c[(k + 1) % 3];
+    const BVertex& o = vertices_[t.c[(k + 2) % 3]];
+    for (int i = 0; i < 3; ++i) e.opp[i] = o.pos[i];
+    BVertex& vo = vertices_[e.org];
+    e.next_out = vo.first_out;
+    vo.first_out = s;
+    ++vo.open;
+    BVertex& vd = vertices_[e.dst];
+    e.next_in = vd.first_in;
+    vd.first_in = s;
+    ++vd.open;
+    fresh[k] = s;
+    t.eslot[k] = s;
+  }
+  // Completed edges are freed after the entering ones took their slots, so
+  // that no slot leaves and enters the boundary in one triangle (psq/sequence.h).
+  for (int k = 0; k < 3; ++k)
+    if (t.state[k] == EdgeState::kCompletes) {
+      t.eslot[k] = t.completes[k];
+      free_edge(t.completes[k]);
+    }
+  for (int i = 0; i < nlinks; ++i) {
+    uint32_t P = lp[i] >= kNewBase && lp[i] != kNone ? fresh[lp[i] - kNewBase] : lp[i];
+    uint32_t Q = lq[i] >= kNewBase && lq[i] != kNone ? fresh[lq[i] - kNewBase] : lq[i];
+    link(P, Q);
+  }
+  static const int kOrder[3] = {1, 2, 0};
+  for (int k : kOrder)
+    if (fresh[k] != kNone) { reference_ = fresh[k]; break; }
+  for (int k = 0; k < 3; ++k) {
+    BVertex& v = vertices_[t.c[k]];
+    ++v.degree;
+    t.final[k] = v.open == 0;
+  }
+  return true;
+}
+
+}  // namespace codec
+}  // namespace psq

@@ -1,0 +1,135 @@
+// codec/src/boundary.h: the processing boundary as the .psq encoder and
+// decoder both track it (spec/psq-format.md section 6.1).
+//
+// The encoder and the decoder run this same code on the same triangles, so
+// they agree on every slot number and link that the bitstream refers to.
+//
+// Elements:
+// - a vertex slot per active vertex (introduced, not finalized): its dense
+//   index, its coded coordinates, how many triangles used it so far and its
+//   lists of open boundary edges leaving and entering it;
+// - an edge slot per open boundary edge (a directed edge of a coded
+//   triangle that no second triangle completed yet and that is not a
+//   border): its endpoints, the coordinates of the triangle's third vertex
+//   (for the parallelogram prediction, spec 7.3) and `next`/`prev` links
+//   that chain the boundary edges into loops (section 6.1.2).
+//
+// Correctness never depends on the links: which edges a triangle completes
+// is decided by looking the reversed edge up among the open edges of its
+// endpoint. The links only serve to name the next gate and the third vertex
+// cheaply (an offset along a loop, "the vertex before the gate"); they are
+// updated by fixed local rules that both sides apply identically.
+#ifndef PSQ_CODEC_BOUNDARY_H_
+#define PSQ_CODEC_BOUNDARY_H_
+
+#include <cstdint>
+#include <vector>
+
+namespace psq {
+namespace codec {
+
+constexpr uint32_t kNone = 0xffffffffu;
+
+struct BVertex {
+  uint32_t index = 0;        // dense index in the sequence
+  uint32_t key = 0;          // the encoder's input index (for its map)
+  uint32_t first_out = kNone;  // open edges leaving it (through BEdge::next_out)
+  uint32_t first_in = kNone;   // open edges entering it (through BEdge::next_in)
+  uint32_t open = 0;         // open edges touching it
+  uint32_t degree = 0;       // triangles that used it so far
+  int64_t pos[3] = {0, 0, 0};  // coded coordinates (spec 7.1)
+};
+
+struct BEdge {
+  uint32_t org = kNone, dst = kNone;  // vertex slots
+  uint32_t next = kNone, prev = kNone;  // loop links (edge slots)
+  uint32_t next_out = kNone;  // next open edge leaving `org`
+  uint32_t next_in = kNone;   // next open edge entering `dst`
+  int64_t opp[3] = {0, 0, 0};  // coordinates of the third vertex of its triangle
+  bool live = false;
+};
+
+// What a triangle does to each of its edges (spec 6.1.3).
+enum class EdgeState : uint8_t { kCompletes, kEnters, kBorder };
+
+// A triangle in the codec's canonical corner order: corner 0 = q, 1 = p,
+// 2 = x for a triangle on gate p->q (edge 0, q->p, completes the gate), or
+// three new vertices for a start. Filled in by the caller, then by apply().
+struct BTriangle {
+  uint32_t c[3] = {kNone, kNone, kNone};  // vertex slots
+  bool is_new[3] = {false, false, false};
+  // Input to apply(): border flag for each edge that does not complete.
+  bool border[3] = {false, false, false};
+  // Input to apply() for a join: the open edge that names the gap at the
+  // third vertex into which the triangle goes (spec 6.1.3), else kNone.
+  uint32_t join_edge = kNone;
+  // Output of find_completions() and apply():
+  uint32_t completes[3] = {kNone, kNone, kNone};  // the open edge each edge completes
+  EdgeState state[3] = {EdgeState::kEnters, EdgeState::kEnters, EdgeState::kEnters};
+  uint32_t eslot[3] = {kNone, kNone, kNone};  // completed or entering edge slot
+  bool final[3] = {false, false, false};      // corner's vertex has no open edge left
+};
+
+class Boundary {
+ public:
+  // `limit`: most vertex slots and most edge slots that may be in use at
+  // once (the header's boundary limit, spec 4.2).
+  explicit Boundary(uint32_t limit) : limit_(limit) {}
+
+  // A new vertex slot, or kNone when `limit` vertices are active.
+  uint32_t new_vertex(uint32_t index, uint32_t key, const int64_t pos[3]);
+  // Releases a vertex slot (after its finalization).
+  void free_vertex(uint32_t slot);
+
+  BVertex& vertex(uint32_t slot) { return vertices_[slot]; }
+  const BVertex& vertex(uint32_t slot) const { return vertices_[slot]; }
+  BEdge& edge(uint32_t slot) { return edges_[slot]; }
+  const BEdge& edge(uint32_t slot) const { return edges_[slot]; }
+
+  // Vertex slots in use, and slots ever handed out (slot numbers are below).
+  uint32_t active_vertices() const { return active_vertices_; }
+  uint32_t open_edges() const { return open_edges_; }
+  uint32_t edge_capacity() const { return static_cast<uint32_t>(edges_.size()); }
+  uint32_t vertex_capacity() const { return static_cast<uint32_t>(vertices_.size()); }
+  bool edge_live(uint32_t slot) const { return slot < edges_.size() && edges_[slot].live; }
+  bool vertex_live(uint32_t slot) const { return slot < vlive_.size() && vlive_[slot]; }
+
+  // The open edge a->b, or kNone.
+  uint32_t find_edge(uint32_t a, uint32_t b) const;
+
+  // Fills t.completes and t.state for each edge (borders are taken from
+  // t.border where an edge does not complete). Returns false when the
+  // triangle would put an edge on the boundary twice (spec 6.1.3, error).
+  bool find_completions(BTriangle& t) const;
+
+  // Applies a triangle whose completions were found: removes completed
+  // edges, adds entering ones (with `opp` from the corner positions),
+  // relinks the loops and updates degrees and open counts. Fills t.eslot and
+  // t.final. Returns false when an entering edge would exceed the limit.
+  bool apply(BTriangle& t);
+
+  // The gate reference after the last apply() (spec 6.2.1): the first
+  // entering edge of the last triangle in edge order 1, 2, 0, or kNone.
+  uint32_t reference() const { return reference_; }
+  void clear_reference() { reference_ = kNone; }
+
+ private:
+  uint32_t alloc_edge();
+  void free_edge(uint32_t slot);
+  void link(uint32_t p, uint32_t q);
+
+  uint32_t limit_;
+  std::vector<BVertex> vertices_;
+  std::vector<uint8_t> vlive_;
+  std::vector<uint32_t> free_vertices_;
+  std::vector<BEdge> edges_;
+  std::vector<uint32_t> free_edges_;
+  uint32_t active_vertices_ = 0;
+  uint32_t open_edges_ = 0;
+  uint32_t reference_ = kNone;
+};
+
+}  // namespace codec
+}  // namespace psq
+
+#endif  // PSQ_CODEC_BOUNDARY_H_

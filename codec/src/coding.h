@@ -1,0 +1,167 @@
+// codec/src/coding.h: the adaptive models of the .psq record coder and the
+// helpers that code with them (spec/psq-format.md sections 5 and 6), shared
+// by the encoder and the decoder so that both use the same contexts.
+//
+// Every helper optionally adds the information content of what it codes
+// (-log2 of the model's probability) to a cost counter, so that `psq info`
+// and the encoder can split the size into connectivity and geometry.
+#ifndef PSQ_CODEC_CODING_H_
+#define PSQ_CODEC_CODING_H_
+
+#include <algorithm>
+#include <cstdint>
+
+#include "psq/range_coder.h"
+
+namespace psq {
+namespace codec {
+
+// Gate symbols (spec 6.2.1): offsets along the loop from the reference
+// edge, then the escapes.
+constexpr int kMaxOffset = 6;                        // offsets -6..+6
+constexpr uint32_t kGateFar = 2 * kMaxOffset + 1;    // 13: an explicit edge slot
+constexpr uint32_t kGateStart = kGateFar + 1;        // 14: a start triangle
+constexpr uint32_t kGateIsolated = kGateFar + 2;     // 15: an isolated vertex
+constexpr int kGateBits = 4;
+constexpr int kGateContexts = 6;  // the previous record's op, or 5: no reference edge
+
+// Third-vertex symbols (spec 6.2.2).
+constexpr uint32_t kThirdNew = 0;    // add
+constexpr uint32_t kThirdLeft = 1;   // the vertex before the gate
+constexpr uint32_t kThirdRight = 2;  // the vertex after the gate
+constexpr uint32_t kThirdJoin = 3;   // an explicit open edge names it
+constexpr int kDegreeCap = 5;        // degrees 0..5+ as context
+constexpr int kThirdContexts = (kDegreeCap + 1) * (kDegreeCap + 1);
+
+// Residual contexts (spec 7.4): prediction kind x axis.
+constexpr int kPredParallelogram = 0;
+constexpr int kPredOther = 1;
+
+// Signed 64-bit residual: bit length 0..64, sign, then low bits raw.
+struct ResidualModel {
+  SymbolModel length{7};
+  BitModel sign;
+};
+
+struct Models {
+  SymbolModel gate[kGateContexts] = {SymbolModel(kGateBits), SymbolModel(kGateBits), SymbolModel(kGateBits),
+                                     SymbolModel(kGateBits), SymbolModel(kGateBits), SymbolModel(kGateBits)};
+  SymbolModel third[kThirdContexts];
+  BitModel border[2][3];      // [start?][edge k]
+  BitModel cut[2];            // [start?]: a border edge is a non-manifold cut
+  BitModel swap;              // start: corner 2 was introduced before corner 1
+  BitModel join_side;         // join: the naming edge enters (1) or leaves (0) x
+  BitModel reappears;
+  ResidualModel distance;     // re-appearance distance - 1
+  SymbolModel rotation{2};    // 0..2, only with face properties
+  ResidualModel residual[2][3];  // [prediction kind][axis]
+
+  Models() {
+    for (auto& m : third) m = SymbolModel(2);
+  }
+};
+
+// The context of the third-vertex symbol: the triangles already around the
+// gate's endpoints p and q (spec 6.2.2).
+inline int third_context(uint32_t degree_p, uint32_t degree_q) {
+  return static_cast<int>(std::min<uint32_t>(degree_p, kDegreeCap) * (kDegreeCap + 1) +
+                          std::min<uint32_t>(degree_q, kDegreeCap));
+}
+
+// Bits of an explicit edge slot when `capacity` slots were ever handed out
+// (spec 6.2.1): enough for capacity - 1.
+inline int slot_bits(uint32_t capacity) { return capacity <= 1 ? 0 : 32 - __builtin_clz(capacity - 1); }
+
+// Cost categories (spec 9, `psq info`).
+enum Cost { kCostConnectivity = 0, kCostGeometry = 1, kCostCount = 2 };
+
+// -log2(p / 4096) for a 12-bit probability p (1..4095).
+double bit_cost(uint32_t p12);
+
+class Encoder {
+ public:
+  Encoder(RangeEncoder* rc, double* cost) : rc_(rc), cost_(cost) {}
+  void bit(BitModel& m, int b, Cost c) {
+    if (cost_) cost_[c] += bit_cost(b ? 4096u - m.p0 : m.p0);
+    rc_->encode_bit(m, b);
+  }
+  void symbol(SymbolModel& m, uint32_t s, Cost c) {
+    BitModel* tree = m.tree();
+    uint32_t node = 1;
+    for (int i = m.bits() - 1; i >= 0; --i) {
+      int b = static_cast<int>((s >> i) & 1u);
+      bit(tree[node], b, c);
+      node = (node << 1) | static_cast<uint32_t>(b);
+    }
+  }
+  void raw(uint64_t v, int bits, Cost c) {
+    if (cost_) cost_[c] += bits;
+    if (bits > 32) {
+      rc_->encode_raw(static_cast<uint32_t>(v >> 32), bits - 32);
+      bits = 32;
+    }
+    rc_->encode_raw(static_cast<uint32_t>(v), bits);
+  }
+  void residual(ResidualModel& m, int64_t r, Cost c) {
+    uint64_t mag = r < 0 ? 0 - static_cast<uint64_t>(r) : static_cast<uint64_t>(r);
+    int k = mag == 0 ? 0 : 64 - __builtin_clzll(mag);
+    symbol(m.length, static_cast<uint32_t>(k), c);
+    if (k == 0) return;
+    bit(m.sign, r < 0 ? 1 : 0, c);
+    raw(mag - (uint64_t{1} << (k - 1)), k - 1, c);
+  }
+
+ private:
+  RangeEncoder* rc_;
+  double* cost_;
+};
+
+class Decoder {
+ public:
+  Decoder(RangeDecoder* rc, double* cost) : rc_(rc), cost_(cost) {}
+  int bit(BitModel& m, Cost c) {
+    uint16_t p0 = m.p0;
+    int b = rc_->decode_bit(m);
+    if (cost_) cost_[c] += bit_cost(b ? 4096u - p0 : p0);
+    return b;
+  }
+  uint32_t symbol(SymbolModel& m, Cost c) {
+    BitModel* tree = m.tree();
+    uint32_t node = 1;
+    for (int i = 0; i < m.bits(); ++i) node = (node << 1) | static_cast<uint32_t>(bit(tree[node], c));
+    return node - (1u << m.bits());
+  }
+  uint64_t raw(int bits, Cost c) {
+    if (cost_) cost_[c] += bits;
+    uint64_t v = 0;
+    if (bits > 32) {
+      v = static_cast<uint64_t>(rc_->decode_raw(bits - 32)) << 32;
+      bits = 32;
+    }
+    return v | rc_->decode_raw(bits);
+  }
+  // Returns false on a length above 64 (a corrupt stream).
+  bool residual(ResidualModel& m, int64_t* r, Cost c) {
+    uint32_t k = symbol(m.length, c);
+    if (k == 0) {
+      *r = 0;
+      return true;
+    }
+    if (k > 64) return false;
+    int negative = bit(m.sign, c);
+    uint64_t mag = (uint64_t{1} << (k - 1)) | raw(static_cast<int>(k - 1), c);
+    *r = negative ? static_cast<int64_t>(0 - mag) : static_cast<int64_t>(mag);
+    if (!negative && static_cast<int64_t>(mag) < 0) return false;  // 2^63 is not a positive int64
+    return true;
+  }
+  bool overran() const { return rc_->overran(); }
+
+ private:
+  RangeDecoder* rc_;
+  double* cost_;
+};
+
+}  // namespace codec
+}  // namespace psq
+
+#endif  // PSQ_CODEC_CODING_H_

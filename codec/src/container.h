@@ -1,0 +1,119 @@
+// codec/src/container.h: the framing of a .psq stream (spec/psq-format.md
+// section 4): little-endian field helpers, the header, the chunk and end
+// record layouts and the limits a decoder enforces.
+#ifndef PSQ_CODEC_CONTAINER_H_
+#define PSQ_CODEC_CONTAINER_H_
+
+#include <cstdint>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "psq/psq_codec.h"
+#include "psq/status.h"
+
+namespace psq {
+namespace codec {
+
+constexpr int kVersionMajor = 1;
+constexpr int kVersionMinor = 0;
+constexpr uint16_t kFlagLossless = 1u << 0;
+constexpr uint16_t kFlagRotation = 1u << 1;
+constexpr uint16_t kKnownFlags = kFlagLossless | kFlagRotation;
+
+constexpr size_t kFixedHeaderBytes = 16;    // magic, version, flags, payload length
+constexpr uint32_t kMaxHeaderPayload = 1u << 20;
+constexpr uint32_t kMaxProperties = 1024;   // per element
+constexpr uint32_t kMaxBoundaryLimit = 1u << 28;
+
+constexpr uint8_t kChunkTag = 0x43;         // 'C'
+constexpr uint8_t kEndTag = 0x45;           // 'E'
+constexpr size_t kChunkFieldBytes = 25;     // tag + six u32
+constexpr size_t kEndFieldBytes = 33;       // tag + three u64 + two u32
+constexpr uint32_t kMaxChunkRecords = 1u << 24;
+constexpr uint32_t kMaxRecordBytes = 1u << 26;     // coded records of one chunk
+constexpr uint32_t kMaxPropertyBytes = 1u << 26;   // compressed properties of one chunk
+constexpr uint32_t kMaxPropertyRaw = 1u << 28;     // their decompressed size
+constexpr size_t kChunkPropertyTarget = 4u << 20;  // the encoder closes a chunk at this much
+
+// Appends little-endian fields.
+class Put {
+ public:
+  explicit Put(std::vector<uint8_t>* out) : out_(out) {}
+  void u8(uint8_t v) { out_->push_back(v); }
+  void u16(uint16_t v) { for (int i = 0; i < 2; ++i) out_->push_back(static_cast<uint8_t>(v >> (8 * i))); }
+  void u32(uint32_t v) { for (int i = 0; i < 4; ++i) out_->push_back(static_cast<uint8_t>(v >> (8 * i))); }
+  void u64(uint64_t v) { for (int i = 0; i < 8; ++i) out_->push_back(static_cast<uint8_t>(v >> (8 * i))); }
+  void f64(double d) {
+    uint64_t v;
+    std::memcpy(&v, &d, 8);
+    u64(v);
+  }
+  void bytes(const void* p, size_t n) {
+    const uint8_t* b = static_cast<const uint8_t*>(p);
+    out_->insert(out_->end(), b, b + n);
+  }
+
+ private:
+  std::vector<uint8_t>* out_;
+};
+
+// Reads little-endian fields from a byte span; reading past the end sets
+// `short_` and yields zeros.
+class Get {
+ public:
+  Get(const uint8_t* p, size_t n) : p_(p), n_(n) {}
+  uint64_t uint(int bytes) {
+    if (n_ - pos_ < static_cast<size_t>(bytes) || pos_ > n_) {
+      short_ = true;
+      pos_ = n_;
+      return 0;
+    }
+    uint64_t v = 0;
+    for (int i = 0; i < bytes; ++i) v |= static_cast<uint64_t>(p_[pos_ + i]) << (8 * i);
+    pos_ += bytes;
+    return v;
+  }
+  uint8_t u8() { return static_cast<uint8_t>(uint(1)); }
+  uint16_t u16() { return static_cast<uint16_t>(uint(2)); }
+  uint32_t u32() { return static_cast<uint32_t>(uint(4)); }
+  uint64_t u64() { return uint(8); }
+  double f64() {
+    uint64_t v = u64();
+    double d;
+    std::memcpy(&d, &v, 8);
+    return d;
+  }
+  std::string str(size_t n) {
+    if (n_ - pos_ < n) {
+      short_ = true;
+      pos_ = n_;
+      return std::string();
+    }
+    std::string s(reinterpret_cast<const char*>(p_ + pos_), n);
+    pos_ += n;
+    return s;
+  }
+  size_t pos() const { return pos_; }
+  size_t left() const { return n_ - pos_; }
+  bool short_read() const { return short_; }
+
+ private:
+  const uint8_t* p_;
+  size_t n_;
+  size_t pos_ = 0;
+  bool short_ = false;
+};
+
+// The whole header (spec 4.2), magic to checksum.
+std::vector<uint8_t> write_header(const PsqHeader& h);
+
+// Parses the header payload (the bytes after the fixed 16, without the
+// checksum) into `h` (whose version and flags are already set). `base` is
+// the payload's offset in the stream, for error places.
+Status parse_header_payload(const uint8_t* p, size_t n, uint64_t base, PsqHeader* h);
+
+}  // namespace codec
+}  // namespace psq
+
+#endif  // PSQ_CODEC_CONTAINER_H_

@@ -1,0 +1,460 @@
+// codec/src/decoder.cpp: the .psq decoder (psq/psq_codec.h). Section
+// numbers refer to spec/psq-format.md.
+#include <algorithm>
+#include <cmath>
+
+#include "boundary.h"
+#include "coding.h"
+#include "container.h"
+#include "crc32c.h"
+#include "geometry.h"
+#include "properties.h"
+#include "psq/psq_codec.h"
+
+namespace psq {
+
+using namespace codec;
+
+struct PsqDecoder::Impl {
+  InputStream* in = nullptr;
+  PsqHeader header;
+  Status error;
+  bool opened = false, ended = false, measure = false;
+  Models models;
+  Boundary boundary{1};
+  std::unique_ptr<PropertyUnpacker> props;
+  PsqStats stats;
+  double cost[kCostCount] = {0, 0};
+  uint32_t file_crc = 0;
+
+  // The current chunk.
+  std::vector<uint8_t> conn, packed, raw;
+  std::unique_ptr<RangeDecoder> rc;
+  uint64_t conn_offset = 0, chunk_offset = 0;
+  uint32_t records_left = 0, chunk_vertices = 0, chunk_triangles = 0;
+  uint32_t seen_vertices = 0, seen_triangles = 0;
+
+  uint64_t next_out = 0;
+  uint64_t record_no = 0;
+  int last_op = 5;
+  int64_t last_pos[3] = {0, 0, 0};
+  int64_t grid_max = 0;
+
+  // Decoded events waiting for next().
+  SequenceEvent queue[7];
+  int qhead = 0, qcount = 0;
+
+  Status fail(Status s) {
+    if (error.ok()) error = s;
+    return error;
+  }
+  Status read(void* dst, size_t n) {
+    Status s = in->read_exact(dst, n);
+    if (!s.ok()) {
+      if (s.code() == ErrorCode::kTruncated)
+        return Status(ErrorCode::kTruncated, "the stream ends inside a chunk or before its end record", in->offset());
+      return s;
+    }
+    file_crc = crc32c_update(file_crc, dst, n);
+    return Status();
+  }
+  // Reads n bytes in steps, so that a huge declared size allocates only as
+  // the bytes actually arrive.
+  Status read_block(size_t n, std::vector<uint8_t>* out) {
+    out->clear();
+    while (out->size() < n) {
+      size_t k = std::min<size_t>(n - out->size(), size_t{1} << 20);
+      size_t at = out->size();
+      out->resize(at + k);
+      PSQ_RETURN_IF_ERROR(read(out->data() + at, k));
+    }
+    return Status();
+  }
+  Status corrupt(const std::string& what) {
+    uint64_t at = conn_offset + (rc ? rc->consumed() : 0);
+    return Status(ErrorCode::kBadValue, "record " + std::to_string(record_no) + ": " + what, at);
+  }
+
+  Status open(InputStream* stream);
+  Status next_chunk();
+  Status read_end();
+  Status decode_record();
+  Status new_vertex(Decoder& dec, const int64_t pred[3], int kind, int64_t pos[3], SequenceEvent* ev);
+  SequenceEvent& push() { return queue[(qhead + qcount++) % 7]; }
+};
+
+Status PsqDecoder::Impl::open(InputStream* stream) {
+  in = stream;
+  uint8_t fixed[kFixedHeaderBytes];
+  size_t avail = 0;
+  PSQ_RETURN_IF_ERROR(in->fill(kFixedHeaderBytes, &avail));
+  if (avail < 8 || !is_psq(in->cursor(), avail))
+    return Status(ErrorCode::kUnknownFormat, "not a .psq stream (no PSQ magic)", 0);
+  PSQ_RETURN_IF_ERROR(read(fixed, kFixedHeaderBytes));
+  Get get(fixed + 8, 8);
+  header.version_major = get.u8();
+  header.version_minor = get.u8();
+  uint16_t flags = get.u16();
+  uint32_t length = get.u32();
+  if (header.version_major != kVersionMajor)
+    return Status(ErrorCode::kUnsupported, "format version " + std::to_string(header.version_major) + "." +
+                                               std::to_string(header.version_minor) + "; this psq reads 1.x", 8);
+  if (flags & ~kKnownFlags)
+    return Status(ErrorCode::kUnsupported, "unknown header flags 0x" + std::to_string(flags & ~kKnownFlags), 10);
+  if (length > kMaxHeaderPayload)
+    return Status(ErrorCode::kLimit, "header payload of " + std::to_string(length) + " bytes (limit " +
+                                         std::to_string(kMaxHeaderPayload) + ")", 12);
+  header.lossless = flags & kFlagLossless;
+  header.rotation = flags & kFlagRotation;
+  std::vector<uint8_t> payload;
+  PSQ_RETURN_IF_ERROR(read_block(length, &payload));
+  uint32_t expect = file_crc;
+  uint8_t c[4];
+  PSQ_RETURN_IF_ERROR(read(c, 4));
+  if (Get(c, 4).u32() != expect)
+    return Status(ErrorCode::kChecksum, "header checksum mismatch", kFixedHeaderBytes + length);
+  PSQ_RETURN_IF_ERROR(parse_header_payload(payload.data(), payload.size(), kFixedHeaderBytes, &header));
+  stats.header_bytes = kFixedHeaderBytes + length + 4;
+  boundary = Boundary(header.boundary_limit);
+  props = std::make_unique<PropertyUnpacker>(header.schema.vertex_properties, header.schema.face_properties);
+  if (!header.lossless) {
+    grid_max = static_cast<int64_t>((uint64_t{1} << header.bits) - 1);
+    for (int i = 0; i < 3; ++i) last_pos[i] = grid_max / 2;
+  }
+  opened = true;
+  return Status();
+}
+
+Status PsqDecoder::Impl::next_chunk() {
+  chunk_offset = in->offset();
+  uint8_t tag;
+  PSQ_RETURN_IF_ERROR(read(&tag, 1));
+  if (tag == kEndTag) return read_end();
+  if (tag != kChunkTag)
+    return Status(ErrorCode::kBadHeader, "unknown chunk tag " + std::to_string(tag), chunk_offset);
+  uint8_t f[kChunkFieldBytes - 1];
+  PSQ_RETURN_IF_ERROR(read(f, sizeof f));
+  Get get(f, sizeof f);
+  uint32_t records = get.u32(), vertices = get.u32(), triangles = get.u32();
+  uint32_t conn_size = get.u32(), prop_size = get.u32(), prop_raw = get.u32();
+  auto bad = [&](const std::string& what) { return Status(ErrorCode::kBadHeader, "chunk: " + what, chunk_offset); };
+  if (records == 0 || records > kMaxChunkRecords) return bad("record count " + std::to_string(records) + " not in 1..2^24");
+  if (triangles > records || vertices > 3ull * records) return bad("more vertices or triangles than its records hold");
+  if (conn_size > kMaxRecordBytes || prop_size > kMaxPropertyBytes || prop_raw > kMaxPropertyRaw)
+    return bad("a section is larger than the limits of spec 4.4");
+  const bool has_props = !header.schema.vertex_properties.empty() || !header.schema.face_properties.empty();
+  if (!has_props && (prop_size != 0 || prop_raw != 0)) return bad("property section without properties");
+  if (has_props && prop_size == 0) return bad("no property section");
+  uint32_t crc = crc32c_update(0, &tag, 1);
+  crc = crc32c_update(crc, f, sizeof f);
+  conn_offset = in->offset();
+  PSQ_RETURN_IF_ERROR(read_block(conn_size, &conn));
+  crc = crc32c_update(crc, conn.data(), conn.size());
+  PSQ_RETURN_IF_ERROR(read_block(prop_size, &packed));
+  crc = crc32c_update(crc, packed.data(), packed.size());
+  uint8_t c[4];
+  uint64_t crc_at = in->offset();
+  PSQ_RETURN_IF_ERROR(read(c, 4));
+  if (Get(c, 4).u32() != crc) return Status(ErrorCode::kChecksum, "chunk checksum mismatch", crc_at);
+  if (has_props) {
+    if (!zstd_decompress(packed.data(), packed.size(), prop_raw, &raw))
+      return Status(ErrorCode::kBadValue, "property section does not decompress to its declared size",
+                    conn_offset + conn_size);
+    if (!props->load(std::move(raw), vertices, triangles))
+      return Status(ErrorCode::kBadValue, "property section does not match the chunk's vertices and triangles",
+                    conn_offset + conn_size);
+  }
+  rc = std::make_unique<RangeDecoder>(conn.data(), conn.size());
+  records_left = records;
+  chunk_vertices = vertices;
+  chunk_triangles = triangles;
+  seen_vertices = seen_triangles = 0;
+  ++stats.chunks;
+  stats.record_bytes += conn_size;
+  stats.property_bytes += prop_size;
+  stats.chunk_overhead_bytes += kChunkFieldBytes + 4;
+  return Status();
+}
+
+Status PsqDecoder::Impl::read_end() {
+  uint8_t f[kEndFieldBytes - 1];
+  PSQ_RETURN_IF_ERROR(read(f, sizeof f));
+  uint32_t expect = file_crc;
+  Get get(f, sizeof f);
+  uint64_t vertices = get.u64(), triangles = get.u64(), chunks = get.u64();
+  uint32_t max_active = get.u32(), max_open = get.u32();
+  uint8_t c[4];
+  uint64_t crc_at = in->offset();
+  PSQ_RETURN_IF_ERROR(read(c, 4));
+  if (Get(c, 4).u32() != expect) return Status(ErrorCode::kChecksum, "stream checksum mismatch", crc_at);
+  auto bad = [&](const std::string& what) { return Status(ErrorCode::kBadHeader, "end record: " + what, chunk_offset); };
+  if (vertices != stats.vertices || triangles != stats.triangles || chunks != stats.chunks)
+    return bad("totals " + std::to_string(vertices) + " vertices, " + std::to_string(triangles) + " triangles, " +
+               std::to_string(chunks) + " chunks differ from the stream's " + std::to_string(stats.vertices) + ", " +
+               std::to_string(stats.triangles) + ", " + std::to_string(stats.chunks));
+  if (max_active != stats.max_active_vertices || max_open != stats.max_open_edges)
+    return bad("boundary maxima differ from the stream's");
+  if (boundary.active_vertices() != 0)
+    return bad("the stream ends with " + std::to_string(boundary.active_vertices()) + " vertices still active");
+  bool at_end = false;
+  PSQ_RETURN_IF_ERROR(in->at_end(&at_end));
+  if (!at_end) return Status(ErrorCode::kBadHeader, "data after the end record", in->offset());
+  stats.chunk_overhead_bytes += kEndFieldBytes + 4;
+  stats.total_bytes = in->offset();
+  stats.connectivity_bits = cost[kCostConnectivity];
+  stats.geometry_bits = cost[kCostGeometry];
+  ended = true;
+  return Status();
+}
+
+// Spec 6.3 and 7: a new vertex's re-appearance and position.
+Status PsqDecoder::Impl::new_vertex(Decoder& dec, const int64_t pred[3], int kind, int64_t pos[3],
+                                    SequenceEvent* ev) {
+  if (seen_vertices >= chunk_vertices) return corrupt("more vertices than the chunk declares");
+  if (next_out >= 0xffffffffull) return Status(ErrorCode::kLimit, "more than 4294967295 vertices", conn_offset);
+  SequenceVertex& v = ev->vertex;
+  ev->kind = SequenceEvent::Kind::kVertex;
+  v.index = static_cast<uint32_t>(next_out);
+  v.slot = kNoSlot;
+  v.reappears = kNoVertex;
+  if (dec.bit(models.reappears, kCostConnectivity)) {
+    int64_t d;
+    if (!dec.residual(models.distance, &d, kCostConnectivity) || d < 0 || static_cast<uint64_t>(d) >= next_out)
+      return corrupt("re-appearance of a vertex that does not exist");
+    v.reappears = static_cast<uint32_t>(next_out - 1 - static_cast<uint64_t>(d));
+  }
+  const bool is_float = header.schema.position_type == ScalarType::kFloat32;
+  for (int i = 0; i < 3; ++i) {
+    int64_t r;
+    if (!dec.residual(models.residual[kind][i], &r, kCostGeometry)) return corrupt("residual longer than 64 bits");
+    pos[i] = wrap_add(pred[i], r);
+  }
+  for (int i = 0; i < 3; ++i) {
+    double x;
+    if (!header.lossless) {
+      if (pos[i] < 0 || pos[i] > grid_max) return corrupt("position outside the quantization grid");
+      x = header.origin[i] + static_cast<double>(pos[i]) * header.step;
+      if (is_float) x = round_to_float(x);
+    } else if (is_float) {
+      if (pos[i] < -(int64_t{1} << 31) || pos[i] >= (int64_t{1} << 31)) return corrupt("position is not a float");
+      x = static_cast<double>(float_from_ordered(pos[i]));
+    } else {
+      x = double_from_ordered(pos[i]);
+    }
+    if (!std::isfinite(x)) return corrupt("position is not finite");
+    v.position[i] = x;
+    last_pos[i] = pos[i];
+  }
+  props->next_vertex(&v.values);
+  ++seen_vertices;
+  ++next_out;
+  ++stats.vertices;
+  return Status();
+}
+
+Status PsqDecoder::Impl::decode_record() {
+  Decoder dec(rc.get(), measure ? cost : nullptr);
+  const uint32_t R = boundary.reference();
+  const int ctx = R == kNone ? 5 : last_op;
+  const uint32_t g_sym = dec.symbol(models.gate[ctx], kCostConnectivity);
+  if (g_sym == kGateIsolated) {
+    SequenceEvent& ev = push();
+    int64_t pos[3];
+    int64_t pred[3] = {last_pos[0], last_pos[1], last_pos[2]};
+    PSQ_RETURN_IF_ERROR(new_vertex(dec, pred, kPredOther, pos, &ev));
+    SequenceEvent& fin = push();
+    fin.kind = SequenceEvent::Kind::kFinalize;
+    fin.finalized = ev.vertex.index;
+    return Status();
+  }
+  if (seen_triangles >= chunk_triangles) return corrupt("more triangles than the chunk declares");
+  BTriangle bt;
+  uint32_t intro[3];
+  int nintro = 0;
+  uint32_t gate = kNone;
+  if (g_sym == kGateStart) {
+    const bool swap = dec.bit(models.swap, kCostConnectivity);
+    intro[0] = 0;
+    intro[1] = swap ? 2 : 1;
+    intro[2] = swap ? 1 : 2;
+    nintro = 3;
+    for (int k = 0; k < 3; ++k) bt.is_new[k] = true;
+  } else {
+    if (g_sym < kGateFar) {
+      if (R == kNone) return corrupt("gate offset without a reference edge");
+      gate = R;
+      const uint32_t steps = (g_sym + 1) / 2;
+      for (uint32_t i = 0; i < steps && gate != kNone; ++i)
+        gate = g_sym % 2 == 1 ? boundary.edge(gate).next : boundary.edge(gate).prev;
+      if (gate == kNone) return corrupt("gate offset leaves the boundary");
+    } else {
+      gate = static_cast<uint32_t>(dec.raw(slot_bits(boundary.edge_capacity()), kCostConnectivity));
+      if (!boundary.edge_live(gate)) return corrupt("gate is not an open edge");
+    }
+    const BEdge& g = boundary.edge(gate);
+    const uint32_t p = g.org, q = g.dst;
+    const uint32_t third =
+        dec.symbol(models.third[third_context(boundary.vertex(p).degree, boundary.vertex(q).degree)], kCostConnectivity);
+    uint32_t x = kNone;
+    if (third == kThirdLeft) {
+      if (g.prev == kNone) return corrupt("no boundary edge before the gate");
+      x = boundary.edge(g.prev).org;
+    } else if (third == kThirdRight) {
+      if (g.next == kNone) return corrupt("no boundary edge after the gate");
+      x = boundary.edge(g.next).dst;
+    } else if (third == kThirdJoin) {
+      const int side = dec.bit(models.join_side, kCostConnectivity);
+      uint32_t j = static_cast<uint32_t>(dec.raw(slot_bits(boundary.edge_capacity()), kCostConnectivity));
+      if (!boundary.edge_live(j)) return corrupt("join names an edge that is not open");
+      x = side ? boundary.edge(j).dst : boundary.edge(j).org;
+      bt.join_edge = j;
+    }
+    if (x == p || x == q) return corrupt("triangle repeats a vertex");
+    bt.c[0] = q;
+    bt.c[1] = p;
+    bt.c[2] = x;
+    if (third == kThirdNew) {
+      bt.is_new[2] = true;
+      intro[0] = 2;
+      nintro = 1;
+    }
+  }
+  uint32_t r = 0;
+  if (header.rotation) {
+    r = dec.symbol(models.rotation, kCostConnectivity);
+    if (r > 2) return corrupt("rotation above 2");
+  }
+  // New vertices in the order of introduction (spec 6.3).
+  int64_t first[3] = {0, 0, 0}, second[3] = {0, 0, 0};
+  for (int i = 0; i < nintro; ++i) {
+    const int k = static_cast<int>(intro[i]);
+    int64_t pred[3], pos[3];
+    int kind = kPredOther;
+    for (int a = 0; a < 3; ++a) {
+      if (nintro == 1) {
+        const BEdge& g = boundary.edge(gate);
+        pred[a] = wrap_sub(wrap_add(boundary.vertex(g.org).pos[a], boundary.vertex(g.dst).pos[a]), g.opp[a]);
+        kind = kPredParallelogram;
+      } else if (i == 0) {
+        pred[a] = last_pos[a];
+      } else if (i == 1) {
+        pred[a] = first[a];
+      } else {
+        pred[a] = midpoint(first[a], second[a]);
+      }
+    }
+    SequenceEvent& ev = push();
+    PSQ_RETURN_IF_ERROR(new_vertex(dec, pred, kind, pos, &ev));
+    for (int a = 0; a < 3; ++a) (i == 0 ? first : second)[a] = pos[a];
+    uint32_t s = boundary.new_vertex(ev.vertex.index, 0, pos);
+    if (s == kNone) return Status(ErrorCode::kLimit, "more active vertices than the header's boundary limit", conn_offset);
+    ev.vertex.slot = s;
+    bt.c[k] = s;
+  }
+  if (!boundary.find_completions(bt)) return corrupt("triangle puts an edge on the boundary twice");
+  const int start = g_sym == kGateStart ? 1 : 0;
+  int completed = 0;
+  for (int k = 0; k < 3; ++k) {
+    if (bt.state[k] == EdgeState::kCompletes) {
+      ++completed;
+      continue;
+    }
+    bt.border[k] = dec.bit(models.border[start][k], kCostConnectivity);
+    bt.state[k] = bt.border[k] ? EdgeState::kBorder : EdgeState::kEnters;
+  }
+  uint8_t cut = 0;
+  for (int k = 0; k < 3; ++k)
+    if (bt.state[k] == EdgeState::kBorder && dec.bit(models.cut[start], kCostConnectivity)) cut |= 1u << k;
+  const int nnew = bt.is_new[0] + bt.is_new[1] + bt.is_new[2];
+  Op op = nnew == 3 ? Op::kStart
+          : completed == 1 ? (nnew == 1 ? Op::kAdd : Op::kJoin)
+          : completed == 2 ? Op::kFill
+                           : Op::kEnd;
+  if (dec.overran()) return Status(ErrorCode::kTruncated, "record " + std::to_string(record_no) + ": coded data ends early", conn_offset + conn.size());
+  if (!boundary.apply(bt)) return Status(ErrorCode::kLimit, "more open edges than the header's boundary limit", conn_offset);
+  last_op = static_cast<int>(op);
+
+  // The triangle in output order: output corner j is canonical (j + r) % 3.
+  SequenceEvent& ev = push();
+  ev.kind = SequenceEvent::Kind::kTriangle;
+  SequenceTriangle& t = ev.triangle;
+  t.op = op;
+  t.new_mask = t.final_mask = t.border_mask = t.nonmanifold_mask = t.leaving_mask = t.entering_mask = 0;
+  for (int j = 0; j < 3; ++j) {
+    const int k = static_cast<int>((j + r) % 3);
+    const BVertex& v = boundary.vertex(bt.c[k]);
+    t.v[j] = v.index;
+    t.vslot[j] = bt.c[k];
+    t.eslot[j] = bt.state[k] == EdgeState::kBorder ? kNoSlot : bt.eslot[k];
+    if (bt.is_new[k]) t.new_mask |= 1u << j;
+    if (bt.final[k]) t.final_mask |= 1u << j;
+    if (bt.state[k] == EdgeState::kBorder) t.border_mask |= 1u << j;
+    if (cut & (1u << k)) t.nonmanifold_mask |= 1u << j;
+    if (bt.state[k] == EdgeState::kCompletes) t.leaving_mask |= 1u << j;
+    if (bt.state[k] == EdgeState::kEnters) t.entering_mask |= 1u << j;
+  }
+  props->next_face(&t.values);
+  ++seen_triangles;
+  ++stats.triangles;
+  // Spec 6.4: finalization, slots freed in canonical order, events in
+  // output order.
+  for (int j = 0; j < 3; ++j)
+    if (t.final_mask & (1u << j)) {
+      SequenceEvent& fin = push();
+      fin.kind = SequenceEvent::Kind::kFinalize;
+      fin.finalized = t.v[j];
+    }
+  for (int k = 0; k < 3; ++k)
+    if (bt.final[k]) boundary.free_vertex(bt.c[k]);
+  return Status();
+}
+
+// ------------------------------------------------------------------ API
+
+PsqDecoder::PsqDecoder() : impl_(std::make_unique<Impl>()) {}
+PsqDecoder::~PsqDecoder() = default;
+
+Status PsqDecoder::open(InputStream* in) {
+  Status s = impl_->open(in);
+  return s.ok() ? s : impl_->fail(s);
+}
+
+const PsqHeader& PsqDecoder::header() const { return impl_->header; }
+const MeshSchema& PsqDecoder::schema() const { return impl_->header.schema; }
+void PsqDecoder::measure_costs(bool on) { impl_->measure = on; }
+const PsqStats& PsqDecoder::stats() const { return impl_->stats; }
+
+Status PsqDecoder::next(SequenceEvent* event) {
+  Impl& m = *impl_;
+  if (!m.error.ok()) return m.error;
+  if (!m.opened) return m.fail(Status(ErrorCode::kUsage, "decoder not opened"));
+  while (m.qcount == 0) {
+    if (m.ended) {
+      event->kind = SequenceEvent::Kind::kEnd;
+      return Status();
+    }
+    if (m.records_left == 0) {
+      Status s = m.next_chunk();
+      if (!s.ok()) return m.fail(s);
+      continue;
+    }
+    Status s = m.decode_record();
+    if (!s.ok()) return m.fail(s);
+    ++m.record_no;
+    m.stats.max_active_vertices = std::max(m.stats.max_active_vertices, m.boundary.active_vertices());
+    m.stats.max_open_edges = std::max(m.stats.max_open_edges, m.boundary.open_edges());
+    if (--m.records_left == 0) {
+      if (m.rc->overran())
+        return m.fail(Status(ErrorCode::kTruncated, "coded records end early", m.conn_offset + m.conn.size()));
+      if (m.seen_vertices != m.chunk_vertices || m.seen_triangles != m.chunk_triangles)
+        return m.fail(Status(ErrorCode::kBadHeader, "chunk declares other vertex or triangle counts than it holds",
+                             m.chunk_offset));
+    }
+  }
+  std::swap(*event, m.queue[m.qhead]);
+  m.qhead = (m.qhead + 1) % 7;
+  --m.qcount;
+  return Status();
+}
+
+}  // namespace psq

@@ -1,0 +1,539 @@
+// codec/src/encoder.cpp: the .psq encoder (psq/psq_codec.h). Section
+// numbers refer to spec/psq-format.md.
+#include <algorithm>
+#include <cmath>
+#include <unordered_map>
+
+#include "boundary.h"
+#include "coding.h"
+#include "container.h"
+#include "crc32c.h"
+#include "geometry.h"
+#include "properties.h"
+#include "psq/psq_codec.h"
+
+namespace psq {
+
+using namespace codec;
+
+namespace {
+
+Status bad_sequence(const std::string& what) { return Status(ErrorCode::kBadSequence, what); }
+
+struct PendingVertex {
+  uint32_t in_index;
+  uint32_t reappears;  // input numbering, or kNoVertex
+  int64_t pos[3];
+  PropertyValues values;
+};
+
+}  // namespace
+
+struct PsqEncoder::Impl {
+  ByteWriter* out;
+  EncodeOptions opt;
+  Status error;
+  bool begun = false, finished = false;
+  PsqHeader header;
+  Models models;
+  Boundary boundary{1};
+  std::unique_ptr<PropertyPacker> props;
+  PsqStats stats;
+  double cost[kCostCount] = {0, 0};
+
+  // Input dense index -> vertex slot, for active vertices.
+  std::unordered_map<uint32_t, uint32_t> slot_of;
+  // Input index -> decoded index where they differ (spec 2.3: an isolated
+  // vertex coded while others wait for their triangle).
+  std::unordered_map<uint32_t, uint32_t> renumbered;
+  std::vector<PendingVertex> pending;  // introduced, not used yet
+  std::vector<uint32_t> expect_final;  // input indices the input must finalize now
+  uint32_t next_in = 0;                // next input dense index
+  uint64_t next_out = 0;               // next decoded dense index
+  int last_op = 5;                     // gate context (5: none yet)
+  int64_t last_pos[3] = {0, 0, 0};
+
+  // The open chunk.
+  std::vector<uint8_t> records;
+  std::unique_ptr<RangeEncoder> rc;
+  uint32_t chunk_records = 0, chunk_vertices = 0, chunk_triangles = 0;
+  uint32_t file_crc = 0;
+
+  Status emit(const std::vector<uint8_t>& bytes) {
+    file_crc = crc32c_update(file_crc, bytes.data(), bytes.size());
+    stats.total_bytes += bytes.size();
+    return out->write(bytes.data(), bytes.size());
+  }
+
+  Status fail(Status s) {
+    if (error.ok()) error = s;
+    return error;
+  }
+
+  uint32_t out_index_of(uint32_t in) const {
+    auto it = renumbered.find(in);
+    return it == renumbered.end() ? in : it->second;
+  }
+
+  Status begin(const MeshSchema& schema);
+  Status coded_position(const double p[3], int64_t out[3]);
+  void code_new_vertex(Encoder& enc, const PendingVertex& v, const int64_t pred[3], int kind);
+  Status introduce(const PendingVertex& v);
+  Status triangle(const SequenceTriangle& t);
+  Status isolated(size_t pending_at);
+  Status close_chunk();
+  Status after_record();
+  Status finish();
+};
+
+Status PsqEncoder::Impl::begin(const MeshSchema& schema) {
+  if (begun) return bad_sequence("begin() called twice");
+  begun = true;
+  if (schema.position_type != ScalarType::kFloat32 && schema.position_type != ScalarType::kFloat64)
+    return Status(ErrorCode::kUsage, "position type must be float or double");
+  if (schema.vertex_properties.size() > kMaxProperties || schema.face_properties.size() > kMaxProperties)
+    return Status(ErrorCode::kLimit, "more than " + std::to_string(kMaxProperties) + " properties");
+  for (const auto* list : {&schema.vertex_properties, &schema.face_properties})
+    for (const Property& p : *list)
+      if (p.name.empty() || p.name.size() > 255)
+        return Status(ErrorCode::kLimit, "property name empty or longer than 255 bytes");
+  if (schema.comments.size() > 65535) return Status(ErrorCode::kLimit, "more than 65535 comments");
+  for (const std::string& c : schema.comments)
+    if (c.size() > 65535) return Status(ErrorCode::kLimit, "a comment longer than 65535 bytes");
+  if (opt.boundary_limit < 1 || opt.boundary_limit > kMaxBoundaryLimit)
+    return Status(ErrorCode::kUsage, "boundary limit must be 1.." + std::to_string(kMaxBoundaryLimit));
+  if (opt.zstd_level < 1 || opt.zstd_level > 22) return Status(ErrorCode::kUsage, "zstd level must be 1..22");
+  header.schema = schema;
+  header.schema.has_bounds = false;
+  header.lossless = opt.lossless;
+  header.rotation = !schema.face_properties.empty();
+  header.boundary_limit = opt.boundary_limit;
+  if (!opt.lossless) {
+    if (opt.bits < 1 || opt.bits > 31) return Status(ErrorCode::kUsage, "quantization bits must be 1..31");
+    if (!schema.has_bounds)
+      return Status(ErrorCode::kUsage,
+                    "quantization needs the bounding box before the first vertex (encode from the sequence "
+                    "builder, or use lossless)");
+    // Spec 7.1: the grid is the cube of the largest extent from the box's
+    // minimum corner, divided into 2^bits - 1 steps, as Draco quantizes.
+    double extent = 0;
+    for (int i = 0; i < 3; ++i) {
+      if (!std::isfinite(schema.bounds_min[i]) || !std::isfinite(schema.bounds_max[i]))
+        return Status(ErrorCode::kBadValue, "bounding box is not finite");
+      extent = std::max(extent, schema.bounds_max[i] - schema.bounds_min[i]);
+      header.origin[i] = schema.bounds_min[i];
+    }
+    const double steps = static_cast<double>((uint64_t{1} << opt.bits) - 1);
+    header.bits = opt.bits;
+    header.step = extent > 0 && std::isfinite(extent) ? extent / steps : 1.0;
+    if (!(header.step > 0) || !std::isfinite(header.step)) header.step = 1.0;
+    for (int i = 0; i < 3; ++i) last_pos[i] = static_cast<int64_t>(((uint64_t{1} << opt.bits) - 1) / 2);
+  }
+  boundary = Boundary(opt.boundary_limit);
+  props = std::make_unique<PropertyPacker>(schema.vertex_properties, schema.face_properties);
+  std::vector<uint8_t> h = write_header(header);
+  stats.header_bytes = h.size();
+  rc = std::make_unique<RangeEncoder>(&records);
+  return emit(h);
+}
+
+Status PsqEncoder::Impl::coded_position(const double p[3], int64_t q[3]) {
+  const bool is_float = header.schema.position_type == ScalarType::kFloat32;
+  for (int i = 0; i < 3; ++i) {
+    if (!std::isfinite(p[i])) return Status(ErrorCode::kBadValue, "vertex position is not finite");
+    if (is_float && round_to_float(p[i]) != p[i])
+      return Status(ErrorCode::kBadValue, "vertex position is not a float although the position type is float");
+    if (opt.lossless) {
+      q[i] = is_float ? ordered_from_float(static_cast<float>(p[i])) : ordered_from_double(p[i]);
+    } else {
+      const double max = static_cast<double>((uint64_t{1} << header.bits) - 1);
+      double v = std::floor((p[i] - header.origin[i]) / header.step + 0.5);
+      q[i] = static_cast<int64_t>(std::min(max, std::max(0.0, v)));
+    }
+  }
+  return Status();
+}
+
+// Gives the next decoded index to `v`, remembering it when it differs from
+// the input's (spec 2.3).
+Status PsqEncoder::Impl::introduce(const PendingVertex& v) {
+  if (!props->add_vertex(v.values))
+    return Status(ErrorCode::kBadValue, "vertex " + std::to_string(v.in_index) +
+                                            ": a property value does not fit its type");
+  uint32_t out_index = static_cast<uint32_t>(next_out++);
+  if (out_index != v.in_index) renumbered[v.in_index] = out_index;
+  ++stats.vertices;
+  ++chunk_vertices;
+  return Status();
+}
+
+// Spec 6.3 and 7.4: the re-appearance flag (and distance), then the
+// residuals of the position against `pred`.
+void PsqEncoder::Impl::code_new_vertex(Encoder& enc, const PendingVertex& v, const int64_t pred[3], int kind) {
+  const uint32_t out_index = out_index_of(v.in_index);
+  enc.bit(models.reappears, v.reappears != kNoVertex, kCostConnectivity);
+  if (v.reappears != kNoVertex)
+    enc.residual(models.distance, static_cast<int64_t>(out_index - out_index_of(v.reappears)) - 1,
+                 kCostConnectivity);
+  for (int i = 0; i < 3; ++i) enc.residual(models.residual[kind][i], wrap_sub(v.pos[i], pred[i]), kCostGeometry);
+  for (int i = 0; i < 3; ++i) last_pos[i] = v.pos[i];
+}
+
+// Codes the input's finalize events that the boundary predicts and checks
+// that the input gives exactly those (spec 6.4).
+Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
+  if (!expect_final.empty())
+    return bad_sequence("vertex " + std::to_string(expect_final.front()) +
+                        " is not finalized right after its last triangle (spec/psq-dump.md A.2)");
+  if (t.v[0] == t.v[1] || t.v[1] == t.v[2] || t.v[0] == t.v[2]) return bad_sequence("degenerate triangle");
+  int pend[3] = {-1, -1, -1};
+  uint32_t slots[3] = {kNone, kNone, kNone};
+  int nnew = 0;
+  for (int k = 0; k < 3; ++k) {
+    for (size_t i = 0; i < pending.size(); ++i)
+      if (pending[i].in_index == t.v[k]) pend[k] = static_cast<int>(i);
+    if (pend[k] >= 0) {
+      ++nnew;
+      continue;
+    }
+    auto it = slot_of.find(t.v[k]);
+    if (it == slot_of.end())
+      return bad_sequence("triangle uses vertex " + std::to_string(t.v[k]) + ", which is not active");
+    slots[k] = it->second;
+  }
+  if (static_cast<size_t>(nnew) != pending.size())
+    return bad_sequence("vertex " + std::to_string(pending.front().in_index) +
+                        " was introduced but the next triangle does not use it");
+  if (nnew == 2) return bad_sequence("a triangle introduces exactly two vertices");
+
+  Encoder enc(rc.get(), cost);
+  const int ctx = boundary.reference() == kNone ? 5 : last_op;
+  int rot = 0;  // canonical corner k is input corner (rot + k) % 3
+  uint32_t gate_sym = kGateStart;
+  uint32_t gate = kNone;
+  if (nnew == 3) {
+    // Spec 6.2.4: corner 0 is the vertex introduced first.
+    rot = pend[0] == 0 ? 0 : pend[1] == 0 ? 1 : 2;
+  } else {
+    // Candidate gates: the triangle's edges that complete an open edge.
+    uint32_t cand[3];
+    for (int k = 0; k < 3; ++k) {
+      cand[k] = kNone;
+      if (pend[k] < 0 && pend[(k + 1) % 3] < 0) cand[k] = boundary.find_edge(slots[(k + 1) % 3], slots[k]);
+    }
+    if (cand[0] == kNone && cand[1] == kNone && cand[2] == kNone)
+      return bad_sequence("triangle " + std::to_string(t.v[0]) + " " + std::to_string(t.v[1]) + " " +
+                          std::to_string(t.v[2]) + " completes no boundary edge and introduces " +
+                          std::to_string(nnew) + " vertices");
+    // Spec 6.2.1: offsets from the reference edge in the order 0, +1, -1,
+    // +2, -2, ...; the first that reaches a candidate is coded.
+    gate_sym = kGateFar;
+    const uint32_t R = boundary.reference();
+    uint32_t fwd = R, back = R;
+    for (uint32_t s = 0; R != kNone && s < kGateFar && gate_sym == kGateFar; ++s) {
+      uint32_t e = R;
+      if (s % 2 == 1) e = fwd = fwd == kNone ? kNone : boundary.edge(fwd).next;
+      else if (s > 0) e = back = back == kNone ? kNone : boundary.edge(back).prev;
+      if (e == kNone) continue;
+      for (int k = 0; k < 3; ++k)
+        if (cand[k] == e) {
+          gate_sym = s;
+          rot = k;
+        }
+    }
+    if (gate_sym == kGateFar) rot = cand[0] != kNone ? 0 : cand[1] != kNone ? 1 : 2;
+    gate = cand[rot];
+  }
+  BTriangle bt;
+  int cp[3];  // pending position of canonical corner k, or -1
+  for (int k = 0; k < 3; ++k) {
+    const int ik = (rot + k) % 3;
+    bt.c[k] = slots[ik];
+    bt.is_new[k] = pend[ik] >= 0;
+    cp[k] = pend[ik];
+    bt.border[k] = (t.border_mask >> ik) & 1;
+  }
+  const int r = (3 - rot) % 3;  // spec 6.2.3: output corner j is canonical corner (j + r) % 3
+
+  enc.symbol(models.gate[ctx], gate_sym, kCostConnectivity);
+  stats.gates[gate_sym == 0 ? 0 : gate_sym < kGateFar ? 1 : gate_sym == kGateFar ? 2 : 3]++;
+  uint32_t intro[3];  // canonical corners in the order their vertices are introduced
+  int nintro = 0;
+  if (nnew == 3) {
+    const bool swap = cp[2] == 1;  // corner 2 was introduced second
+    enc.bit(models.swap, swap, kCostConnectivity);
+    intro[0] = 0;
+    intro[1] = swap ? 2 : 1;
+    intro[2] = swap ? 1 : 2;
+    nintro = 3;
+  } else {
+    if (gate_sym == kGateFar) enc.raw(gate, slot_bits(boundary.edge_capacity()), kCostConnectivity);
+    const BEdge& g = boundary.edge(gate);
+    const uint32_t p = g.org, q = g.dst;
+    uint32_t third = kThirdNew;
+    if (!bt.is_new[2]) {
+      const uint32_t x = bt.c[2];
+      if (g.prev != kNone && boundary.edge(g.prev).org == x) third = kThirdLeft;
+      else if (g.next != kNone && boundary.edge(g.next).dst == x) third = kThirdRight;
+      else third = kThirdJoin;
+    }
+    const BVertex& vp = boundary.vertex(p);
+    const BVertex& vq = boundary.vertex(q);
+    enc.symbol(models.third[third_context(vp.degree, vq.degree)], third, kCostConnectivity);
+    if (third == kThirdJoin) {
+      // Spec 6.2.2: an open edge at x names it and the gap the triangle
+      // goes into: its first edge leaving x, else its first entering x.
+      const BVertex& vx = boundary.vertex(bt.c[2]);
+      uint32_t j = vx.first_out != kNone ? vx.first_out : vx.first_in;
+      if (j == kNone) return bad_sequence("join over vertex " + std::to_string(t.v[(rot + 2) % 3]) +
+                                          ", which is not on the boundary");
+      enc.bit(models.join_side, j == vx.first_out ? 0 : 1, kCostConnectivity);
+      enc.raw(j, slot_bits(boundary.edge_capacity()), kCostConnectivity);
+      bt.join_edge = j;
+    }
+    if (bt.is_new[2]) {
+      intro[0] = 2;
+      nintro = 1;
+    }
+  }
+  if (header.rotation) enc.symbol(models.rotation, static_cast<uint32_t>(r), kCostConnectivity);
+
+  // New vertices in the order of introduction, with their predictions.
+  for (int i = 0; i < nintro; ++i) {
+    const int k = static_cast<int>(intro[i]);
+    const PendingVertex& v = pending[cp[k]];
+    PSQ_RETURN_IF_ERROR(introduce(v));
+    int64_t pred[3];
+    int kind = kPredOther;
+    for (int a = 0; a < 3; ++a) {
+      if (nnew == 1) {
+        const BEdge& g = boundary.edge(gate);
+        pred[a] = wrap_sub(wrap_add(boundary.vertex(g.org).pos[a], boundary.vertex(g.dst).pos[a]), g.opp[a]);
+        kind = kPredParallelogram;
+      } else if (i == 0) {
+        pred[a] = last_pos[a];
+      } else if (i == 1) {
+        pred[a] = pending[cp[intro[0]]].pos[a];
+      } else {
+        pred[a] = midpoint(pending[cp[intro[0]]].pos[a], pending[cp[intro[1]]].pos[a]);
+      }
+    }
+    code_new_vertex(enc, v, pred, kind);
+    uint32_t s = boundary.new_vertex(out_index_of(v.in_index), v.in_index, v.pos);
+    if (s == kNone)
+      return Status(ErrorCode::kLimit, "more than " + std::to_string(opt.boundary_limit) +
+                                           " active vertices (the boundary limit)");
+    bt.c[k] = s;
+    slot_of[v.in_index] = s;
+  }
+
+  if (!boundary.find_completions(bt))
+    return bad_sequence("triangle " + std::to_string(t.v[0]) + " " + std::to_string(t.v[1]) + " " +
+                        std::to_string(t.v[2]) + " uses a directed edge already on the boundary");
+  // Spec 6.2.5: border flags of the edges that do not complete, then the
+  // cut flag of each border.
+  const int start = nnew == 3 ? 1 : 0;
+  int completed = 0;
+  for (int k = 0; k < 3; ++k) {
+    const int ik = (rot + k) % 3;
+    if (bt.state[k] == EdgeState::kCompletes) {
+      ++completed;
+      if ((t.border_mask >> ik) & 1)
+        return bad_sequence("a border edge completes a boundary edge");
+      continue;
+    }
+    enc.bit(models.border[start][k], bt.border[k], kCostConnectivity);
+  }
+  for (int k = 0; k < 3; ++k)
+    if (bt.state[k] == EdgeState::kBorder)
+      enc.bit(models.cut[start], (t.nonmanifold_mask >> ((rot + k) % 3)) & 1, kCostConnectivity);
+  Op op = nnew == 3 ? Op::kStart
+          : completed == 1 ? (nnew == 1 ? Op::kAdd : Op::kJoin)
+          : completed == 2 ? Op::kFill
+                           : Op::kEnd;
+  if ((nnew == 1 && completed != 1) || (nnew == 3 && completed != 0))
+    return bad_sequence("triangle is no valid op");
+  if (op != t.op)
+    return bad_sequence(std::string("triangle claims op ") + op_name(t.op) + " but is " + op_name(op));
+  if (!boundary.apply(bt))
+    return Status(ErrorCode::kLimit, "more than " + std::to_string(opt.boundary_limit) +
+                                         " open edges (the boundary limit)");
+  pending.clear();
+  last_op = static_cast<int>(op);
+  // Spec 6.4: vertices left with no open edge are finalized, in canonical
+  // corner order; the input must finalize exactly these next.
+  for (int k = 0; k < 3; ++k)
+    if (bt.final[k]) {
+      const BVertex& v = boundary.vertex(bt.c[k]);
+      expect_final.push_back(v.key);
+      slot_of.erase(v.key);
+      boundary.free_vertex(bt.c[k]);
+    }
+  if (!props->add_face(t.values))
+    return Status(ErrorCode::kBadValue, "face property values do not match the schema or their types");
+  ++stats.triangles;
+  ++chunk_triangles;
+  return after_record();
+}
+
+Status PsqEncoder::Impl::isolated(size_t at) {
+  Encoder enc(rc.get(), cost);
+  const int ctx = boundary.reference() == kNone ? 5 : last_op;
+  enc.symbol(models.gate[ctx], kGateIsolated, kCostConnectivity);
+  stats.gates[3]++;
+  PendingVertex v = std::move(pending[at]);
+  pending.erase(pending.begin() + static_cast<std::ptrdiff_t>(at));
+  PSQ_RETURN_IF_ERROR(introduce(v));
+  code_new_vertex(enc, v, last_pos, kPredOther);
+  return after_record();
+}
+
+Status PsqEncoder::Impl::after_record() {
+  ++chunk_records;
+  stats.max_active_vertices = std::max(stats.max_active_vertices, boundary.active_vertices());
+  stats.max_open_edges = std::max(stats.max_open_edges, boundary.open_edges());
+  if (records.size() >= opt.chunk_bytes || props->raw_size() >= kChunkPropertyTarget ||
+      chunk_records >= kMaxChunkRecords)
+    return close_chunk();
+  return Status();
+}
+
+Status PsqEncoder::Impl::close_chunk() {
+  if (chunk_records == 0) return Status();
+  rc->finish();
+  std::vector<uint8_t> raw, packed;
+  if (!props->empty()) {
+    props->take(&raw);
+    zstd_compress(raw, opt.zstd_level, &packed);
+  }
+  std::vector<uint8_t> chunk;
+  Put put(&chunk);
+  put.u8(kChunkTag);
+  put.u32(chunk_records);
+  put.u32(chunk_vertices);
+  put.u32(chunk_triangles);
+  put.u32(static_cast<uint32_t>(records.size()));
+  put.u32(static_cast<uint32_t>(packed.size()));
+  put.u32(static_cast<uint32_t>(raw.size()));
+  put.bytes(records.data(), records.size());
+  put.bytes(packed.data(), packed.size());
+  put.u32(crc32c_update(0, chunk.data(), chunk.size()));
+  stats.record_bytes += records.size();
+  stats.property_bytes += packed.size();
+  stats.chunk_overhead_bytes += kChunkFieldBytes + 4;
+  ++stats.chunks;
+  records.clear();
+  rc = std::make_unique<RangeEncoder>(&records);
+  chunk_records = chunk_vertices = chunk_triangles = 0;
+  return emit(chunk);
+}
+
+Status PsqEncoder::Impl::finish() {
+  if (!expect_final.empty())
+    return bad_sequence("vertex " + std::to_string(expect_final.front()) + " is never finalized");
+  if (!pending.empty())
+    return bad_sequence("vertex " + std::to_string(pending.front().in_index) + " is never used or finalized");
+  if (boundary.active_vertices() != 0)
+    return bad_sequence(std::to_string(boundary.active_vertices()) + " vertices are still active at the end");
+  PSQ_RETURN_IF_ERROR(close_chunk());
+  std::vector<uint8_t> end;
+  Put put(&end);
+  put.u8(kEndTag);
+  put.u64(stats.vertices);
+  put.u64(stats.triangles);
+  put.u64(stats.chunks);
+  put.u32(stats.max_active_vertices);
+  put.u32(stats.max_open_edges);
+  put.u32(crc32c_update(file_crc, end.data(), end.size()));
+  stats.chunk_overhead_bytes += end.size();
+  stats.connectivity_bits = cost[kCostConnectivity];
+  stats.geometry_bits = cost[kCostGeometry];
+  return emit(end);
+}
+
+// ------------------------------------------------------------------ API
+
+PsqEncoder::PsqEncoder(ByteWriter* out, const EncodeOptions& options) : impl_(std::make_unique<Impl>()) {
+  impl_->out = out;
+  impl_->opt = options;
+}
+
+PsqEncoder::~PsqEncoder() = default;
+
+Status PsqEncoder::begin(const MeshSchema& schema) {
+  if (!impl_->error.ok()) return impl_->error;
+  Status s = impl_->begin(schema);
+  return s.ok() ? s : impl_->fail(s);
+}
+
+Status PsqEncoder::vertex(const SequenceVertex& v) {
+  Impl& m = *impl_;
+  if (!m.error.ok()) return m.error;
+  if (!m.begun || m.finished) return m.fail(bad_sequence("vertex event outside begin()..finish()"));
+  if (!m.expect_final.empty())
+    return m.fail(bad_sequence("vertex " + std::to_string(m.expect_final.front()) +
+                               " is not finalized right after its last triangle (spec/psq-dump.md A.2)"));
+  if (v.index != m.next_in)
+    return m.fail(bad_sequence("vertex " + std::to_string(v.index) + " introduced where " +
+                               std::to_string(m.next_in) + " is next"));
+  if (m.next_in == 0xffffffffu) return m.fail(Status(ErrorCode::kLimit, "more than 4294967295 vertices"));
+  if (v.reappears != kNoVertex && v.reappears >= v.index)
+    return m.fail(bad_sequence("vertex " + std::to_string(v.index) + " re-appears a later vertex"));
+  if (m.pending.size() >= 3)
+    return m.fail(bad_sequence("vertex " + std::to_string(m.pending.front().in_index) +
+                               " was introduced but the next triangle does not use it"));
+  if (!values_match(m.header.schema.vertex_properties, v.values))
+    return m.fail(Status(ErrorCode::kBadValue, "vertex property values do not match the schema"));
+  PendingVertex p;
+  p.in_index = v.index;
+  p.reappears = v.reappears;
+  p.values = v.values;
+  Status s = m.coded_position(v.position, p.pos);
+  if (!s.ok()) return m.fail(s);
+  ++m.next_in;
+  m.pending.push_back(std::move(p));
+  return Status();
+}
+
+Status PsqEncoder::triangle(const SequenceTriangle& t) {
+  Impl& m = *impl_;
+  if (!m.error.ok()) return m.error;
+  if (!m.begun || m.finished) return m.fail(bad_sequence("triangle event outside begin()..finish()"));
+  Status s = m.triangle(t);
+  return s.ok() ? s : m.fail(s);
+}
+
+Status PsqEncoder::finalize(uint32_t index) {
+  Impl& m = *impl_;
+  if (!m.error.ok()) return m.error;
+  if (!m.begun || m.finished) return m.fail(bad_sequence("finalize event outside begin()..finish()"));
+  auto it = std::find(m.expect_final.begin(), m.expect_final.end(), index);
+  if (it != m.expect_final.end()) {
+    m.expect_final.erase(it);
+    return Status();
+  }
+  if (!m.expect_final.empty())
+    return m.fail(bad_sequence("vertex " + std::to_string(m.expect_final.front()) +
+                               " is not finalized right after its last triangle (spec/psq-dump.md A.2)"));
+  for (size_t i = 0; i < m.pending.size(); ++i)
+    if (m.pending[i].in_index == index) {
+      Status s = m.isolated(i);
+      return s.ok() ? s : m.fail(s);
+    }
+  if (m.slot_of.count(index))
+    return m.fail(bad_sequence("vertex " + std::to_string(index) + " is finalized while boundary edges touch it"));
+  return m.fail(bad_sequence("vertex " + std::to_string(index) + " is finalized but not active"));
+}
+
+Status PsqEncoder::finish() {
+  Impl& m = *impl_;
+  if (!m.error.ok()) return m.error;
+  if (!m.begun || m.finished) return m.fail(bad_sequence("finish() without begin() or twice"));
+  Status s = m.finish();
+  m.finished = true;
+  return s.ok() ? s : m.fail(s);
+}
+
+const PsqStats& PsqEncoder::stats() const { return impl_->stats; }
+
+}  // namespace psq
