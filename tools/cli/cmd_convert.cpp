@@ -32,6 +32,7 @@ const char kHelp[] =
     "  --bits N       .psq: quantize positions to N bits, 1..31 (default 16)\n"
     "  --lossless     .psq: keep positions bit-exact instead of quantizing\n"
     "  --memory SIZE  memory budget of the external sort (default 512M)\n"
+    "  --chunk SIZE   .psq: close a chunk at this many coded bytes (default 1M)\n"
     "  --ascii        write ascii PLY instead of binary little-endian\n"
     "  --tmpdir DIR   directory for temporary spool files (default $TMPDIR)\n"
     "  -f, --force    overwrite OUT if it exists\n"
@@ -100,6 +101,7 @@ int cmd_convert(int argc, char** argv) {
   std::string tmpdir = args.option("--tmpdir");
   std::string bits_text = args.option("--bits", "16");
   std::string memory = args.option("--memory", "512M");
+  std::string chunk = args.option("--chunk", "1M");
   std::vector<std::string> files = args.positionals();
   if (!args.error().empty()) return usage_error("convert", args.error());
   if (files.size() != 2) return usage_error("convert", "convert takes IN and OUT");
@@ -114,6 +116,10 @@ int cmd_convert(int argc, char** argv) {
       return usage_error("convert", "bad --bits '" + bits_text + "' (1..31)");
     encode_options.bits = static_cast<int>(b);
   }
+  uint64_t chunk_bytes = 0;
+  if (!parse_size(chunk, &chunk_bytes) || chunk_bytes > (uint64_t{1} << 24))
+    return usage_error("convert", "bad --chunk '" + chunk + "' (1 to 16M)");
+  encode_options.chunk_bytes = static_cast<uint32_t>(chunk_bytes);
   BuildOptions build_options;
   build_options.tmpdir = tmpdir;
   if (!parse_size(memory, &build_options.memory_budget))

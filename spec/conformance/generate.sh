@@ -1,0 +1,125 @@
+#!/usr/bin/env bash
+# Regenerates the .psq conformance vectors of spec/psq-format.md (section
+# 12) from meshes in tests/data and meshes written here, with the psq binary
+# given as $1 (default: build/psq). Every valid vector NAME.psq comes with
+# NAME.dump, the exact `psq dump` a conforming decoder yields, and a line in
+# MANIFEST with the dump's SHA-256; every invalid vector has a line with the
+# error it must produce and the byte offset of that error.
+#
+#   spec/conformance/generate.sh build/psq
+#
+# The encoder is deterministic: rerunning this on the same version of psq
+# gives the same bytes (tests/conformance_test.cpp checks the vectors).
+set -euo pipefail
+here="$(cd "$(dirname "$0")" && pwd)"
+root="$(cd "$here/../.." && pwd)"
+psq="$(cd "$(dirname "${1:-$root/build/psq}")" && pwd)/$(basename "${1:-$root/build/psq}")"
+data="$root/tests/data"
+tmp="$(mktemp -d)"
+trap 'rm -rf "$tmp"' EXIT
+cd "$here"
+rm -f ./*.psq ./*.dump MANIFEST
+
+# A tetrahedron with one vertex and one face property of every type, a
+# list face property, and an isolated vertex.
+cat > "$tmp/props.ply" <<'PLY'
+ply
+format ascii 1.0
+comment conformance: every property type
+element vertex 5
+property float x
+property float y
+property float z
+property char c
+property uchar uc
+property short s
+property ushort us
+property int i
+property uint ui
+property float f
+property double d
+element face 4
+property list uchar int vertex_indices
+property list uchar float corner_uv
+property int material
+end_header
+0 0 0 -128 0 -32768 0 -2147483648 0 -1.5 0.1
+1 0 0 127 255 32767 65535 2147483647 4294967295 3.25 -1e300
+0 1 0 -1 1 -1 1 -1 1 1e-30 2.5
+0 0 1 0 128 0 32768 0 2147483648 -0 1e-300
+5 5 5 1 2 3 4 5 6 7 8
+3 0 2 1 6 0 0 0.5 0.5 1 1 7
+3 0 1 3 0 -3
+3 0 3 2 2 0.25 0.75 0
+3 1 2 3 4 1 2 3 4 2
+PLY
+
+# An open 4x4 grid (borders on all sides).
+{
+  echo "ply"; echo "format ascii 1.0"; echo "element vertex 25"
+  echo "property float x"; echo "property float y"; echo "property float z"
+  echo "element face 32"; echo "property list uchar int vertex_indices"; echo "end_header"
+  for y in 0 1 2 3 4; do for x in 0 1 2 3 4; do echo "$x $y 0"; done; done
+  for y in 0 1 2 3; do for x in 0 1 2 3; do
+    a=$((y * 5 + x)); echo "3 $a $((a + 1)) $((a + 6))"; echo "3 $a $((a + 6)) $((a + 5))"
+  done; done
+} > "$tmp/grid.ply"
+
+valid() {  # NAME INPUT [convert options...]
+  local name="$1" input="$2"
+  shift 2
+  "$psq" convert "$input" "$name.psq" -q "$@"
+  "$psq" dump "$name.psq" -o "$name.dump"
+  echo "valid $name.psq $(sha256sum < "$name.dump" | cut -d' ' -f1)" >> MANIFEST
+}
+
+valid cube_11bit "$data/cube_quads.obj" --bits 11
+valid grid_borders "$tmp/grid.ply" --bits 8
+valid spider_16bit "$data/spider.ply"
+valid spider_lossless "$data/spider.ply" --lossless
+valid nonmanifold_wrap "$data/nonmanifold_wrap.ply" --bits 12
+valid max_export_chunks "$data/max_export_nm.ply" --bits 14 --chunk 256
+valid properties_lossless "$tmp/props.ply" --lossless
+valid properties_1bit "$tmp/props.ply" --bits 1
+# Written to a pipe: the same bytes as to a file (the encoder never seeks).
+"$psq" convert - - --to psq --bits 10 < "$data/spider.ply" > spider_pipe.psq
+"$psq" dump spider_pipe.psq -o spider_pipe.dump
+echo "valid spider_pipe.psq $(sha256sum < spider_pipe.dump | cut -d' ' -f1)" >> MANIFEST
+
+invalid() {  # NAME CODE OFFSET (the file is already written)
+  echo "invalid $1.psq $2 $3" >> MANIFEST
+}
+src=cube_11bit.psq
+size=$(stat -c %s "$src")
+hlen=$(( $(od -An -t u4 -j 12 -N 4 "$src") ))
+# Not .psq at all.
+printf 'PLY\n' > bad_magic.psq; invalid bad_magic unknown_format 0
+# Version 2.0.
+{ head -c 8 "$src"; printf '\x02'; tail -c +10 "$src"; } > bad_version.psq; invalid bad_version unsupported 8
+# An unknown flag.
+{ head -c 11 "$src"; printf '\x80'; tail -c +13 "$src"; } > bad_flags.psq; invalid bad_flags unsupported 10
+# A header payload of 2 GiB.
+{ head -c 12 "$src"; printf '\x00\x00\x00\x80'; tail -c +17 "$src"; } > bad_header_length.psq
+invalid bad_header_length limit 12
+# A flipped bit in the header payload: its checksum fails.
+{ head -c 20 "$src"; printf '\x01'; tail -c +22 "$src"; } > bad_header_checksum.psq
+invalid bad_header_checksum checksum $((16 + hlen))
+# Cut inside the first chunk.
+head -c $((16 + hlen + 4 + 30)) "$src" > truncated_chunk.psq
+invalid truncated_chunk truncated $((16 + hlen + 4 + 30))
+# Cut inside the end record's checksum (the error names where the input ends).
+head -c $((size - 2)) "$src" > truncated_end.psq
+invalid truncated_end truncated $((size - 2))
+# A flipped bit in the first chunk's records: its checksum fails.
+chunk=$((16 + hlen + 4))
+conn=$(( $(od -An -t u4 -j $((chunk + 13)) -N 4 "$src") ))
+prop=$(( $(od -An -t u4 -j $((chunk + 17)) -N 4 "$src") ))
+crc_at=$((chunk + 25 + conn + prop))
+{ head -c $((chunk + 26)) "$src"; printf '\xff'; tail -c +$((chunk + 28)) "$src"; } > bad_chunk_checksum.psq
+invalid bad_chunk_checksum checksum $crc_at
+# An unknown chunk tag.
+{ head -c $chunk "$src"; printf 'Z'; tail -c +$((chunk + 2)) "$src"; } > bad_chunk_tag.psq
+invalid bad_chunk_tag bad_header $chunk
+# Trailing bytes after the end record.
+{ cat "$src"; printf '\x00'; } > trailing_data.psq; invalid trailing_data bad_header $size
+echo "wrote $(grep -c . MANIFEST) vectors to $here"

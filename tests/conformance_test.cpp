@@ -1,0 +1,115 @@
+// The conformance vectors of spec/conformance (spec/psq-format.md section
+// 12): every valid vector decodes to exactly its .dump, every invalid one
+// fails with the listed error at the listed byte, and the vectors made from
+// meshes in tests/data are what the encoder writes today (determinism).
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <sstream>
+
+#include "psq/psq_codec.h"
+#include "psq/sequence_dump.h"
+#include "test_util.h"
+
+namespace psq {
+namespace {
+
+const std::string kDir = std::string(PSQ_SPEC_DIR) + "/conformance/";
+
+struct Line {
+  std::string kind, file, a, b;
+};
+
+std::vector<Line> manifest() {
+  std::ifstream in(kDir + "MANIFEST");
+  std::vector<Line> lines;
+  std::string text;
+  while (std::getline(in, text)) {
+    std::istringstream s(text);
+    Line l;
+    s >> l.kind >> l.file >> l.a >> l.b;
+    lines.push_back(l);
+  }
+  return lines;
+}
+
+Status dump(const std::string& path, const std::string& out_path) {
+  InputStream in;
+  PSQ_RETURN_IF_ERROR(in.open(path));
+  PsqDecoder dec;
+  PSQ_RETURN_IF_ERROR(dec.open(&in));
+  OutputFile out;
+  PSQ_RETURN_IF_ERROR(out.open(out_path, true));
+  DumpWriter writer(&out);
+  Status s = pump_sequence(dec, writer);
+  if (!s.ok()) {
+    out.discard();
+    return s;
+  }
+  return out.commit();
+}
+
+TEST(Conformance, ManifestListsValidAndInvalidVectors) {
+  std::vector<Line> lines = manifest();
+  int valid = 0, invalid = 0;
+  for (const Line& l : lines) (l.kind == "valid" ? valid : invalid)++;
+  EXPECT_GE(valid, 8);
+  EXPECT_GE(invalid, 8);
+}
+
+TEST(Conformance, ValidVectorsDecodeToTheirDumps) {
+  test::TempDir tmp;
+  for (const Line& l : manifest()) {
+    if (l.kind != "valid") continue;
+    std::string out = tmp.file("out.dump");
+    Status s = dump(kDir + l.file, out);
+    ASSERT_TRUE(s.ok()) << l.file << ": " << s.to_string();
+    std::string expected = test::read_file(kDir + l.file.substr(0, l.file.size() - 4) + ".dump");
+    EXPECT_EQ(test::read_file(out), expected) << l.file;
+  }
+}
+
+TEST(Conformance, InvalidVectorsFailWithTheirErrors) {
+  for (const Line& l : manifest()) {
+    if (l.kind != "invalid") continue;
+    InputStream in;
+    ASSERT_TRUE(in.open(kDir + l.file).ok());
+    PsqDecoder dec;
+    Status s = dec.open(&in);
+    SequenceEvent e;
+    while (s.ok()) {
+      s = dec.next(&e);
+      if (s.ok() && e.kind == SequenceEvent::Kind::kEnd) break;
+    }
+    ASSERT_FALSE(s.ok()) << l.file << " decoded";
+    EXPECT_EQ(std::string(error_name(s.code())), l.a) << l.file << ": " << s.to_string();
+    EXPECT_EQ(std::to_string(s.offset()), l.b) << l.file << ": " << s.to_string();
+  }
+}
+
+// The encoder still writes the vectors made from tests/data byte for byte.
+TEST(Conformance, EncoderReproducesTheVectors) {
+  test::TempDir tmp;
+  struct Case {
+    const char* vector;
+    const char* input;
+    const char* options;
+  } cases[] = {
+      {"cube_11bit.psq", "cube_quads.obj", "--bits 11"},
+      {"spider_16bit.psq", "spider.ply", ""},
+      {"spider_lossless.psq", "spider.ply", "--lossless"},
+      {"nonmanifold_wrap.psq", "nonmanifold_wrap.ply", "--bits 12"},
+      {"max_export_chunks.psq", "max_export_nm.ply", "--bits 14 --chunk 256"},
+  };
+  for (const Case& c : cases) {
+    std::string out, err;
+    std::string target = tmp.file(c.vector);
+    int rc = test::run_psq(std::string("convert ") + PSQ_TEST_DATA + "/" + c.input + " " + target + " -q " + c.options,
+                           &out, &err);
+    ASSERT_EQ(rc, 0) << err;
+    EXPECT_EQ(test::read_file(target), test::read_file(kDir + c.vector)) << c.vector;
+  }
+}
+
+}  // namespace
+}  // namespace psq
