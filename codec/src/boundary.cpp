@@ -26,7 +26,51 @@ uint32_t Boundary::new_vertex(uint32_t index, uint32_t key, const int64_t pos[3]
   return slot;
 }
 
+bool Boundary::is_border(uint32_t a, uint32_t b) const {
+  for (uint32_t r = vertices_[a].first_border; r != kNone;) {
+    const BBorder& e = borders_[r];
+    const int side = e.v[0] == a ? 0 : 1;
+    if (e.v[1 - side] == b) return true;
+    r = e.next[side];
+  }
+  return false;
+}
+
+void Boundary::add_border(uint32_t a, uint32_t b) {
+  uint32_t r;
+  if (!free_borders_.empty()) {
+    r = free_borders_.back();
+    free_borders_.pop_back();
+  } else {
+    r = static_cast<uint32_t>(borders_.size());
+    borders_.emplace_back();
+  }
+  BBorder& e = borders_[r];
+  e.v[0] = a;
+  e.v[1] = b;
+  e.next[0] = vertices_[a].first_border;
+  e.next[1] = vertices_[b].first_border;
+  vertices_[a].first_border = r;
+  vertices_[b].first_border = r;
+}
+
 void Boundary::free_vertex(uint32_t slot) {
+  // Forget its border edges: unlink each from the other endpoint's list.
+  for (uint32_t r = vertices_[slot].first_border; r != kNone;) {
+    BBorder& e = borders_[r];
+    const int side = e.v[0] == slot ? 0 : 1;
+    const uint32_t other = e.v[1 - side];
+    uint32_t* p = &vertices_[other].first_border;
+    while (*p != r) {
+      BBorder& q = borders_[*p];
+      p = &q.next[q.v[0] == other ? 0 : 1];
+    }
+    *p = e.next[1 - side];
+    const uint32_t next = e.next[side];
+    free_borders_.push_back(r);
+    r = next;
+  }
+  vertices_[slot].first_border = kNone;
   vlive_[slot] = 0;
   --active_vertices_;
   free_vertices_.push_back(slot);
@@ -63,8 +107,8 @@ bool Boundary::find_completions(BTriangle& t) const {
       continue;
     }
     // Spec 6.1.3: u->w must not be open already (it would be on the
-    // boundary twice); w->u open means this edge completes it.
-    if (find_edge(u, w) != kNone) return false;
+    // boundary twice) nor a border; w->u open means this edge completes it.
+    if (find_edge(u, w) != kNone || is_border(u, w)) return false;
     t.completes[k] = find_edge(w, u);
     t.state[k] = t.completes[k] != kNone ? EdgeState::kCompletes
                  : t.border[k]           ? EdgeState::kBorder
@@ -146,7 +190,10 @@ bool Boundary::apply(BTriangle& t) {
   reference_ = kNone;
   for (int k = 0; k < 3; ++k) {
     if (t.state[k] != EdgeState::kEnters) {
-      if (t.state[k] == EdgeState::kBorder) t.eslot[k] = kNone;
+      if (t.state[k] == EdgeState::kBorder) {
+        t.eslot[k] = kNone;
+        add_border(t.c[k], t.c[(k + 1) % 3]);
+      }
       continue;
     }
     uint32_t s = alloc_edge();

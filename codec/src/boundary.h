@@ -35,6 +35,7 @@ struct BVertex {
   uint32_t key = 0;          // the encoder's input index (for its map)
   uint32_t first_out = kNone;  // open edges leaving it (through BEdge::next_out)
   uint32_t first_in = kNone;   // open edges entering it (through BEdge::next_in)
+  uint32_t first_border = kNone;  // border edges touching it (through BBorder)
   uint32_t open = 0;         // open edges touching it
   uint32_t degree = 0;       // triangles that used it so far
   int64_t pos[3] = {0, 0, 0};  // coded coordinates (spec 7.1)
@@ -47,6 +48,13 @@ struct BEdge {
   uint32_t next_in = kNone;   // next open edge entering `dst`
   int64_t opp[3] = {0, 0, 0};  // coordinates of the third vertex of its triangle
   bool live = false;
+};
+
+// A border edge between two active vertices (spec 6.1.3): no later
+// triangle may use it; remembered until one of its vertices is finalized.
+struct BBorder {
+  uint32_t v[2] = {kNone, kNone};     // vertex slots
+  uint32_t next[2] = {kNone, kNone};  // next border record at v[0], at v[1]
 };
 
 // What a triangle does to each of its edges (spec 6.1.3).
@@ -78,7 +86,8 @@ class Boundary {
 
   // A new vertex slot, or kNone when `limit` vertices are active.
   uint32_t new_vertex(uint32_t index, uint32_t key, const int64_t pos[3]);
-  // Releases a vertex slot (after its finalization).
+  // Releases a vertex slot (after its finalization) and forgets the border
+  // edges touching it.
   void free_vertex(uint32_t slot);
 
   BVertex& vertex(uint32_t slot) { return vertices_[slot]; }
@@ -99,7 +108,8 @@ class Boundary {
 
   // Fills t.completes and t.state for each edge (borders are taken from
   // t.border where an edge does not complete). Returns false when the
-  // triangle would put an edge on the boundary twice (spec 6.1.3, error).
+  // triangle would put an edge on the boundary twice or use an edge flagged
+  // border before (spec 6.1.3, errors).
   bool find_completions(BTriangle& t) const;
 
   // Applies a triangle whose completions were found: removes completed
@@ -115,6 +125,8 @@ class Boundary {
 
  private:
   uint32_t alloc_edge();
+  bool is_border(uint32_t a, uint32_t b) const;
+  void add_border(uint32_t a, uint32_t b);
   void free_edge(uint32_t slot);
   void link(uint32_t p, uint32_t q);
 
@@ -124,6 +136,8 @@ class Boundary {
   std::vector<uint32_t> free_vertices_;
   std::vector<BEdge> edges_;
   std::vector<uint32_t> free_edges_;
+  std::vector<BBorder> borders_;
+  std::vector<uint32_t> free_borders_;
   uint32_t active_vertices_ = 0;
   uint32_t open_edges_ = 0;
   uint32_t reference_ = kNone;

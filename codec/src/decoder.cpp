@@ -365,7 +365,7 @@ Status PsqDecoder::Impl::decode_record() {
     ev.vertex.slot = s;
     bt.c[k] = s;
   }
-  if (!boundary.find_completions(bt)) return corrupt("triangle puts an edge on the boundary twice");
+  if (!boundary.find_completions(bt)) return corrupt("triangle puts an edge on the boundary twice or reuses a border edge");
   const int start = g_sym == kGateStart ? 1 : 0;
   int completed = 0;
   for (int k = 0; k < 3; ++k) {

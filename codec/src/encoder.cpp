@@ -329,7 +329,7 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
 
   if (!boundary.find_completions(bt))
     return bad_sequence("triangle " + std::to_string(t.v[0]) + " " + std::to_string(t.v[1]) + " " +
-                        std::to_string(t.v[2]) + " uses a directed edge already on the boundary");
+                        std::to_string(t.v[2]) + " uses a directed edge already on the boundary, or a border edge");
   // Spec 6.2.5: border flags of the edges that do not complete, then the
   // cut flag of each border.
   const int start = nnew == 3 ? 1 : 0;

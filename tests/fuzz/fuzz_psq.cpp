@@ -8,6 +8,7 @@
 // hang, sanitizer report, or an invalid sequence traps.
 #include <cstddef>
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
 
 #include "psq/psq_codec.h"
@@ -32,7 +33,10 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       case psq::SequenceEvent::Kind::kEnd: c = checker.finish(); break;
     }
     // The decoder checks everything it yields; the checker must agree.
-    if (!c.ok()) std::abort();
+    if (!c.ok()) {
+      std::fprintf(stderr, "decoded sequence is invalid: %s\n", c.to_string().c_str());
+      std::abort();
+    }
     if (e.kind == psq::SequenceEvent::Kind::kEnd) return 0;
   }
 }
