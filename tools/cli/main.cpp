@@ -11,13 +11,14 @@ namespace {
 const char kUsage[] =
     "Usage: psq COMMAND [OPTIONS] ...\n"
     "\n"
-    "psq reads and writes triangle meshes as streams: PLY and OBJ today,\n"
-    "compressed processing sequences (.psq) as the codec lands.\n"
+    "psq reads and writes triangle meshes as streams: PLY, OBJ (and OFF, STL\n"
+    "input) and compressed processing sequences (.psq).\n"
     "\n"
     "Commands:\n"
     "  info FILE        counts, properties, bounding box and defects of a mesh\n"
-    "  convert IN OUT   convert between PLY and OBJ, streaming\n"
+    "  convert IN OUT   convert between PLY, OBJ and .psq, streaming\n"
     "  dump IN          print the processing sequence of a mesh as text\n"
+    "  verify FILE      decode a .psq completely and check it\n"
     "\n"
     "Options:\n"
     "  -h, --help       show this help (psq COMMAND --help for a command's)\n"
@@ -46,5 +47,6 @@ int main(int argc, char** argv) {
   if (cmd == "info") return psq::cli::cmd_info(argc - 1, argv + 1);
   if (cmd == "convert") return psq::cli::cmd_convert(argc - 1, argv + 1);
   if (cmd == "dump") return psq::cli::cmd_dump(argc - 1, argv + 1);
+  if (cmd == "verify") return psq::cli::cmd_verify(argc - 1, argv + 1);
   return psq::cli::usage_error("", "unknown command '" + cmd + "'");
 }
