@@ -41,7 +41,7 @@ Status dump(const std::string& path, const std::string& out_path) {
   OutputFile out;
   PSQ_RETURN_IF_ERROR(out.open(out_path, true));
   DumpWriter writer(&out);
-  Status s = pump_sequence(dec, writer);
+  Status s = dec.pump(writer);
   if (!s.ok()) {
     out.discard();
     return s;

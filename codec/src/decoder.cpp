@@ -94,7 +94,11 @@ struct PsqDecoder::Impl {
   Status read_end();
   Status decode_record();
   Status new_vertex(Decoder& dec, const int64_t pred[3], int kind, int64_t pos[3], SequenceEvent* ev);
-  SequenceEvent& push() { return queue[(qhead + qcount++) % 7]; }
+  // The events of one record, in order (at most 3 vertices, a triangle and
+  // 3 finalizations); the queue is empty before each record is decoded.
+  SequenceEvent& push() { return queue[qcount++]; }
+  // Decodes the next record (or chunk, or the end) into the queue.
+  Status advance();
 };
 
 Status PsqDecoder::Impl::open(InputStream* stream) {
@@ -438,37 +442,65 @@ const MeshSchema& PsqDecoder::schema() const { return impl_->header.schema; }
 void PsqDecoder::measure_costs(bool on) { impl_->measure = on; }
 const PsqStats& PsqDecoder::stats() const { return impl_->stats; }
 
+Status PsqDecoder::Impl::advance() {
+  qhead = qcount = 0;
+  if (records_left == 0) return next_chunk();
+  PSQ_RETURN_IF_ERROR(decode_record());
+  ++record_no;
+  stats.max_active_vertices = std::max(stats.max_active_vertices, boundary.active_vertices());
+  stats.max_open_edges = std::max(stats.max_open_edges, boundary.open_edges());
+  if (--records_left == 0) {
+    if (rc->overran()) return Status(ErrorCode::kTruncated, "coded records end early", conn_offset + conn.size());
+    if (seen_vertices != chunk_vertices || seen_triangles != chunk_triangles)
+      return Status(ErrorCode::kBadHeader, "chunk declares other vertex or triangle counts than it holds", chunk_offset);
+  }
+  return Status();
+}
+
 Status PsqDecoder::next(SequenceEvent* event) {
   Impl& m = *impl_;
   if (!m.error.ok()) return m.error;
   if (!m.opened) return m.fail(Status(ErrorCode::kUsage, "decoder not opened"));
-  while (m.qcount == 0) {
+  while (m.qhead == m.qcount) {
     if (m.ended) {
       event->kind = SequenceEvent::Kind::kEnd;
       return Status();
     }
-    if (m.records_left == 0) {
-      Status s = m.next_chunk();
-      if (!s.ok()) return m.fail(s);
-      continue;
-    }
-    Status s = m.decode_record();
+    Status s = m.advance();
     if (!s.ok()) return m.fail(s);
-    ++m.record_no;
-    m.stats.max_active_vertices = std::max(m.stats.max_active_vertices, m.boundary.active_vertices());
-    m.stats.max_open_edges = std::max(m.stats.max_open_edges, m.boundary.open_edges());
-    if (--m.records_left == 0) {
-      if (m.rc->overran())
-        return m.fail(Status(ErrorCode::kTruncated, "coded records end early", m.conn_offset + m.conn.size()));
-      if (m.seen_vertices != m.chunk_vertices || m.seen_triangles != m.chunk_triangles)
-        return m.fail(Status(ErrorCode::kBadHeader, "chunk declares other vertex or triangle counts than it holds",
-                             m.chunk_offset));
-    }
   }
-  std::swap(*event, m.queue[m.qhead]);
-  m.qhead = (m.qhead + 1) % 7;
-  --m.qcount;
+  // Copy only what the event kind uses (the vectors keep their capacity).
+  const SequenceEvent& e = m.queue[m.qhead++];
+  event->kind = e.kind;
+  switch (e.kind) {
+    case SequenceEvent::Kind::kVertex: event->vertex = e.vertex; break;
+    case SequenceEvent::Kind::kTriangle: event->triangle = e.triangle; break;
+    case SequenceEvent::Kind::kFinalize: event->finalized = e.finalized; break;
+    case SequenceEvent::Kind::kEnd: break;
+  }
   return Status();
+}
+
+Status PsqDecoder::pump(SequenceSink& sink) {
+  Impl& m = *impl_;
+  if (!m.error.ok()) return m.error;
+  if (!m.opened) return m.fail(Status(ErrorCode::kUsage, "decoder not opened"));
+  PSQ_RETURN_IF_ERROR(sink.begin(m.header.schema));
+  for (;;) {
+    // Events already queued by next() go first.
+    for (; m.qhead < m.qcount; ++m.qhead) {
+      const SequenceEvent& e = m.queue[m.qhead];
+      switch (e.kind) {
+        case SequenceEvent::Kind::kVertex: PSQ_RETURN_IF_ERROR(sink.vertex(e.vertex)); break;
+        case SequenceEvent::Kind::kTriangle: PSQ_RETURN_IF_ERROR(sink.triangle(e.triangle)); break;
+        case SequenceEvent::Kind::kFinalize: PSQ_RETURN_IF_ERROR(sink.finalize(e.finalized)); break;
+        case SequenceEvent::Kind::kEnd: break;
+      }
+    }
+    if (m.ended) return sink.finish();
+    Status s = m.advance();
+    if (!s.ok()) return m.fail(s);
+  }
 }
 
 }  // namespace psq

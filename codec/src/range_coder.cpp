@@ -106,36 +106,6 @@ RangeDecoder::RangeDecoder(const uint8_t* data, size_t size) : data_(data), size
   for (int i = 0; i < 5; ++i) code_ = (code_ << 8) | next_byte();
 }
 
-uint8_t RangeDecoder::next_byte() {
-  if (pos_ < size_) return data_[pos_++];
-  overran_ = true;
-  return 0;
-}
-
-void RangeDecoder::normalize() {
-  while (range_ < kTop) {
-    range_ <<= 8;
-    code_ = (code_ << 8) | next_byte();
-  }
-}
-
-int RangeDecoder::decode_bit(BitModel& m) {
-  uint32_t bound = (range_ >> kProbBits) * m.p0;
-  int bit;
-  if (code_ < bound) {
-    range_ = bound;
-    m.p0 = static_cast<uint16_t>(m.p0 + ((kProbOne - m.p0) >> kAdaptShift));
-    bit = 0;
-  } else {
-    code_ -= bound;
-    range_ -= bound;
-    m.p0 = static_cast<uint16_t>(m.p0 - (m.p0 >> kAdaptShift));
-    bit = 1;
-  }
-  normalize();
-  return bit;
-}
-
 uint32_t RangeDecoder::decode_symbol(SymbolModel& m) {
   BitModel* tree = m.tree();
   uint32_t node = 1;

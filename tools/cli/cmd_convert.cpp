@@ -49,7 +49,7 @@ int to_psq(const std::string& in, const std::string& out, OpenedMesh& mesh, Outp
   Status s;
   BuildReport report;
   if (mesh.decoder) {
-    s = pump_sequence(*mesh.decoder, encoder);
+    s = mesh.decoder->pump(encoder);
   } else {
     s = build_sequence(*mesh.source, encoder, build_options, &report);
   }

@@ -64,7 +64,7 @@ int cmd_dump(int argc, char** argv) {
   DumpWriter writer(&out);
   BuildReport report;
   // A .psq holds a processing sequence already: print it as decoded.
-  if (mesh.decoder) s = pump_sequence(*mesh.decoder, writer);
+  if (mesh.decoder) s = mesh.decoder->pump(writer);
   else s = build_sequence(*mesh.source, writer, options, &report);
   if (!s.ok()) {
     out.discard();

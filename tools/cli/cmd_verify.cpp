@@ -44,11 +44,15 @@ int cmd_verify(int argc, char** argv) {
   // The decoder checks every record against its boundary (spec 6, 9), so
   // pulling every event is the whole check; a SequenceChecker would add
   // statistics whose union-finds grow with the mesh (psq info has them).
-  SequenceEvent event;
-  do {
-    s = mesh.decoder->next(&event);
-    if (!s.ok()) return report_error(file, s);
-  } while (event.kind != SequenceEvent::Kind::kEnd);
+  struct Discard : SequenceSink {
+    Status begin(const MeshSchema&) override { return Status(); }
+    Status vertex(const SequenceVertex&) override { return Status(); }
+    Status triangle(const SequenceTriangle&) override { return Status(); }
+    Status finalize(uint32_t) override { return Status(); }
+    Status finish() override { return Status(); }
+  } discard;
+  s = mesh.decoder->pump(discard);
+  if (!s.ok()) return report_error(file, s);
   if (!quiet) {
     const PsqStats& st = mesh.decoder->stats();
     std::printf("%s: ok: %llu vertices, %llu triangles, %llu chunks, %llu bytes, boundary at most %u vertices\n",

@@ -77,7 +77,23 @@ class RangeDecoder {
   // Decodes from `size` bytes at `data`, which must outlive the decoder.
   RangeDecoder(const uint8_t* data, size_t size);
 
-  int decode_bit(BitModel& m);
+  // Inline: the decoder's innermost operation (spec/psq-format.md 5).
+  int decode_bit(BitModel& m) {
+    const uint32_t bound = (range_ >> 12) * m.p0;
+    int bit;
+    if (code_ < bound) {
+      range_ = bound;
+      m.p0 = static_cast<uint16_t>(m.p0 + ((4096u - m.p0) >> 5));
+      bit = 0;
+    } else {
+      code_ -= bound;
+      range_ -= bound;
+      m.p0 = static_cast<uint16_t>(m.p0 - (m.p0 >> 5));
+      bit = 1;
+    }
+    if (range_ < (1u << 24)) normalize();
+    return bit;
+  }
   uint32_t decode_symbol(SymbolModel& m);
   uint32_t decode_raw(int bits);
   int32_t decode_int(IntegerModel& m);
@@ -89,8 +105,17 @@ class RangeDecoder {
   size_t consumed() const { return pos_; }
 
  private:
-  uint8_t next_byte();
-  void normalize();
+  uint8_t next_byte() {
+    if (pos_ < size_) return data_[pos_++];
+    overran_ = true;
+    return 0;
+  }
+  void normalize() {
+    while (range_ < (1u << 24)) {
+      range_ <<= 8;
+      code_ = (code_ << 8) | next_byte();
+    }
+  }
 
   const uint8_t* data_;
   size_t size_;
