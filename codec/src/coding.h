@@ -37,11 +37,20 @@ constexpr int kThirdContexts = (kDegreeCap + 1) * (kDegreeCap + 1);
 constexpr int kPredParallelogram = 0;
 constexpr int kPredOther = 1;
 
-// Signed 64-bit residual: bit length 0..64, sign, then low bits raw.
+// Signed 64-bit residual (spec 7.4): bit length 0..64, sign, the bit below
+// the leading one (adaptive, by length), then the rest raw.
 struct ResidualModel {
   SymbolModel length{7};
   BitModel sign;
+  BitModel second[65];
 };
+
+// Residual contexts (spec 7.4): the prediction kind, the axis, and for the
+// y and z axes the largest bit length of the vertex's earlier axes.
+constexpr int kLengthContexts = 12;
+inline int length_context(int axis, int longest_so_far) {
+  return axis == 0 ? 0 : std::min(longest_so_far, kLengthContexts - 1);
+}
 
 struct Models {
   SymbolModel gate[kGateContexts] = {SymbolModel(kGateBits), SymbolModel(kGateBits), SymbolModel(kGateBits),
@@ -54,7 +63,7 @@ struct Models {
   BitModel reappears;
   ResidualModel distance;     // re-appearance distance - 1
   SymbolModel rotation{2};    // 0..2, only with face properties
-  ResidualModel residual[2][3];  // [prediction kind][axis]
+  ResidualModel residual[2][3][kLengthContexts];  // [prediction kind][axis][length context]
 
   Models() {
     for (auto& m : third) m = SymbolModel(2);
@@ -102,13 +111,18 @@ class Encoder {
     }
     rc_->encode_raw(static_cast<uint32_t>(v), bits);
   }
-  void residual(ResidualModel& m, int64_t r, Cost c) {
+  // Returns the bit length it coded.
+  int residual(ResidualModel& m, int64_t r, Cost c) {
     uint64_t mag = r < 0 ? 0 - static_cast<uint64_t>(r) : static_cast<uint64_t>(r);
     int k = mag == 0 ? 0 : 64 - __builtin_clzll(mag);
     symbol(m.length, static_cast<uint32_t>(k), c);
-    if (k == 0) return;
+    if (k == 0) return 0;
     bit(m.sign, r < 0 ? 1 : 0, c);
-    raw(mag - (uint64_t{1} << (k - 1)), k - 1, c);
+    if (k >= 2) {
+      bit(m.second[k], static_cast<int>((mag >> (k - 2)) & 1), c);
+      raw(mag & ((uint64_t{1} << (k - 2)) - 1), k - 2, c);
+    }
+    return k;
   }
 
  private:
@@ -140,16 +154,21 @@ class Decoder {
     }
     return v | rc_->decode_raw(bits);
   }
-  // Returns false on a length above 64 (a corrupt stream).
-  bool residual(ResidualModel& m, int64_t* r, Cost c) {
+  // Returns false on a length above 64 (a corrupt stream); sets *length.
+  bool residual(ResidualModel& m, int64_t* r, int* length, Cost c) {
     uint32_t k = symbol(m.length, c);
+    *length = static_cast<int>(k);
     if (k == 0) {
       *r = 0;
       return true;
     }
     if (k > 64) return false;
     int negative = bit(m.sign, c);
-    uint64_t mag = (uint64_t{1} << (k - 1)) | raw(static_cast<int>(k - 1), c);
+    uint64_t mag = uint64_t{1} << (k - 1);
+    if (k >= 2) {
+      mag |= static_cast<uint64_t>(bit(m.second[k], c)) << (k - 2);
+      mag |= raw(static_cast<int>(k - 2), c);
+    }
     *r = negative ? static_cast<int64_t>(0 - mag) : static_cast<int64_t>(mag);
     if (!negative && static_cast<int64_t>(mag) < 0) return false;  // 2^63 is not a positive int64
     return true;

@@ -237,14 +237,19 @@ Status PsqDecoder::Impl::new_vertex(Decoder& dec, const int64_t pred[3], int kin
   v.reappears = kNoVertex;
   if (dec.bit(models.reappears, kCostConnectivity)) {
     int64_t d;
-    if (!dec.residual(models.distance, &d, kCostConnectivity) || d < 0 || static_cast<uint64_t>(d) >= next_out)
+    int length;
+    if (!dec.residual(models.distance, &d, &length, kCostConnectivity) || d < 0 || static_cast<uint64_t>(d) >= next_out)
       return corrupt("re-appearance of a vertex that does not exist");
     v.reappears = static_cast<uint32_t>(next_out - 1 - static_cast<uint64_t>(d));
   }
   const bool is_float = header.schema.position_type == ScalarType::kFloat32;
+  int longest = 0;
   for (int i = 0; i < 3; ++i) {
     int64_t r;
-    if (!dec.residual(models.residual[kind][i], &r, kCostGeometry)) return corrupt("residual longer than 64 bits");
+    int length;
+    if (!dec.residual(models.residual[kind][i][length_context(i, longest)], &r, &length, kCostGeometry))
+      return corrupt("residual longer than 64 bits");
+    longest = std::max(longest, length);
     pos[i] = wrap_add(pred[i], r);
   }
   for (int i = 0; i < 3; ++i) {

@@ -173,9 +173,12 @@ void PsqEncoder::Impl::code_new_vertex(Encoder& enc, const PendingVertex& v, con
   const uint32_t out_index = out_index_of(v.in_index);
   enc.bit(models.reappears, v.reappears != kNoVertex, kCostConnectivity);
   if (v.reappears != kNoVertex)
-    enc.residual(models.distance, static_cast<int64_t>(out_index - out_index_of(v.reappears)) - 1,
-                 kCostConnectivity);
-  for (int i = 0; i < 3; ++i) enc.residual(models.residual[kind][i], wrap_sub(v.pos[i], pred[i]), kCostGeometry);
+    (void)enc.residual(models.distance, static_cast<int64_t>(out_index - out_index_of(v.reappears)) - 1,
+                       kCostConnectivity);
+  int longest = 0;
+  for (int i = 0; i < 3; ++i)
+    longest = std::max(longest, enc.residual(models.residual[kind][i][length_context(i, longest)],
+                                             wrap_sub(v.pos[i], pred[i]), kCostGeometry));
   for (int i = 0; i < 3; ++i) last_pos[i] = v.pos[i];
 }
 
