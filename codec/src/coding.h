@@ -23,7 +23,13 @@ constexpr uint32_t kGateFar = 2 * kMaxOffset + 1;    // 13: an explicit edge slo
 constexpr uint32_t kGateStart = kGateFar + 1;        // 14: a start triangle
 constexpr uint32_t kGateIsolated = kGateFar + 2;     // 15: an isolated vertex
 constexpr int kGateBits = 4;
-constexpr int kGateContexts = 6;  // the previous record's op, or 5: no reference edge
+// Gate contexts: the previous triangle's op (0..4, or 5 when there is no
+// reference edge) times the previous gate symbol (0, 1, or anything else).
+constexpr int kGateContexts = 18;
+inline int gate_context(uint32_t reference, int last_op, uint32_t last_gate) {
+  const int op = reference == 0xffffffffu ? 5 : last_op;
+  return op * 3 + (last_gate < 2 ? static_cast<int>(last_gate) : 2);
+}
 
 // Third-vertex symbols (spec 6.2.2).
 constexpr uint32_t kThirdNew = 0;    // add
@@ -48,13 +54,28 @@ struct ResidualModel {
 // Residual contexts (spec 7.4): the prediction kind, the axis, and for the
 // y and z axes the largest bit length of the vertex's earlier axes.
 constexpr int kLengthContexts = 12;
+// For the x axis, `longest_so_far` is the bit length of the gate edge's
+// largest coordinate difference (0 without a gate): residuals scale with
+// the local edge length.
 inline int length_context(int axis, int longest_so_far) {
-  return axis == 0 ? 0 : std::min(longest_so_far, kLengthContexts - 1);
+  (void)axis;
+  return std::min(longest_so_far, kLengthContexts - 1);
+}
+inline int bit_length64(uint64_t v) { return v == 0 ? 0 : 64 - __builtin_clzll(v); }
+// The bit length of the largest coordinate difference of a gate's endpoints
+// (differences taken modulo 2^64, magnitudes of their two's complement).
+inline int gate_scale(const int64_t* a, const int64_t* b) {
+  uint64_t m = 0;
+  for (int i = 0; i < 3; ++i) {
+    const uint64_t d = static_cast<uint64_t>(a[i]) - static_cast<uint64_t>(b[i]);
+    const uint64_t mag = static_cast<int64_t>(d) < 0 ? 0 - d : d;
+    m = std::max(m, mag);
+  }
+  return bit_length64(m);
 }
 
 struct Models {
-  SymbolModel gate[kGateContexts] = {SymbolModel(kGateBits), SymbolModel(kGateBits), SymbolModel(kGateBits),
-                                     SymbolModel(kGateBits), SymbolModel(kGateBits), SymbolModel(kGateBits)};
+  SymbolModel gate[kGateContexts];
   SymbolModel third[kThirdContexts];
   BitModel border[2][3];      // [start?][edge k]
   BitModel cut[2];            // [start?]: a border edge is a non-manifold cut
@@ -66,6 +87,7 @@ struct Models {
   ResidualModel residual[2][3][kLengthContexts];  // [prediction kind][axis][length context]
 
   Models() {
+    for (auto& m : gate) m = SymbolModel(kGateBits);
     for (auto& m : third) m = SymbolModel(2);
   }
 };

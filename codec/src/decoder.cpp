@@ -51,6 +51,7 @@ struct PsqDecoder::Impl {
   uint64_t next_out = 0;
   uint64_t record_no = 0;
   int last_op = 5;
+  uint32_t last_gate = 0;
   int64_t last_pos[3] = {0, 0, 0};
   int64_t grid_max = 0;
 
@@ -93,7 +94,7 @@ struct PsqDecoder::Impl {
   Status next_chunk();
   Status read_end();
   Status decode_record();
-  Status new_vertex(Decoder& dec, const int64_t pred[3], int kind, int64_t pos[3], SequenceEvent* ev);
+  Status new_vertex(Decoder& dec, const int64_t pred[3], int kind, int scale, int64_t pos[3], SequenceEvent* ev);
   // The events of one record, in order (at most 3 vertices, a triangle and
   // 3 finalizations); the queue is empty before each record is decoded.
   SequenceEvent& push() { return queue[qcount++]; }
@@ -226,7 +227,7 @@ Status PsqDecoder::Impl::read_end() {
 }
 
 // Spec 6.3 and 7: a new vertex's re-appearance and position.
-Status PsqDecoder::Impl::new_vertex(Decoder& dec, const int64_t pred[3], int kind, int64_t pos[3],
+Status PsqDecoder::Impl::new_vertex(Decoder& dec, const int64_t pred[3], int kind, int scale, int64_t pos[3],
                                     SequenceEvent* ev) {
   if (seen_vertices >= chunk_vertices) return corrupt("more vertices than the chunk declares");
   if (next_out >= 0xffffffffull) return Status(ErrorCode::kLimit, "more than 4294967295 vertices", conn_offset);
@@ -243,13 +244,12 @@ Status PsqDecoder::Impl::new_vertex(Decoder& dec, const int64_t pred[3], int kin
     v.reappears = static_cast<uint32_t>(next_out - 1 - static_cast<uint64_t>(d));
   }
   const bool is_float = header.schema.position_type == ScalarType::kFloat32;
-  int longest = 0;
+  int lengths[3] = {0, 0, 0};
   for (int i = 0; i < 3; ++i) {
     int64_t r;
-    int length;
-    if (!dec.residual(models.residual[kind][i][length_context(i, longest)], &r, &length, kCostGeometry))
+    const int c = i == 0 ? scale : std::max(lengths[0], lengths[1]);
+    if (!dec.residual(models.residual[kind][i][length_context(i, c)], &r, &lengths[i], kCostGeometry))
       return corrupt("residual longer than 64 bits");
-    longest = std::max(longest, length);
     pos[i] = wrap_add(pred[i], r);
   }
   for (int i = 0; i < 3; ++i) {
@@ -278,13 +278,14 @@ Status PsqDecoder::Impl::new_vertex(Decoder& dec, const int64_t pred[3], int kin
 Status PsqDecoder::Impl::decode_record() {
   Decoder dec(rc.get(), measure ? cost : nullptr);
   const uint32_t R = boundary.reference();
-  const int ctx = R == kNone ? 5 : last_op;
+  const int ctx = gate_context(R, last_op, last_gate);
   const uint32_t g_sym = dec.symbol(models.gate[ctx], kCostConnectivity);
+  last_gate = g_sym;
   if (g_sym == kGateIsolated) {
     SequenceEvent& ev = push();
     int64_t pos[3];
     int64_t pred[3] = {last_pos[0], last_pos[1], last_pos[2]};
-    PSQ_RETURN_IF_ERROR(new_vertex(dec, pred, kPredOther, pos, &ev));
+    PSQ_RETURN_IF_ERROR(new_vertex(dec, pred, kPredOther, 0, pos, &ev));
     SequenceEvent& fin = push();
     fin.kind = SequenceEvent::Kind::kFinalize;
     fin.finalized = ev.vertex.index;
@@ -353,6 +354,11 @@ Status PsqDecoder::Impl::decode_record() {
     const int k = static_cast<int>(intro[i]);
     int64_t pred[3], pos[3];
     int kind = kPredOther;
+    int scale = 0;
+    if (nintro == 1) {
+      const BEdge& g = boundary.edge(gate);
+      scale = gate_scale(boundary.vertex(g.org).pos, boundary.vertex(g.dst).pos);
+    }
     for (int a = 0; a < 3; ++a) {
       if (nintro == 1) {
         const BEdge& g = boundary.edge(gate);
@@ -367,7 +373,7 @@ Status PsqDecoder::Impl::decode_record() {
       }
     }
     SequenceEvent& ev = push();
-    PSQ_RETURN_IF_ERROR(new_vertex(dec, pred, kind, pos, &ev));
+    PSQ_RETURN_IF_ERROR(new_vertex(dec, pred, kind, scale, pos, &ev));
     for (int a = 0; a < 3; ++a) (i == 0 ? first : second)[a] = pos[a];
     uint32_t s = boundary.new_vertex(ev.vertex.index, 0, pos);
     if (s == kNone) return Status(ErrorCode::kLimit, "more active vertices than the header's boundary limit", conn_offset);

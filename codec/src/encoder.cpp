@@ -50,7 +50,8 @@ struct PsqEncoder::Impl {
   std::vector<uint32_t> expect_final;  // input indices the input must finalize now
   uint32_t next_in = 0;                // next input dense index
   uint64_t next_out = 0;               // next decoded dense index
-  int last_op = 5;                     // gate context (5: none yet)
+  int last_op = 5;
+  uint32_t last_gate = 0;              // the previous gate symbol (gate context)
   int64_t last_pos[3] = {0, 0, 0};
 
   // The open chunk.
@@ -77,7 +78,7 @@ struct PsqEncoder::Impl {
 
   Status begin(const MeshSchema& schema);
   Status coded_position(const double p[3], int64_t out[3]);
-  void code_new_vertex(Encoder& enc, const PendingVertex& v, const int64_t pred[3], int kind);
+  void code_new_vertex(Encoder& enc, const PendingVertex& v, const int64_t pred[3], int kind, int scale);
   Status introduce(const PendingVertex& v);
   Status triangle(const SequenceTriangle& t);
   Status isolated(size_t pending_at);
@@ -169,16 +170,19 @@ Status PsqEncoder::Impl::introduce(const PendingVertex& v) {
 
 // Spec 6.3 and 7.4: the re-appearance flag (and distance), then the
 // residuals of the position against `pred`.
-void PsqEncoder::Impl::code_new_vertex(Encoder& enc, const PendingVertex& v, const int64_t pred[3], int kind) {
+void PsqEncoder::Impl::code_new_vertex(Encoder& enc, const PendingVertex& v, const int64_t pred[3], int kind,
+                                        int scale) {
   const uint32_t out_index = out_index_of(v.in_index);
   enc.bit(models.reappears, v.reappears != kNoVertex, kCostConnectivity);
   if (v.reappears != kNoVertex)
     (void)enc.residual(models.distance, static_cast<int64_t>(out_index - out_index_of(v.reappears)) - 1,
                        kCostConnectivity);
-  int longest = 0;
-  for (int i = 0; i < 3; ++i)
-    longest = std::max(longest, enc.residual(models.residual[kind][i][length_context(i, longest)],
-                                             wrap_sub(v.pos[i], pred[i]), kCostGeometry));
+  int lengths[3] = {0, 0, 0};
+  for (int i = 0; i < 3; ++i) {
+    const int c = i == 0 ? scale : std::max(lengths[0], lengths[1]);
+    lengths[i] = enc.residual(models.residual[kind][i][length_context(i, c)], wrap_sub(v.pos[i], pred[i]),
+                              kCostGeometry);
+  }
   for (int i = 0; i < 3; ++i) last_pos[i] = v.pos[i];
 }
 
@@ -210,7 +214,7 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
   if (nnew == 2) return bad_sequence("a triangle introduces exactly two vertices");
 
   Encoder enc(rc.get(), cost);
-  const int ctx = boundary.reference() == kNone ? 5 : last_op;
+  const int ctx = gate_context(boundary.reference(), last_op, last_gate);
   int rot = 0;  // canonical corner k is input corner (rot + k) % 3
   uint32_t gate_sym = kGateStart;
   uint32_t gate = kNone;
@@ -259,6 +263,7 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
   const int r = (3 - rot) % 3;  // spec 6.2.3: output corner j is canonical corner (j + r) % 3
 
   enc.symbol(models.gate[ctx], gate_sym, kCostConnectivity);
+  last_gate = gate_sym;
   stats.gates[gate_sym == 0 ? 0 : gate_sym < kGateFar ? 1 : gate_sym == kGateFar ? 2 : 3]++;
   uint32_t intro[3];  // canonical corners in the order their vertices are introduced
   int nintro = 0;
@@ -308,6 +313,11 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
     PSQ_RETURN_IF_ERROR(introduce(v));
     int64_t pred[3];
     int kind = kPredOther;
+    int scale = 0;
+    if (nnew == 1) {
+      const BEdge& g = boundary.edge(gate);
+      scale = gate_scale(boundary.vertex(g.org).pos, boundary.vertex(g.dst).pos);
+    }
     for (int a = 0; a < 3; ++a) {
       if (nnew == 1) {
         const BEdge& g = boundary.edge(gate);
@@ -321,7 +331,7 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
         pred[a] = midpoint(pending[cp[intro[0]]].pos[a], pending[cp[intro[1]]].pos[a]);
       }
     }
-    code_new_vertex(enc, v, pred, kind);
+    code_new_vertex(enc, v, pred, kind, scale);
     uint32_t s = boundary.new_vertex(out_index_of(v.in_index), v.in_index, v.pos);
     if (s == kNone)
       return Status(ErrorCode::kLimit, "more than " + std::to_string(opt.boundary_limit) +
@@ -381,13 +391,14 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
 
 Status PsqEncoder::Impl::isolated(size_t at) {
   Encoder enc(rc.get(), cost);
-  const int ctx = boundary.reference() == kNone ? 5 : last_op;
+  const int ctx = gate_context(boundary.reference(), last_op, last_gate);
   enc.symbol(models.gate[ctx], kGateIsolated, kCostConnectivity);
+  last_gate = kGateIsolated;
   stats.gates[3]++;
   PendingVertex v = std::move(pending[at]);
   pending.erase(pending.begin() + static_cast<std::ptrdiff_t>(at));
   PSQ_RETURN_IF_ERROR(introduce(v));
-  code_new_vertex(enc, v, last_pos, kPredOther);
+  code_new_vertex(enc, v, last_pos, kPredOther, 0);
   return after_record();
 }
 
