@@ -373,6 +373,37 @@ TEST(Codec, EncoderRejectsInvalidSequences) {
   EXPECT_EQ(replay(nob, enc3).code(), ErrorCode::kUsage);
 }
 
+// The encoder writes nothing its decoder would refuse: names the header
+// cannot hold, and a re-appearance of a vertex not yet coded, are errors.
+TEST(Codec, EncoderRefusesWhatTheDecoderWouldReject) {
+  Events ev = sequence_of(test::make_grid(2));
+  for (const char* name : {"a=b", "x", "has space", ""}) {
+    Events named = ev;
+    named.schema.vertex_properties = {{name, ScalarType::kUInt8}};
+    for (auto& e : named.events)
+      if (e.kind == SequenceEvent::Kind::kVertex) e.vertex.values = {1};
+    std::vector<uint8_t> bytes;
+    VectorWriter w(&bytes);
+    EncodeOptions o;
+    PsqEncoder enc(&w, o);
+    EXPECT_FALSE(replay(named, enc).ok()) << name;
+  }
+  // Vertex 1 introduced while vertex 0 waits, isolated, re-appearing 0.
+  std::vector<uint8_t> bytes;
+  VectorWriter w(&bytes);
+  EncodeOptions o;
+  o.lossless = true;
+  PsqEncoder enc(&w, o);
+  ASSERT_TRUE(enc.begin(MeshSchema()).ok());
+  SequenceVertex v0, v1;
+  v0.index = 0;
+  v1.index = 1;
+  v1.reappears = 0;
+  ASSERT_TRUE(enc.vertex(v0).ok());
+  ASSERT_TRUE(enc.vertex(v1).ok());
+  EXPECT_EQ(enc.finalize(1).code(), ErrorCode::kBadSequence);
+}
+
 std::vector<uint8_t> small_file() {
   Mesh m = messy_mesh();
   m.schema.vertex_properties = {{"red", ScalarType::kUInt8}};

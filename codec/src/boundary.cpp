@@ -220,6 +220,7 @@ bool Boundary::apply(BTriangle& t) {
     if (t.state[k] == EdgeState::kCompletes) {
       t.eslot[k] = t.completes[k];
       free_edge(t.completes[k]);
+      add_border(t.c[k], t.c[(k + 1) % 3]);  // now used by two triangles: dead
     }
   for (int i = 0; i < nlinks; ++i) {
     uint32_t P = lp[i] >= kNewBase && lp[i] != kNone ? fresh[lp[i] - kNewBase] : lp[i];

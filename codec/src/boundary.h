@@ -35,7 +35,7 @@ struct BVertex {
   uint32_t key = 0;          // the encoder's input index (for its map)
   uint32_t first_out = kNone;  // open edges leaving it (through BEdge::next_out)
   uint32_t first_in = kNone;   // open edges entering it (through BEdge::next_in)
-  uint32_t first_border = kNone;  // border edges touching it (through BBorder)
+  uint32_t first_border = kNone;  // dead edges touching it (through BBorder)
   uint32_t open = 0;         // open edges touching it
   uint32_t degree = 0;       // triangles that used it so far
   int64_t pos[3] = {0, 0, 0};  // coded coordinates (spec 7.1)
@@ -50,8 +50,9 @@ struct BEdge {
   bool live = false;
 };
 
-// A border edge between two active vertices (spec 6.1.3): no later
-// triangle may use it; remembered until one of its vertices is finalized.
+// A dead edge between two active vertices (spec 6.1.3): a border, or an
+// edge two triangles completed. No later triangle may use it; remembered
+// until one of its vertices is finalized.
 struct BBorder {
   uint32_t v[2] = {kNone, kNone};     // vertex slots
   uint32_t next[2] = {kNone, kNone};  // next border record at v[0], at v[1]
@@ -69,7 +70,7 @@ struct BTriangle {
   // Input to apply(): border flag for each edge that does not complete.
   bool border[3] = {false, false, false};
   // Input to apply() for a join: the open edge that names the gap at the
-  // third vertex into which the triangle goes (spec 6.1.3), else kNone.
+  // third vertex into which the triangle goes (spec 6.1.2), else kNone.
   uint32_t join_edge = kNone;
   // Output of find_completions() and apply():
   uint32_t completes[3] = {kNone, kNone, kNone};  // the open edge each edge completes
@@ -86,7 +87,7 @@ class Boundary {
 
   // A new vertex slot, or kNone when `limit` vertices are active.
   uint32_t new_vertex(uint32_t index, uint32_t key, const int64_t pos[3]);
-  // Releases a vertex slot (after its finalization) and forgets the border
+  // Releases a vertex slot (after its finalization) and forgets the dead
   // edges touching it.
   void free_vertex(uint32_t slot);
 
@@ -108,8 +109,8 @@ class Boundary {
 
   // Fills t.completes and t.state for each edge (borders are taken from
   // t.border where an edge does not complete). Returns false when the
-  // triangle would put an edge on the boundary twice or use an edge flagged
-  // border before (spec 6.1.3, errors).
+  // triangle would put an edge on the boundary twice or use a dead edge (a
+  // border, or an edge already used by two triangles; spec 6.1.3, errors).
   bool find_completions(BTriangle& t) const;
 
   // Applies a triangle whose completions were found: removes completed

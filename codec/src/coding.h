@@ -103,7 +103,8 @@ inline int third_context(uint32_t degree_p, uint32_t degree_q) {
 // (spec 6.2.1): enough for capacity - 1.
 inline int slot_bits(uint32_t capacity) { return capacity <= 1 ? 0 : 32 - __builtin_clz(capacity - 1); }
 
-// Cost categories (spec 9, `psq info`).
+// Cost categories: what `psq info` splits the record bytes into (not part
+// of the format).
 enum Cost { kCostConnectivity = 0, kCostGeometry = 1, kCostCount = 2 };
 
 // -log2(p / 4096) for a 12-bit probability p (1..4095).

@@ -137,6 +137,7 @@ Status parse_header_payload(const uint8_t* p, size_t n, uint64_t base, PsqHeader
   }
   size_t at = get.pos();
   h->boundary_limit = get.u32();
+  if (get.short_read()) return bad("header payload too short", at);
   if (h->boundary_limit < 1 || h->boundary_limit > kMaxBoundaryLimit)
     return Status(ErrorCode::kLimit, "boundary limit " + std::to_string(h->boundary_limit) + " not in 1.." +
                                          std::to_string(kMaxBoundaryLimit), base + at);

@@ -462,6 +462,11 @@ Status PsqDecoder::Impl::advance() {
   stats.max_open_edges = std::max(stats.max_open_edges, boundary.open_edges());
   if (--records_left == 0) {
     if (rc->overran()) return Status(ErrorCode::kTruncated, "coded records end early", conn_offset + conn.size());
+    // Spec 5.8: the records use the section exactly (the encoder's flush
+    // writes as many bytes as the decoder reads).
+    if (rc->consumed() != conn.size())
+      return Status(ErrorCode::kBadValue, std::to_string(conn.size() - rc->consumed()) +
+                                              " unused bytes after the chunk's records", conn_offset + rc->consumed());
     if (seen_vertices != chunk_vertices || seen_triangles != chunk_triangles)
       return Status(ErrorCode::kBadHeader, "chunk declares other vertex or triangle counts than it holds", chunk_offset);
   }

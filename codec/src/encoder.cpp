@@ -25,6 +25,7 @@ struct PendingVertex {
   uint32_t reappears;  // input numbering, or kNoVertex
   int64_t pos[3];
   PropertyValues values;
+  bool coded = false;  // already coded in the current record
 };
 
 }  // namespace
@@ -132,7 +133,19 @@ Status PsqEncoder::Impl::begin(const MeshSchema& schema) {
   }
   boundary = Boundary(opt.boundary_limit);
   props = std::make_unique<PropertyPacker>(schema.vertex_properties, schema.face_properties);
+  if (opt.chunk_bytes < 1 || opt.chunk_bytes > kMaxRecordBytes / 2)
+    return Status(ErrorCode::kUsage, "chunk size must be 1.." + std::to_string(kMaxRecordBytes / 2) + " bytes");
   std::vector<uint8_t> h = write_header(header);
+  // The encoder writes only what its decoder accepts: the header is checked
+  // by the decoder's own parser (names, limits, the float grid's range).
+  if (h.size() - kFixedHeaderBytes - 4 > kMaxHeaderPayload)
+    return Status(ErrorCode::kLimit, "header larger than " + std::to_string(kMaxHeaderPayload) + " bytes");
+  PsqHeader check;
+  check.lossless = header.lossless;
+  check.rotation = header.rotation;
+  Status hs = parse_header_payload(h.data() + kFixedHeaderBytes, h.size() - kFixedHeaderBytes - 4, 0, &check);
+  if (!hs.ok()) return Status(hs.code() == ErrorCode::kLimit ? ErrorCode::kLimit : ErrorCode::kBadValue,
+                              "cannot encode this mesh: " + hs.message());
   stats.header_bytes = h.size();
   rc = std::make_unique<RangeEncoder>(&records);
   return emit(h);
@@ -163,6 +176,15 @@ Status PsqEncoder::Impl::introduce(const PendingVertex& v) {
                                             ": a property value does not fit its type");
   uint32_t out_index = static_cast<uint32_t>(next_out++);
   if (out_index != v.in_index) renumbered[v.in_index] = out_index;
+  if (v.reappears != kNoVertex) {
+    // The re-appeared vertex must be coded before this one (spec 6.3); it
+    // is not when it still waits for its triangle while this one is coded.
+    bool waiting = false;
+    for (const PendingVertex& p : pending) waiting = waiting || (p.in_index == v.reappears && !p.coded);
+    if (waiting || out_index_of(v.reappears) >= out_index)
+      return bad_sequence("vertex " + std::to_string(v.in_index) + " re-appears vertex " +
+                          std::to_string(v.reappears) + ", which is not yet used");
+  }
   ++stats.vertices;
   ++chunk_vertices;
   return Status();
@@ -174,6 +196,8 @@ void PsqEncoder::Impl::code_new_vertex(Encoder& enc, const PendingVertex& v, con
                                         int scale) {
   const uint32_t out_index = out_index_of(v.in_index);
   enc.bit(models.reappears, v.reappears != kNoVertex, kCostConnectivity);
+  // (triangle() and isolated() checked that the re-appeared vertex comes
+  // earlier in the decoded numbering.)
   if (v.reappears != kNoVertex)
     (void)enc.residual(models.distance, static_cast<int64_t>(out_index - out_index_of(v.reappears)) - 1,
                        kCostConnectivity);
@@ -309,8 +333,9 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
   // New vertices in the order of introduction, with their predictions.
   for (int i = 0; i < nintro; ++i) {
     const int k = static_cast<int>(intro[i]);
-    const PendingVertex& v = pending[cp[k]];
+    PendingVertex& v = pending[cp[k]];
     PSQ_RETURN_IF_ERROR(introduce(v));
+    v.coded = true;
     int64_t pred[3];
     int kind = kPredOther;
     int scale = 0;

@@ -182,6 +182,8 @@ void zstd_compress(const std::vector<uint8_t>& raw, int level, std::vector<uint8
 }
 
 bool zstd_decompress(const uint8_t* data, size_t size, size_t raw_size, std::vector<uint8_t>* out) {
+  // Exactly one frame (spec 8.2), declaring its content size.
+  if (ZSTD_findFrameCompressedSize(data, size) != size) return false;
   unsigned long long declared = ZSTD_getFrameContentSize(data, size);
   if (declared != raw_size) return false;
   out->resize(raw_size);
