@@ -3,7 +3,8 @@
 #   ./build.sh demo       install what is missing, build (Release), run the main job
 #   ./build.sh test       install what is missing, build (Release), run the whole test suite
 #   ./build.sh sanitize   the same suite built with AddressSanitizer + UBSan
-#   ./build.sh fuzz       clang + libFuzzer: build the fuzz targets, run each for 20 s (ctest -L fuzz)
+#   ./build.sh fuzz       clang + libFuzzer: build the fuzz targets, run each for 20 s (ctest -L fuzz;
+#                         PSQ_FUZZ_SECONDS=N to change)
 #   ./build.sh build      just build (Release) into build/
 # Dependencies come from Debian 12's packages only.
 set -euo pipefail
@@ -68,7 +69,8 @@ case "$cmd" in
   fuzz)
     PACKAGES+=(clang libclang-rt-14-dev)
     install_deps
-    CC=clang CXX=clang++ cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPSQ_FUZZ=ON -DPSQ_BUILD_TESTS=OFF -DPSQ_BUILD_BENCH=OFF >/dev/null
+    CC=clang CXX=clang++ cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPSQ_FUZZ=ON -DPSQ_BUILD_TESTS=OFF -DPSQ_BUILD_BENCH=OFF \
+      "-DPSQ_FUZZ_SECONDS=${PSQ_FUZZ_SECONDS:-20}" >/dev/null
     cmake --build build-fuzz -j "$JOBS"
     (cd build-fuzz && ctest -L fuzz --output-on-failure -j "$JOBS")
     ;;
