@@ -3,6 +3,8 @@
 // finalized as soon as the rows below it are done, into a sink that only
 // counts.
 //
+// Also a fan of 100k triangles around one vertex (linear work per valence).
+//
 //   build/bench/psq_bench_converter --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 #include <benchmark/benchmark.h>
 
@@ -81,7 +83,32 @@ void BM_CheckerCoherentGrid(benchmark::State& state) {
       benchmark::Counter(2.0 * n * n * static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
 }
 
+// A closed fan of n triangles around one vertex: the work around a vertex
+// must stay linear in its valence (it was quadratic: 16 s at n = 100000).
+void BM_ConverterFan(benchmark::State& state) {
+  uint32_t n = static_cast<uint32_t>(state.range(0));
+  psq::PropertyValues none;
+  double p[3] = {0, 0, 0};
+  for (auto _ : state) {
+    CountingSink sink;
+    psq::SequenceConverter conv(&sink);
+    psq::Status s = conv.begin(psq::MeshSchema());
+    for (uint32_t i = 0; s.ok() && i <= n; ++i) s = conv.vertex(i, p, none);
+    for (uint32_t i = 0; s.ok() && i < n; ++i) {
+      const uint32_t t[3] = {0, 1 + i, 1 + (i + 1) % n};
+      s = conv.triangle(t, none);
+    }
+    for (uint32_t i = 0; s.ok() && i <= n; ++i) s = conv.finalize(i);
+    if (s.ok()) s = conv.finish();
+    if (!s.ok()) state.SkipWithError(s.to_string().c_str());
+    benchmark::DoNotOptimize(sink.vertices);
+  }
+  state.counters["triangles/s"] =
+      benchmark::Counter(static_cast<double>(n) * static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+}
+
 BENCHMARK(BM_ConverterCoherentGrid)->Arg(1000)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_ConverterFan)->Arg(100000)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_CheckerCoherentGrid)->Arg(1000)->Unit(benchmark::kMillisecond);
 
 }  // namespace

@@ -3,10 +3,14 @@
 // triangles, on manifold, non-manifold, shuffled and soup meshes.
 #include <gtest/gtest.h>
 
+#include <malloc.h>
+
 #include <algorithm>
+#include <filesystem>
 #include <map>
 #include <random>
 #include <set>
+#include <sstream>
 
 #include "psq/converter.h"
 #include "psq/mesh_formats.h"
@@ -256,13 +260,25 @@ TEST(Sequence, DumpFormat) {
 
 std::string shared(const std::string& rel) { return std::string(PSQ_SHARED_DATA) + "/" + rel; }
 
+// Every mesh of the corpus (directory listing) on the path build_sequence
+// picks for it.
+std::vector<std::string> corpus_meshes() {
+  std::vector<std::string> files;
+  std::string dir = shared("meshes");
+  if (!test::file_exists(dir + "/bunny.ply")) return files;
+  for (const auto& e : std::filesystem::directory_iterator(dir)) {
+    if (e.path().extension() == ".ply") files.push_back(e.path().filename().string());
+  }
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
 TEST(SequenceShared, EveryMeshGivesAValidSequence) {
   if (!test::file_exists(shared("meshes/bunny.ply"))) GTEST_SKIP() << "../shared/data not present";
-  const char* files[] = {"bunny.ply", "fandisk.ply", "blade.ply", "elephant.ply", "elephant_with_holes.ply",
-                         "mech_holes_shark.ply", "turbine.ply", "cheese.ply", "knot2.ply", "bones.ply",
-                         "b9_mesh.ply", "boeing.ply", "blobby_shuffled.ply", "nonmanifold_wrap.ply",
-                         "max_export_nm.ply", "spider.ply", "iso_ball_200k_shuffled.ply"};
-  for (const char* f : files) {
+  std::vector<std::string> files = corpus_meshes();
+  EXPECT_GE(files.size(), 20u);
+  for (const std::string& name : files) {
+    const char* f = name.c_str();
     OpenedMesh om;
     ASSERT_TRUE(open_mesh(shared(std::string("meshes/") + f), OpenOptions(), &om).ok()) << f;
     SequenceChecker checker;
@@ -350,6 +366,382 @@ TEST(Sequence, BoundarySlotsReconstructConnectivity) {
       EXPECT_GE(v, 4u);
       EXPECT_LE(v, 40u);
     }
+  }
+}
+
+}  // namespace
+}  // namespace psq
+
+namespace psq {
+namespace {
+
+// Runs a hand-written event script through a checker, begin to finish, and
+// returns the first error. Lines: "v" introduces the next vertex; "t A B C OP
+// M [f=F] [l=L] [e=E] [s=S0,S1,S2]" is a triangle with border mask M and
+// optionally its final, leaving and entering masks and edge slots (-1 for
+// none); new corners are found by first use; "x A" finalizes A.
+Status run_script(const std::vector<std::string>& lines) {
+  SequenceChecker c;
+  PSQ_RETURN_IF_ERROR(c.begin(MeshSchema()));
+  std::vector<char> fresh;
+  for (const std::string& line : lines) {
+    std::istringstream ls(line);
+    std::string kind;
+    ls >> kind;
+    if (kind == "v") {
+      SequenceVertex v;
+      v.index = static_cast<uint32_t>(fresh.size());
+      fresh.push_back(1);
+      PSQ_RETURN_IF_ERROR(c.vertex(v));
+    } else if (kind == "t") {
+      SequenceTriangle t;
+      std::string op;
+      unsigned mask;
+      ls >> t.v[0] >> t.v[1] >> t.v[2] >> op >> mask;
+      const char* names[] = {"start", "add", "join", "fill", "end"};
+      t.op = static_cast<Op>(std::find(names, names + 5, op) - names);
+      t.border_mask = static_cast<uint8_t>(mask);
+      for (int k = 0; k < 3; ++k) {
+        if (t.v[k] < fresh.size() && fresh[t.v[k]]) t.new_mask |= static_cast<uint8_t>(1u << k);
+      }
+      for (int k = 0; k < 3; ++k) {
+        if (t.v[k] < fresh.size()) fresh[t.v[k]] = 0;
+      }
+      std::string opt;
+      while (ls >> opt) {
+        if (opt.rfind("s=", 0) == 0) {
+          std::istringstream ss(opt.substr(2));
+          for (int k = 0; k < 3; ++k) {
+            long x;
+            char comma;
+            ss >> x;
+            if (k < 2) ss >> comma;
+            t.eslot[k] = x < 0 ? kNoSlot : static_cast<uint32_t>(x);
+          }
+          continue;
+        }
+        uint8_t value = static_cast<uint8_t>(std::stoi(opt.substr(2)));
+        if (opt[0] == 'f') t.final_mask = value;
+        if (opt[0] == 'l') t.leaving_mask = value;
+        if (opt[0] == 'e') t.entering_mask = value;
+      }
+      PSQ_RETURN_IF_ERROR(c.triangle(t));
+    } else if (kind == "x") {
+      uint32_t a;
+      ls >> a;
+      PSQ_RETURN_IF_ERROR(c.finalize(a));
+    }
+  }
+  return c.finish();
+}
+
+// The example of spec/psq-dump.md, A.3.
+const std::vector<std::string> kSpecExample = {"v", "v", "v", "t 0 1 2 start 5", "x 0", "v", "t 1 3 2 add 3",
+                                               "x 1", "x 3", "x 2", "v", "x 4"};
+
+void expect_rejected(const std::vector<std::string>& script, const std::string& needle) {
+  Status s = run_script(script);
+  EXPECT_EQ(s.code(), ErrorCode::kBadSequence) << s.to_string();
+  EXPECT_NE(s.message().find(needle), std::string::npos) << s.to_string();
+}
+
+TEST(SequenceChecker, RequiresCanonicalFinalization) {
+  EXPECT_TRUE(run_script(kSpecExample).ok());
+  // Vertex 0 has no boundary edge after triangle 0 but is finalized later.
+  expect_rejected({"v", "v", "v", "t 0 1 2 start 5", "v", "t 1 3 2 add 3", "x 1", "x 3", "x 2", "x 0"}, "triangle 0:");
+  expect_rejected({"v", "v", "v", "t 0 1 2 start 5", "v", "t 1 3 2 add 3", "x 0", "x 1", "x 3", "x 2"}, "triangle 0:");
+  // Not in corner order.
+  expect_rejected({"v", "v", "v", "t 0 1 2 start 5", "x 0", "v", "t 1 3 2 add 3", "x 3", "x 1", "x 2"}, "triangle 1:");
+  // Left open at the end.
+  expect_rejected({"v", "v", "v", "t 0 1 2 start 7"}, "triangle 0:");
+  // An isolated vertex is finalized right after its vertex event, not
+  // after the next triangle.
+  expect_rejected({"v", "v", "v", "t 0 1 2 start 0", "v", "v", "t 1 0 4 add 0", "x 3"},
+                  "triangle 1: vertex 3 was introduced right before this triangle");
+}
+
+TEST(SequenceChecker, RequiresNewVerticesRightBeforeTheirTriangle) {
+  // Vertex 3 is introduced before triangle 1, which does not use it.
+  expect_rejected({"v", "v", "v", "t 0 1 2 start 0", "v", "t 2 1 0 end 0", "x 2", "x 1", "x 0", "x 3"},
+                  "vertex 3 was introduced right before this triangle");
+  // Four vertices before one triangle.
+  expect_rejected({"v", "v", "v", "v"}, "fourth vertex");
+  // An isolated vertex finalized while another waits for its triangle.
+  expect_rejected({"v", "v", "v", "x 2"}, "waits for its triangle");
+}
+
+TEST(SequenceChecker, RejectsAReusedCompletedEdge) {
+  // Triangle 1 completes edge 0-1; triangle 2 uses it a third time (and is a
+  // valid fill otherwise): three triangles on one edge.
+  expect_rejected({"v", "v", "v", "t 0 1 2 start 0", "v", "t 1 0 3 add 0", "t 1 0 2 fill 0", "x 2", "t 3 0 1 end 0",
+                   "x 3", "x 0", "x 1"},
+                  "triangle 2: edge 0 reuses a closed edge");
+}
+
+TEST(SequenceChecker, ChecksFinalMask) {
+  EXPECT_TRUE(run_script({"v", "v", "v", "t 0 1 2 start 5 l=0 e=2 f=1", "x 0", "v", "t 1 3 2 add 3 l=4 e=0 f=7",
+                          "x 1", "x 3", "x 2"})
+                  .ok());
+  expect_rejected({"v", "v", "v", "t 0 1 2 start 5 l=0 e=2 f=0", "x 0", "v", "t 1 3 2 add 3 l=4 e=0 f=7", "x 1",
+                   "x 3", "x 2"},
+                  "triangle 0: final_mask");
+  expect_rejected({"v", "v", "v", "t 0 1 2 start 5 l=0 e=2 f=1", "x 0", "v", "t 1 3 2 add 3 l=4 e=0 f=3", "x 1",
+                   "x 3", "x 2"},
+                  "triangle 1: final_mask");
+  // Once a producer gave masks it must give them on every triangle.
+  expect_rejected({"v", "v", "v", "t 0 1 2 start 5 l=0 e=2 f=1", "x 0", "v", "t 1 3 2 add 3", "x 1", "x 3", "x 2"},
+                  "triangle 1:");
+}
+
+TEST(SequenceChecker, RejectsASlotOnABorderEdge) {
+  EXPECT_TRUE(run_script({"v", "v", "v", "t 0 1 2 start 5 s=-1,4,-1", "x 0", "v", "t 1 3 2 add 3 s=-1,-1,4", "x 1",
+                          "x 3", "x 2"})
+                  .ok());
+  expect_rejected({"v", "v", "v", "t 0 1 2 start 5 s=7,4,-1", "x 0", "v", "t 1 3 2 add 3", "x 1", "x 3", "x 2"},
+                  "triangle 0: edge 0 is a border but names edge slot 7");
+}
+
+TEST(SequenceChecker, RejectsAJoinOffTheBoundary) {
+  // Triangle 2 joins vertex 3, whose edges are all borders (triangle 1).
+  // Canonical finalization already forbids keeping vertex 3 after triangle
+  // 1, so that is what the checker names: with rule 4, every used vertex
+  // that is not finalized is on the boundary, as a join needs.
+  expect_rejected({"v", "v", "v", "t 0 1 2 start 0", "v", "v", "v", "t 3 4 5 start 7", "t 1 0 3 join 0",
+                   "t 2 1 3 fill 0", "t 0 2 3 end 0", "x 4", "x 5", "x 0", "x 2", "x 3", "x 1"},
+                  "triangle 1: no boundary edge touches vertex 3");
+}
+
+}  // namespace
+}  // namespace psq
+
+namespace psq {
+namespace {
+
+// Counts events, keeps nothing.
+class CountingSink : public SequenceSink {
+ public:
+  Status begin(const MeshSchema&) override { return Status(); }
+  Status vertex(const SequenceVertex&) override {
+    ++vertices;
+    return Status();
+  }
+  Status triangle(const SequenceTriangle&) override {
+    ++triangles;
+    return Status();
+  }
+  Status finalize(uint32_t) override { return Status(); }
+  Status finish() override { return Status(); }
+  uint64_t vertices = 0, triangles = 0;
+};
+
+// Feeds an n x n grid of quads row by row, finalizing each row of vertices
+// once the rows of quads around it are in; does not finish.
+Status feed_grid(SequenceConverter& conv, uint32_t n) {
+  const uint32_t w = n + 1;
+  PropertyValues none;
+  PSQ_RETURN_IF_ERROR(conv.begin(MeshSchema()));
+  double p[3] = {0, 0, 0};
+  for (uint32_t i = 0; i < w; ++i) PSQ_RETURN_IF_ERROR(conv.vertex(i, p, none));
+  for (uint32_t j = 0; j < n; ++j) {
+    for (uint32_t i = 0; i < w; ++i) PSQ_RETURN_IF_ERROR(conv.vertex((j + 1) * w + i, p, none));
+    for (uint32_t i = 0; i < n; ++i) {
+      uint32_t a = j * w + i, b = a + 1, c = a + w + 1, d = a + w;
+      const uint32_t t0[3] = {a, b, c}, t1[3] = {a, c, d};
+      PSQ_RETURN_IF_ERROR(conv.triangle(t0, none));
+      PSQ_RETURN_IF_ERROR(conv.triangle(t1, none));
+    }
+    for (uint32_t i = 0; i < w; ++i) PSQ_RETURN_IF_ERROR(conv.finalize(j * w + i));
+  }
+  for (uint32_t i = 0; i < w; ++i) PSQ_RETURN_IF_ERROR(conv.finalize(n * w + i));
+  return Status();
+}
+
+// Speed is measured in bench/ (BM_ConverterFan), not here: these tests
+// check that huge valences give valid sequences (the quadratic converter
+// took about 8 s per fan, the current one about 0.15 s).
+TEST(Converter, FanOf100kTrianglesAroundOneVertex) {
+  // An open and a closed fan of 100k triangles around vertex 0.
+  const uint32_t n = 100000;
+  for (bool closed : {false, true}) {
+    SequenceChecker checker;
+    SequenceConverter conv(&checker);
+    PropertyValues none;
+    ASSERT_TRUE(conv.begin(MeshSchema()).ok());
+    double p[3] = {0, 0, 0};
+    uint32_t ring = closed ? n : n + 1;
+    for (uint32_t i = 0; i <= ring; ++i) ASSERT_TRUE(conv.vertex(i, p, none).ok());
+    for (uint32_t i = 0; i < n; ++i) {
+      const uint32_t t[3] = {0, 1 + i, 1 + (i + 1) % ring};
+      ASSERT_TRUE(conv.triangle(t, none).ok());
+    }
+    for (uint32_t i = 0; i <= ring; ++i) ASSERT_TRUE(conv.finalize(i).ok());
+    Status s = conv.finish();
+    ASSERT_TRUE(s.ok()) << s.to_string();
+    EXPECT_EQ(checker.stats().triangles, n);
+    EXPECT_EQ(checker.stats().reappearances, 0u);
+    EXPECT_EQ(checker.stats().border_edges, closed ? n : n + 2);
+    EXPECT_EQ(conv.stats().border_edges, closed ? n : n + 2);
+  }
+}
+
+TEST(Converter, ManyTrianglesOnOneEdge) {
+  // 100k triangles on the edge 0-1, in both orientations: the edge is cut,
+  // every triangle is its own fan at 0 and at 1.
+  const uint32_t n = 100000;
+  SequenceChecker checker;
+  SequenceConverter conv(&checker);
+  PropertyValues none;
+  ASSERT_TRUE(conv.begin(MeshSchema()).ok());
+  double p[3] = {0, 0, 0};
+  for (uint32_t i = 0; i < n + 2; ++i) ASSERT_TRUE(conv.vertex(i, p, none).ok());
+  for (uint32_t i = 0; i < n; ++i) {
+    const uint32_t t0[3] = {0, 1, 2 + i}, t1[3] = {1, 0, 2 + i};
+    ASSERT_TRUE(conv.triangle(i % 2 ? t1 : t0, none).ok());
+  }
+  Status s = conv.finish();
+  ASSERT_TRUE(s.ok()) << s.to_string();
+  EXPECT_EQ(checker.stats().triangles, n);
+  EXPECT_EQ(checker.stats().reappearances, 2 * (n - 1));
+  EXPECT_EQ(checker.stats().nonmanifold_edges, 1u);
+  EXPECT_EQ(conv.stats().nonmanifold_edges, 1u);
+  EXPECT_EQ(conv.stats().nonmanifold_vertices, 2u);
+}
+
+TEST(Converter, RejectsIdsFinalizedAndReleased) {
+  // A 300 x 300 grid: 180k triangles, enough for regions to start and
+  // vertices of the first rows to be emitted and leave the waiting area.
+  PropertyValues none;
+  double p[3] = {0, 0, 0};
+  {
+    CountingSink sink;
+    SequenceConverter conv(&sink);
+    ASSERT_TRUE(feed_grid(conv, 300).ok());
+    ASSERT_GT(sink.triangles, 0u);
+    Status s = conv.vertex(0, p, none);
+    EXPECT_EQ(s.code(), ErrorCode::kBadIndex) << s.to_string();
+  }
+  {
+    CountingSink sink;
+    SequenceConverter conv(&sink);
+    ASSERT_TRUE(feed_grid(conv, 300).ok());
+    ASSERT_TRUE(conv.vertex(1000000, p, none).ok());
+    ASSERT_TRUE(conv.vertex(1000001, p, none).ok());
+    const uint32_t t[3] = {1000000, 1000001, 0};
+    Status s = conv.triangle(t, none);
+    EXPECT_EQ(s.code(), ErrorCode::kBadIndex) << s.to_string();
+  }
+  {
+    CountingSink sink;
+    SequenceConverter conv(&sink);
+    ASSERT_TRUE(feed_grid(conv, 300).ok());
+    Status s = conv.finalize(0);
+    EXPECT_EQ(s.code(), ErrorCode::kBadIndex) << s.to_string();
+    EXPECT_NE(s.message().find("twice"), std::string::npos) << s.to_string();
+  }
+  {
+    // Ids finalized in random order over a wide range are remembered too.
+    CountingSink sink;
+    SequenceConverter conv(&sink);
+    ASSERT_TRUE(conv.begin(MeshSchema()).ok());
+    std::mt19937 rng(3);
+    std::vector<uint32_t> ids;
+    for (int i = 0; i < 20000; ++i) ids.push_back(static_cast<uint32_t>(rng() % 4000000000u));
+    std::sort(ids.begin(), ids.end());
+    ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+    std::shuffle(ids.begin(), ids.end(), rng);
+    for (uint32_t id : ids) {
+      ASSERT_TRUE(conv.vertex(id, p, none).ok());
+      ASSERT_TRUE(conv.finalize(id).ok());
+    }
+    EXPECT_EQ(sink.vertices, ids.size());  // isolated: emitted and released at once
+    for (size_t i = 0; i < ids.size(); i += 97) {
+      SequenceConverter again(&sink);
+      ASSERT_TRUE(again.begin(MeshSchema()).ok());
+      ASSERT_TRUE(again.vertex(ids[i], p, none).ok());  // another converter: fine
+    }
+    EXPECT_EQ(conv.vertex(ids[ids.size() / 2], p, none).code(), ErrorCode::kBadIndex);
+  }
+  // Dense ids finalized in random order: ranges of 2^16 ids go from a list
+  // to a bitmap to full. Each probe needs a converter of its own (errors
+  // are sticky).
+  std::vector<uint32_t> dense(140000);
+  for (uint32_t i = 0; i < dense.size(); ++i) dense[i] = i;
+  std::shuffle(dense.begin(), dense.end(), std::mt19937(9));
+  for (uint32_t probe : {5u, 70000u, 131071u, 139999u}) {
+    CountingSink sink;
+    SequenceConverter conv(&sink);
+    ASSERT_TRUE(conv.begin(MeshSchema()).ok());
+    for (uint32_t id : dense) {
+      ASSERT_TRUE(conv.vertex(id, p, none).ok());
+      ASSERT_TRUE(conv.finalize(id).ok());
+    }
+    ASSERT_TRUE(conv.vertex(140001, p, none).ok());
+    EXPECT_EQ(conv.vertex(probe, p, none).code(), ErrorCode::kBadIndex) << probe;
+  }
+}
+
+TEST(Converter, ErrorsAreSticky) {
+  CountingSink sink;
+  SequenceConverter conv(&sink);
+  PropertyValues none;
+  double p[3] = {0, 0, 0};
+  ASSERT_TRUE(conv.begin(MeshSchema()).ok());
+  ASSERT_TRUE(conv.vertex(5, p, none).ok());
+  Status first = conv.vertex(5, p, none);
+  ASSERT_EQ(first.code(), ErrorCode::kBadIndex);
+  const uint32_t t[3] = {5, 6, 7};
+  for (Status s : {conv.vertex(6, p, none), conv.vertex(7, p, none), conv.triangle(t, none), conv.finalize(5),
+                   conv.finish(), conv.begin(MeshSchema())}) {
+    EXPECT_EQ(s.code(), first.code());
+    EXPECT_EQ(s.message(), first.message());
+  }
+  EXPECT_EQ(sink.vertices, 0u);
+}
+
+#if defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 33))
+TEST(Converter, MemoryOfCutLinksIsReleased) {
+  // Many small non-manifold pieces in a row: around vertex v the spoke v-a
+  // has three triangles, so a fan walk cuts the link v-b between (v,a,b) and
+  // (v,b,c). What the converter remembers of such cuts must leave with the
+  // triangles: heap use stays flat once the waiting area is warm.
+  CountingSink sink;
+  SequenceConverter conv(&sink);
+  PropertyValues none;
+  double p[3] = {0, 0, 0};
+  ASSERT_TRUE(conv.begin(MeshSchema()).ok());
+  size_t warm = 0;
+  for (uint32_t u = 0; u < 140000; ++u) {
+    if (u == 40000) warm = mallinfo2().uordblks;
+    uint32_t v = 5 * u, a = v + 1, b = v + 2, c = v + 3, d = v + 4;
+    for (uint32_t i = v; i < v + 5; ++i) ASSERT_TRUE(conv.vertex(i, p, none).ok());
+    const uint32_t ts[4][3] = {{v, a, b}, {v, b, c}, {v, c, a}, {v, a, d}};
+    for (const auto& t : ts) ASSERT_TRUE(conv.triangle(t, none).ok());
+    for (uint32_t i = v; i < v + 5; ++i) ASSERT_TRUE(conv.finalize(i).ok());
+  }
+  size_t end = mallinfo2().uordblks;
+  EXPECT_LT(end, warm + (size_t{1} << 20)) << "heap grew by " << (end - warm) << " bytes over 100k cut links";
+  ASSERT_TRUE(conv.finish().ok());
+  EXPECT_EQ(sink.triangles, 4u * 140000);
+  EXPECT_GE(conv.stats().nonmanifold_edges, 140000u);
+}
+#endif
+
+// The forced sort path on every corpus mesh under 2 MB (the large ones take
+// seconds there and add nothing the small ones do not cover).
+TEST(SequenceShared, EveryCorpusMeshOnTheSortPath) {
+  if (!test::file_exists(shared("meshes/bunny.ply"))) GTEST_SKIP() << "../shared/data not present";
+  for (const std::string& name : corpus_meshes()) {
+    std::string f = shared("meshes/" + name);
+    if (std::filesystem::file_size(f) > (2u << 20)) continue;
+    OpenedMesh om;
+    ASSERT_TRUE(open_mesh(f, OpenOptions(), &om).ok()) << f;
+    SequenceChecker checker;
+    BuildOptions o;
+    o.force_sort = true;
+    BuildReport r;
+    Status s = build_sequence(*om.source, checker, o, &r);
+    EXPECT_TRUE(s.ok()) << f << ": " << s.to_string();
+    EXPECT_EQ(checker.stats().triangles + r.converter.degenerate_dropped, r.triangles) << f;
   }
 }
 

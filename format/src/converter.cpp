@@ -2,13 +2,24 @@
 // ordered indexed triangles into a processing sequence (Isenburg, Lindstrom,
 // Gumhold, Snoeyink 2003, section 3 and Figure 3), cutting non-manifold
 // vertices and edges so that only the five ops of Figure 2 occur.
+//
+// Work per vertex is linear in its valence: its neighbours are grouped into
+// spokes through a mark on the neighbour's pool entry (the pool slot is a
+// perfect hash of a waiting vertex), each edge is decided once (at the
+// finalization of whichever end comes first) and stored on its triangles as
+// a partner reference (triangle * 4 + edge), and fans are walked through
+// those references. A waiting triangle and a waiting vertex take one cache
+// line each; a vertex's triangles form a list linked through the triangles
+// (Tri::next), property values live in side arrays touched only when there
+// are any.
 #include "psq/converter.h"
 
 #include <algorithm>
 #include <array>
-#include <deque>
+#include <iterator>
+#include <map>
 #include <string>
-#include <unordered_set>
+#include <unordered_map>
 #include <vector>
 
 namespace psq {
@@ -19,65 +30,65 @@ constexpr uint32_t kNone = 0xffffffffu;
 // input still arrives (measured on the shared meshes: 256 gave 3992 starts on
 // iso_ball_200k_shuffled, 65536 gave 36, its component count).
 constexpr uint64_t kStartDelay = 65536;
+// Triangle slots are stored as slot * 4 + corner (or edge).
+constexpr uint32_t kMaxTriangles = 1u << 30;
 
-uint64_t edge_key(uint32_t a, uint32_t b) {
-  return a < b ? (uint64_t{a} << 32) | b : (uint64_t{b} << 32) | a;
-}
+// A waiting triangle: one cache line. Its face values live in
+// Impl::tri_values (touched only when there are any).
+struct alignas(64) Tri {
+  uint32_t vs[3];       // vertex pool slots of its corners, input orientation
+  uint32_t seg[3];      // fan (dense vertex slot) of each corner, once settled
+  uint32_t partner[3];  // across edge k (corner k to k+1): partner slot * 4 + its edge, or kNone
+  uint32_t eslot[3];    // boundary slot of edge k once its partner entered it
+  uint32_t next[3];     // corner k's successor in its vertex's corner list (slot * 4 + corner)
+  uint8_t cut_mask;     // edge k is cut: non-manifold, or a link a fan split broke
+  uint8_t nm_mask;      // edge k is non-manifold (more than two triangles, or misoriented)
+  uint8_t done_mask;    // edge k's partner was emitted
+  uint8_t state;        // kSettledMask: corners settled; kReady, kEmitted, kHasValues
 
-struct Tri {
-  uint32_t v[3] = {kNone, kNone, kNone};        // input ids, input orientation
-  uint32_t vs[3] = {kNone, kNone, kNone};       // their slots in the vertex pool
-  uint32_t seg[3] = {kNone, kNone, kNone};      // fan of each corner, once settled
-  uint32_t partner[3] = {kNone, kNone, kNone};  // triangle across edge k (k: corner k to k+1)
-  uint32_t eslot[3] = {kNone, kNone, kNone};    // boundary slot of edge k once its partner entered it
-  uint8_t cut_mask = 0;     // edge k is non-manifold (cut)
-  uint8_t linked_mask = 0;  // edge k's partner is decided (set from either end)
-  uint8_t done_mask = 0;    // edge k's partner was emitted
-  uint8_t settled = 0;      // corners whose vertex is settled
-  uint8_t completed = 0;    // popcount(done_mask)
-  bool ready = false;
-  bool emitted = false;
-  PropertyValues values;
-
-  // Back to a fresh triangle, keeping the values' capacity.
+  static constexpr uint8_t kSettledMask = 3, kReady = 4, kEmitted = 8, kHasValues = 16;
+  bool ready() const { return state & kReady; }
+  bool emitted() const { return state & kEmitted; }
+  int completed() const { return (done_mask & 1) + ((done_mask >> 1) & 1) + (done_mask >> 2); }
   void reset() {
-    PropertyValues keep;
-    keep.swap(values);
-    *this = Tri();
-    keep.clear();
-    values.swap(keep);
+    for (int k = 0; k < 3; ++k) vs[k] = seg[k] = partner[k] = eslot[k] = next[k] = kNone;
+    cut_mask = nm_mask = done_mask = state = 0;
   }
 };
+static_assert(sizeof(Tri) == 64, "a triangle fills one cache line");
 
-// One spoke of a vertex: the neighbour and the triangles using that edge.
-struct Spoke {
-  uint32_t other;
-  uint32_t tris[2];    // the first two triangles (local indices)
-  bool out[2];         // the triangle's edge runs vertex -> other
-  uint32_t count = 0;  // triangles on the edge
-};
-
-struct Vert {
+// A waiting vertex: one cache line, values in Impl::vert_values.
+struct alignas(64) Vert {
+  uint32_t stamp = 0;              // scratch: `spoke` is valid while stamp == visit_stamp
+  uint32_t spoke = 0;              // scratch: its spoke around the vertex being finalized
+  uint32_t waiting_neighbors = 0;  // neighbours not yet finalized (after finalization)
+  uint32_t unemitted = 0;          // incident triangles not yet emitted
+  uint32_t first_dense = kNone;    // dense index of its first fan emitted
   uint32_t id = kNone;
-  bool has_data = false;
+  uint32_t head = kNone;           // its corners (slot * 4 + corner) in input order, until settled:
+  uint32_t tail = kNone;           // a list linked through Tri::next
   bool finalized = false;
   bool settled = false;
+  bool has_data = false;
+  bool has_values = false;
   double position[3] = {0, 0, 0};
-  PropertyValues values;
-  std::vector<uint32_t> tris;     // incident triangles not yet emitted (and emitted ones until settled)
-  uint32_t waiting_neighbors = 0; // neighbours not yet finalized (after finalization)
-  uint32_t first_dense = kNone;   // dense index of its first fan emitted
-  uint32_t unemitted = 0;
-  uint64_t stamp = 0;             // marks visits during one finalization
-  bool repeats = false;           // a neighbour repeats on a side (found at finalization)
+};
+static_assert(sizeof(Vert) == 64, "a vertex fills one cache line");
+
+// One undecided spoke (edge) of the vertex being finalized: the neighbour,
+// not finalized yet, and the triangles using the edge in each direction.
+struct Spoke {
+  uint32_t out_edge;    // first triangle with the edge vertex -> neighbour: slot * 4 + edge
+  uint32_t in_edge;     // first triangle with neighbour -> vertex
+  uint32_t n_out;
+  uint32_t n_in;
+  bool cut;             // non-manifold: cut on all its triangles
 };
 
 struct Seg {
-  uint32_t vertex = kNone;  // input id
   uint32_t dense = kNone;   // dense index once emitted
   uint32_t remaining = 0;   // triangles of the fan not yet emitted
 };
-
 
 // Input vertex id -> slot in the vertex pool: open addressing with linear
 // probing and backward-shift deletion, so that the waiting area costs no
@@ -89,78 +100,219 @@ class IdMap {
   // The slot of `id`, or kNone.
   uint32_t find(uint32_t id) const {
     for (size_t i = hash(id);; i = (i + 1) & mask_) {
-      if (keys_[i] == kNone) return kNone;
-      if (keys_[i] == id) return values_[i];
+      if (cells_[i].key == kNone) return kNone;
+      if (cells_[i].key == id) return cells_[i].value;
     }
   }
   void insert(uint32_t id, uint32_t value) {
-    if (2 * (size_ + 1) > keys_.size()) rehash(2 * keys_.size());
+    if (2 * (size_ + 1) > cells_.size()) rehash(2 * cells_.size());
     size_t i = hash(id);
-    while (keys_[i] != kNone) i = (i + 1) & mask_;
-    keys_[i] = id;
-    values_[i] = value;
+    while (cells_[i].key != kNone) i = (i + 1) & mask_;
+    cells_[i] = Cell{id, value};
     ++size_;
   }
   void erase(uint32_t id) {
     size_t i = hash(id);
-    while (keys_[i] != id) {
-      if (keys_[i] == kNone) return;
+    while (cells_[i].key != id) {
+      if (cells_[i].key == kNone) return;
       i = (i + 1) & mask_;
     }
     // Shift later members of the probe run back into the hole.
-    for (size_t j = (i + 1) & mask_; keys_[j] != kNone; j = (j + 1) & mask_) {
-      size_t home = hash(keys_[j]);
+    for (size_t j = (i + 1) & mask_; cells_[j].key != kNone; j = (j + 1) & mask_) {
+      size_t home = hash(cells_[j].key);
       if (((j - home) & mask_) >= ((j - i) & mask_)) {
-        keys_[i] = keys_[j];
-        values_[i] = values_[j];
+        cells_[i] = cells_[j];
         i = j;
       }
     }
-    keys_[i] = kNone;
+    cells_[i].key = kNone;
     --size_;
   }
   template <class F>
   void for_each(F f) const {
-    for (size_t i = 0; i < keys_.size(); ++i) {
-      if (keys_[i] != kNone) f(keys_[i], values_[i]);
+    for (const Cell& c : cells_) {
+      if (c.key != kNone) f(c.key, c.value);
     }
   }
 
  private:
+  struct Cell {
+    uint32_t key;
+    uint32_t value;
+  };
   size_t hash(uint32_t id) const { return (uint64_t{id} * 0x9E3779B97F4A7C15ull >> 20) & mask_; }
   void rehash(size_t capacity) {
-    std::vector<uint32_t> k(capacity, kNone), v(capacity, 0);
-    k.swap(keys_);
-    v.swap(values_);
+    std::vector<Cell> old(capacity, Cell{kNone, 0});
+    old.swap(cells_);
     mask_ = capacity - 1;
     size_ = 0;
-    for (size_t i = 0; i < k.size(); ++i) {
-      if (k[i] != kNone) insert(k[i], v[i]);
+    for (const Cell& c : old) {
+      if (c.key != kNone) insert(c.key, c.value);
     }
   }
-  std::vector<uint32_t> keys_, values_;
+  std::vector<Cell> cells_;
   size_t mask_ = 0;
   size_t size_ = 0;
 };
+
+// The input ids finalized so far, so that vertex() and triangle() reject an
+// id whose vertex has left the waiting area. Ids are grouped in pages of
+// 2^16: a page keeps its finalized ids as a sorted list while it has at most
+// 4096 (2 bytes each), then as a bitmap (8 KiB), and nothing once all its
+// ids are finalized (runs of such full pages are kept as intervals). Dense
+// ids finalized roughly in order (coherent input) thus cost a few pages; in
+// any order at most one bit per id of the pages in use.
+class FinalizedIds {
+ public:
+  bool contains(uint32_t id) {
+    if (empty_ || id > max_) return false;  // ids mostly grow: new ones end here
+    uint32_t p = id >> kShift;
+    const Page* pg = find(p);
+    if (pg == nullptr) return full(p);
+    uint16_t low = static_cast<uint16_t>(id);
+    if (!pg->bits.empty()) return (pg->bits[low >> 6] >> (low & 63)) & 1;
+    return std::binary_search(pg->list.begin(), pg->list.end(), low);
+  }
+  // `id` must not be in the set.
+  void insert(uint32_t id) {
+    if (empty_ || id > max_) max_ = id;
+    empty_ = false;
+    uint32_t p = id >> kShift;
+    Page* pg = find(p);
+    if (pg == nullptr) {
+      pg = &pages_[p];
+      cached_page_ = p;
+      cached_ = pg;
+    }
+    uint16_t low = static_cast<uint16_t>(id);
+    if (pg->bits.empty() && pg->list.size() < kListMax) {
+      if (pg->list.empty() || pg->list.back() < low) {
+        pg->list.push_back(low);
+      } else {
+        pg->list.insert(std::lower_bound(pg->list.begin(), pg->list.end(), low), low);
+      }
+    } else {
+      if (pg->bits.empty()) {
+        pg->bits.assign(kPageSize / 64, 0);
+        for (uint16_t x : pg->list) pg->bits[x >> 6] |= uint64_t{1} << (x & 63);
+        std::vector<uint16_t>().swap(pg->list);
+      }
+      pg->bits[low >> 6] |= uint64_t{1} << (low & 63);
+    }
+    if (++pg->count == kPageSize) {
+      pages_.erase(p);
+      cached_ = nullptr;
+      cached_page_ = kNone;
+      add_full(p);
+    }
+  }
+
+ private:
+  static constexpr int kShift = 16;
+  static constexpr uint32_t kPageSize = 1u << kShift;
+  static constexpr size_t kListMax = kPageSize / 16;  // as many bytes as the bitmap
+  struct Page {
+    uint32_t count = 0;
+    std::vector<uint16_t> list;  // sorted low 16 bits, while at most kListMax
+    std::vector<uint64_t> bits;  // once more
+  };
+
+  Page* find(uint32_t p) {
+    if (p == cached_page_) return cached_;
+    auto it = pages_.find(p);
+    if (it == pages_.end()) return nullptr;
+    cached_page_ = p;
+    cached_ = &it->second;  // nodes of an unordered_map stay put
+    return cached_;
+  }
+  bool full(uint32_t p) const {
+    auto it = full_.upper_bound(p);
+    return it != full_.begin() && std::prev(it)->second > p;
+  }
+  void add_full(uint32_t p) {
+    uint32_t hi = p + 1;  // at most 2^16
+    auto next = full_.find(hi);
+    if (next != full_.end()) {
+      hi = next->second;
+      full_.erase(next);
+    }
+    auto it = full_.lower_bound(p);
+    if (it != full_.begin() && std::prev(it)->second == p) {
+      std::prev(it)->second = hi;
+      return;
+    }
+    full_[p] = hi;
+  }
+
+  std::unordered_map<uint32_t, Page> pages_;  // pages with some, not all, ids finalized
+  std::map<uint32_t, uint32_t> full_;         // runs of full pages: first -> one past the last
+  uint32_t cached_page_ = kNone;
+  Page* cached_ = nullptr;
+  uint32_t max_ = 0;  // the largest id in the set
+  bool empty_ = true;
+};
+
+// A FIFO queue of triangle slots (a vector and a read position; the read
+// part is dropped once it is the larger half).
+class SlotQueue {
+ public:
+  bool empty() const { return head_ == items_.size(); }
+  size_t size() const { return items_.size() - head_; }
+  void push(uint32_t x) { items_.push_back(x); }
+  uint32_t pop() {
+    uint32_t x = items_[head_++];
+    if (head_ == items_.size()) {
+      items_.clear();
+      head_ = 0;
+    } else if (head_ >= 4096 && 2 * head_ >= items_.size()) {
+      items_.erase(items_.begin(), items_.begin() + static_cast<std::ptrdiff_t>(head_));
+      head_ = 0;
+    }
+    return x;
+  }
+  template <class Keep>
+  void filter(Keep keep) {
+    size_t n = 0;
+    for (size_t i = head_; i < items_.size(); ++i) {
+      if (keep(items_[i])) items_[n++] = items_[i];
+    }
+    items_.resize(n);
+    head_ = 0;
+  }
+
+ private:
+  std::vector<uint32_t> items_;
+  size_t head_ = 0;
+};
+
+// Corner arithmetic: the next and previous corner. Edge k joins corners k
+// and k + 1, so the edges at corner c are c (out) and kPrev[c] (in).
+constexpr uint32_t kNext[3] = {1, 2, 0};
+constexpr uint32_t kPrev[3] = {2, 0, 1};
+// The two edges at corner c, as a mask.
+constexpr uint8_t kEdgesAt[3] = {5, 3, 6};
 
 }  // namespace
 
 struct SequenceConverter::Impl {
   SequenceSink* out = nullptr;
+  Status error;              // the first error; every later call returns it
   ConverterStats stats;
   IdMap ids;                 // input id -> slot in vpool
+  FinalizedIds finalized_ids;
   std::vector<Vert> vpool;
+  std::vector<PropertyValues> vert_values;  // per vpool slot, when has_values
   std::vector<uint32_t> free_verts;
   std::vector<Tri> tris;
+  std::vector<PropertyValues> tri_values;   // per tris slot, when kHasValues
   std::vector<uint32_t> free_tris;
   std::vector<Seg> segs;          // a fan's index is its vertex's boundary slot
   std::vector<uint32_t> free_segs;
   uint32_t edge_slots = 0;        // boundary edge slots handed out so far
   std::vector<uint32_t> free_edge_slots;
-  std::unordered_set<uint64_t> broken;  // manifold edges whose link a fan split cut
   // Emission candidates by op preference: end, fill, join, add.
-  std::deque<uint32_t> buckets[4];
-  std::deque<uint32_t> starts;  // ready triangles, candidates for a start
+  SlotQueue buckets[4];
+  SlotQueue starts;  // ready triangles that are start candidates
   uint32_t next_dense = 0;
   uint64_t waiting = 0;
   uint64_t ready = 0;       // ready triangles not yet emitted
@@ -169,40 +321,86 @@ struct SequenceConverter::Impl {
   SequenceTriangle st;  // reused
   SequenceVertex sv;
 
-  // Scratch: the spokes of one vertex, and per triangle of its fan the
-  // out-spoke (id -> next) and in-spoke (prev -> id); see spokes_of().
-  std::vector<Spoke> spokes;
-  std::vector<std::array<uint32_t, 2>> spoke_index;
-  std::vector<uint32_t> to_settle;      // scratch
-  std::vector<uint32_t> fan_next, fan_prev;  // scratch: neighbours after / before a vertex in its triangles
-  std::vector<std::array<int, 2>> mate;      // scratch: linked fan triangle per spoke side
-  std::vector<std::array<bool, 2>> cut;      // scratch: the spoke side is cut
-  std::vector<uint32_t> stack, seg_of;  // scratch
-  uint64_t visit_stamp = 0;
+  // Scratch.
+  std::vector<Spoke> spokes;                // of the vertex being finalized: the first n_spokes
+  uint32_t n_spokes = 0;
+  std::vector<uint32_t> to_settle;
+  std::vector<uint32_t> local_of;           // triangle slot -> index in the vertex's corner list (split_fans)
+  std::vector<uint32_t> fan_corners;        // split_fans: the vertex's corners
+  std::vector<uint64_t> seen;               // split_fans: per vpool slot, marks of the fan walk
+  std::vector<std::array<int, 2>> fan_next; // split_fans: linked triangle per side
+  std::vector<char> visited;
+  uint32_t visit_stamp = 0;                 // one per finalization: at most 2^32 - 1 ids
+  uint64_t seen_stamp = 0;
 
-  uint32_t vertex_slot(uint32_t id);  // existing or new
+  // The internal steps return false after storing the error in `error`.
+  bool fail(Status s) {
+    error = std::move(s);
+    return false;
+  }
+  bool vertex(uint32_t id, const double position[3], const PropertyValues& values);
+  bool triangle(const uint32_t id[3], const PropertyValues& values);
+  bool finalize(uint32_t id);
+  bool finish();
+
+  bool check_unknown_id(uint32_t id);
+  uint32_t vertex_slot(uint32_t id);  // a new one
   void release_vertex(uint32_t slot);
-  Status settle(uint32_t slot);
-  void split_fans(uint32_t id, Vert& v);
-  void spokes_of(uint32_t id, const Vert& v);
-  // With `check` false, returns what the check found at finalization.
-  bool fan_neighbours(uint32_t id, const Vert& v, bool check);
+  bool decide_spokes(uint32_t vslot, uint32_t* waiting_neighbors);
+  void split_fans(uint32_t vslot);
+  void break_link(uint32_t t, uint32_t edge);
+  bool settle(uint32_t vslot);
   void make_ready(uint32_t t);
   int classify(const Tri& t) const;
   // Emits triangle `t`, whose classify() is `cls` (0..4).
-  Status emit(uint32_t t, int cls);
-  Status drain();
+  bool emit(uint32_t t, int cls);
+  bool emit_vertex(uint32_t vslot, uint32_t sg);
+  bool drain();
+  uint32_t new_seg();
+  void add_corner(uint32_t vslot, uint32_t e) {
+    Vert& v = vpool[vslot];
+    tris[e >> 2].next[e & 3] = kNone;
+    if (v.tail == kNone) {
+      v.head = e;
+    } else {
+      tris[v.tail >> 2].next[v.tail & 3] = e;
+    }
+    v.tail = e;
+  }
+  uint32_t next_corner(uint32_t e) const { return tris[e >> 2].next[e & 3]; }
 };
 
+uint32_t SequenceConverter::Impl::new_seg() {
+  uint32_t sg;
+  if (!free_segs.empty()) {
+    sg = free_segs.back();
+    free_segs.pop_back();
+    segs[sg] = Seg();
+  } else {
+    sg = static_cast<uint32_t>(segs.size());
+    segs.emplace_back();
+  }
+  return sg;
+}
+
+// An id the waiting area does not hold is either new or was finalized.
+bool SequenceConverter::Impl::check_unknown_id(uint32_t id) {
+  if (id == kNone) return fail(Status(ErrorCode::kBadIndex, "vertex id 4294967295 is reserved"));
+  if (finalized_ids.contains(id)) {
+    return fail(Status(ErrorCode::kBadIndex, "vertex " + std::to_string(id) + " is used after its finalization"));
+  }
+  return true;
+}
+
 uint32_t SequenceConverter::Impl::vertex_slot(uint32_t id) {
-  uint32_t slot = ids.find(id);
-  if (slot != kNone) return slot;
+  uint32_t slot;
   if (!free_verts.empty()) {
     slot = free_verts.back();
     free_verts.pop_back();
   } else {
     slot = static_cast<uint32_t>(vpool.size());
     vpool.emplace_back();
+    vert_values.emplace_back();
   }
   vpool[slot].id = id;
   ids.insert(id, slot);
@@ -213,16 +411,16 @@ uint32_t SequenceConverter::Impl::vertex_slot(uint32_t id) {
 void SequenceConverter::Impl::release_vertex(uint32_t slot) {
   Vert& v = vpool[slot];
   ids.erase(v.id);
-  // Keep the vectors' capacity for the next vertex in this slot.
-  std::vector<uint32_t> tris_keep;
-  PropertyValues values_keep;
-  tris_keep.swap(v.tris);
-  values_keep.swap(v.values);
-  v = Vert();
-  tris_keep.clear();
-  values_keep.clear();
-  v.tris.swap(tris_keep);
-  v.values.swap(values_keep);
+  v.id = kNone;
+  v.has_data = v.finalized = v.settled = false;
+  if (v.has_values) {
+    vert_values[slot].clear();
+    v.has_values = false;
+  }
+  v.head = v.tail = kNone;
+  v.waiting_neighbors = 0;
+  v.first_dense = kNone;
+  v.unemitted = 0;
   free_verts.push_back(slot);
 }
 
@@ -230,160 +428,260 @@ SequenceConverter::SequenceConverter(SequenceSink* out) : impl_(std::make_unique
 SequenceConverter::~SequenceConverter() = default;
 const ConverterStats& SequenceConverter::stats() const { return impl_->stats; }
 
-Status SequenceConverter::begin(const MeshSchema& schema) { return impl_->out->begin(schema); }
-
+// Every public call returns the first error again once there was one.
+Status SequenceConverter::begin(const MeshSchema& schema) {
+  Impl& m = *impl_;
+  if (m.error.ok()) {
+    Status s = m.out->begin(schema);
+    if (s.ok()) return s;
+    m.error = s;
+  }
+  return m.error;
+}
 Status SequenceConverter::vertex(uint32_t id, const double position[3], const PropertyValues& values) {
   Impl& m = *impl_;
-  if (id == kNone) return Status(ErrorCode::kBadIndex, "vertex id 4294967295 is reserved");
-  Vert& v = m.vpool[m.vertex_slot(id)];
-  if (v.has_data || v.finalized) return Status(ErrorCode::kBadIndex, "vertex " + std::to_string(id) + " given twice");
-  v.has_data = true;
-  std::copy(position, position + 3, v.position);
-  v.values = values;
-  ++m.stats.vertices_in;
-  return Status();
+  if (m.error.ok() && m.vertex(id, position, values)) return Status();
+  return m.error;
 }
-
 Status SequenceConverter::triangle(const uint32_t id[3], const PropertyValues& values) {
   Impl& m = *impl_;
-  ++m.stats.triangles_in;
-  if (id[0] == id[1] || id[1] == id[2] || id[2] == id[0]) {
-    ++m.stats.degenerate_dropped;
-    return Status();
+  if (m.error.ok() && m.triangle(id, values)) return Status();
+  return m.error;
+}
+Status SequenceConverter::finalize(uint32_t id) {
+  Impl& m = *impl_;
+  if (m.error.ok() && m.finalize(id)) return Status();
+  return m.error;
+}
+Status SequenceConverter::finish() {
+  Impl& m = *impl_;
+  if (m.error.ok() && m.finish()) return Status();
+  return m.error;
+}
+
+bool SequenceConverter::Impl::vertex(uint32_t id, const double position[3], const PropertyValues& values) {
+  uint32_t slot = ids.find(id);
+  if (slot == kNone) {
+    if (!check_unknown_id(id)) return false;
+    slot = vertex_slot(id);
   }
+  Vert& v = vpool[slot];
+  if (v.has_data || v.finalized) return fail(Status(ErrorCode::kBadIndex, "vertex " + std::to_string(id) + " given twice"));
+  v.has_data = true;
+  v.position[0] = position[0];
+  v.position[1] = position[1];
+  v.position[2] = position[2];
+  if (!values.empty()) {
+    vert_values[slot] = values;
+    v.has_values = true;
+  }
+  ++stats.vertices_in;
+  return true;
+}
+
+bool SequenceConverter::Impl::triangle(const uint32_t id[3], const PropertyValues& values) {
+  ++stats.triangles_in;
   uint32_t vs[3];
   for (int k = 0; k < 3; ++k) {
-    if (id[k] == kNone) return Status(ErrorCode::kBadIndex, "vertex id 4294967295 is reserved");
-    vs[k] = m.vertex_slot(id[k]);
-    if (m.vpool[vs[k]].finalized) {
-      return Status(ErrorCode::kBadIndex, "a triangle uses vertex " + std::to_string(id[k]) + " after its finalization");
+    vs[k] = ids.find(id[k]);
+    if (vs[k] == kNone) {
+      if (!check_unknown_id(id[k])) return false;
+    } else if (vpool[vs[k]].finalized) {
+      return fail(Status(ErrorCode::kBadIndex, "a triangle uses vertex " + std::to_string(id[k]) + " after its finalization"));
     }
+  }
+  if (id[0] == id[1] || id[1] == id[2] || id[2] == id[0]) {
+    ++stats.degenerate_dropped;
+    return true;
+  }
+  for (int k = 0; k < 3; ++k) {
+    if (vs[k] == kNone) vs[k] = vertex_slot(id[k]);
   }
   uint32_t slot;
-  if (!m.free_tris.empty()) {
-    slot = m.free_tris.back();
-    m.free_tris.pop_back();
-    m.tris[slot].reset();
+  if (!free_tris.empty()) {
+    slot = free_tris.back();
+    free_tris.pop_back();
   } else {
-    slot = static_cast<uint32_t>(m.tris.size());
-    m.tris.emplace_back();
+    if (tris.size() >= kMaxTriangles) return fail(Status(ErrorCode::kLimit, "more than 2^30 triangles waiting"));
+    slot = static_cast<uint32_t>(tris.size());
+    tris.emplace_back();
+    tri_values.emplace_back();
   }
-  Tri& t = m.tris[slot];
-  for (int k = 0; k < 3; ++k) {
-    t.v[k] = id[k];
+  Tri& t = tris[slot];
+  t.reset();
+  for (uint32_t k = 0; k < 3; ++k) {
     t.vs[k] = vs[k];
-    Vert& v = m.vpool[t.vs[k]];
-    v.tris.push_back(slot);
-    ++v.unemitted;
+    add_corner(vs[k], slot * 4 + k);
+    ++vpool[vs[k]].unemitted;
   }
-  t.values = values;
-  ++m.waiting;
-  m.stats.max_waiting_triangles = std::max(m.stats.max_waiting_triangles, m.waiting);
-  return Status();
+  if (!values.empty()) {
+    tri_values[slot] = values;
+    t.state |= Tri::kHasValues;
+  }
+  ++waiting;
+  if (waiting > stats.max_waiting_triangles) stats.max_waiting_triangles = waiting;
+  return true;
 }
 
-// The spokes (edges) of vertex `id` over its waiting triangles, into
-// `spokes`; spoke_index[i] names the out-spoke (id -> next) and in-spoke
-// (prev -> id) of its i-th triangle.
-void SequenceConverter::Impl::spokes_of(uint32_t id, const Vert& v) {
-  spokes.clear();
-  spoke_index.resize(v.tris.size());
-  for (uint32_t i = 0; i < v.tris.size(); ++i) {
-    const Tri& t = tris[v.tris[i]];
-    int c = t.v[0] == id ? 0 : t.v[1] == id ? 1 : 2;
-    uint32_t nb[2] = {t.v[(c + 1) % 3], t.v[(c + 2) % 3]};
-    for (int s = 0; s < 2; ++s) {
-      uint32_t si = 0;
-      while (si < spokes.size() && spokes[si].other != nb[s]) ++si;
-      if (si == spokes.size()) spokes.push_back(Spoke{nb[s], {kNone, kNone}, {false, false}, 0});
-      Spoke& sp = spokes[si];
-      if (sp.count < 2) {
-        sp.tris[sp.count] = i;
-        sp.out[sp.count] = s == 0;
+// For vertex `vslot`, being finalized (so all its triangles are in): visits
+// its neighbours in the order they first appear (triangles in input order,
+// corners in corner order). A finalized neighbour decided the edge between
+// them already and waits for one neighbour less: if for none now, it goes on
+// `to_settle`. The edges to the others are decided now, after grouping the
+// triangles by neighbour: a link between the two triangles of a manifold
+// edge, a cut on every triangle of a non-manifold one, or a border. Returns
+// whether any edge at the vertex is non-manifold; counts the neighbours not
+// finalized into *waiting_neighbors.
+bool SequenceConverter::Impl::decide_spokes(uint32_t vslot, uint32_t* waiting_neighbors) {
+  Vert& v = vpool[vslot];
+  const uint32_t stamp = ++visit_stamp;
+  n_spokes = 0;
+  uint32_t waiting_nb = 0;
+  uint8_t nm = 0;
+  auto side = [&](uint32_t ws, bool outgoing, uint32_t edge) {
+    Vert& w = vpool[ws];
+    if (w.stamp != stamp) {
+      w.stamp = stamp;
+      if (w.finalized) {
+        if (!w.settled && --w.waiting_neighbors == 0) to_settle.push_back(ws);
+        return;
       }
-      ++sp.count;
-      spoke_index[i][s] = si;
+      ++waiting_nb;
+      if (n_spokes == spokes.size()) spokes.resize(2 * spokes.size() + 16);
+      w.spoke = n_spokes;
+      spokes[n_spokes++] = Spoke{kNone, kNone, 0, 0, false};
+    } else if (w.finalized) {
+      return;
+    }
+    Spoke& sp = spokes[w.spoke];
+    if (outgoing) {
+      if (sp.n_out++ == 0) sp.out_edge = edge;
+    } else {
+      if (sp.n_in++ == 0) sp.in_edge = edge;
+    }
+  };
+  for (uint32_t e = v.head; e != kNone; e = next_corner(e)) {
+    const Tri& t = tris[e >> 2];
+    const uint32_t base = e & ~3u;
+    nm |= t.nm_mask & kEdgesAt[e & 3];
+    switch (e & 3) {
+      case 0:
+        side(t.vs[1], true, base | 0);
+        side(t.vs[2], false, base | 2);
+        break;
+      case 1:
+        side(t.vs[0], false, base | 0);
+        side(t.vs[2], true, base | 1);
+        break;
+      default:
+        side(t.vs[0], true, base | 2);
+        side(t.vs[1], false, base | 1);
+        break;
     }
   }
-}
-
-// Fills fan_next/fan_prev with the neighbour after and before vertex `id`
-// in each of its triangles; returns true when one repeats on a side, the
-// only way a spoke can have more than one triangle on a side (non-manifold
-// or misoriented).
-bool SequenceConverter::Impl::fan_neighbours(uint32_t id, const Vert& v, bool check) {
-  size_t n = v.tris.size();
-  fan_next.resize(n);
-  fan_prev.resize(n);
-  for (size_t i = 0; i < n; ++i) {
-    const Tri& t = tris[v.tris[i]];
-    int c = t.v[0] == id ? 0 : t.v[1] == id ? 1 : 2;
-    fan_next[i] = t.v[(c + 1) % 3];
-    fan_prev[i] = t.v[(c + 2) % 3];
-  }
-  if (!check) return v.repeats;
-  for (size_t i = 0; i < n; ++i) {
-    for (size_t j = i + 1; j < n; ++j) {
-      if (fan_next[i] == fan_next[j] || fan_prev[i] == fan_prev[j]) return true;
+  *waiting_neighbors = waiting_nb;
+  bool any_cut = false;
+  for (uint32_t i = 0; i < n_spokes; ++i) {
+    Spoke& sp = spokes[i];
+    if (sp.n_out == 1 && sp.n_in == 1) {
+      tris[sp.out_edge >> 2].partner[sp.out_edge & 3] = sp.in_edge;
+      tris[sp.in_edge >> 2].partner[sp.in_edge & 3] = sp.out_edge;
+    } else if (sp.n_out + sp.n_in == 1) {
+      ++stats.border_edges;
+    } else {
+      sp.cut = any_cut = true;
+      if (sp.n_out + sp.n_in > 2) {
+        ++stats.nonmanifold_edges;
+      } else {
+        ++stats.misoriented_edges;
+      }
     }
   }
-  return false;
-}
-
-// A spoke links its two triangles when it has exactly two, of opposite
-// orientation, and no fan split broke the link.
-static bool is_link(const Spoke& s, uint32_t id, const std::unordered_set<uint64_t>& broken) {
-  return s.count == 2 && s.out[0] != s.out[1] && (broken.empty() || !broken.count(edge_key(id, s.other)));
-}
-
-static bool is_nonmanifold(const Spoke& s) { return s.count >= 3 || (s.count == 2 && s.out[0] == s.out[1]); }
-
-// At finalization (phase A): walk each fan of the vertex and break links so
-// that no fan holds two triangles that share a non-manifold spoke; otherwise
-// both would use the same edge of the sequence.
-void SequenceConverter::Impl::split_fans(uint32_t id, Vert& v) {
-  // Only a repeated neighbour makes a spoke non-manifold.
-  v.repeats = fan_neighbours(id, v, true);
-  if (!v.repeats) return;
-  spokes_of(id, v);
-  bool any_nonmanifold = false;
-  for (const Spoke& s : spokes) any_nonmanifold = any_nonmanifold || is_nonmanifold(s);
-  if (!any_nonmanifold) return;  // a disk or half-disk, or only broken links
-  size_t n = v.tris.size();
-  // Per local triangle: the triangle linked through each of its two spokes.
-  std::vector<std::array<int, 2>> next(n, {-1, -1});
-  for (size_t i = 0; i < n; ++i) {
-    for (int sl = 0; sl < 2; ++sl) {
-      const Spoke& s = spokes[spoke_index[i][sl]];
-      if (is_link(s, id, broken)) next[i][sl] = static_cast<int>(s.tris[0] == i ? s.tris[1] : s.tris[0]);
+  if (!any_cut) return nm != 0;
+  for (uint32_t e = v.head; e != kNone; e = next_corner(e)) {
+    Tri& t = tris[e >> 2];
+    uint32_t c = e & 3;
+    const Vert& wn = vpool[t.vs[kNext[c]]];
+    const Vert& wp = vpool[t.vs[kPrev[c]]];
+    if (!wn.finalized && spokes[wn.spoke].cut) {
+      t.cut_mask |= static_cast<uint8_t>(1u << c);
+      t.nm_mask |= static_cast<uint8_t>(1u << c);
+    }
+    if (!wp.finalized && spokes[wp.spoke].cut) {
+      t.cut_mask |= static_cast<uint8_t>(1u << kPrev[c]);
+      t.nm_mask |= static_cast<uint8_t>(1u << kPrev[c]);
     }
   }
-  std::vector<char> visited(n, 0);
-  std::vector<uint32_t> seen;
+  return true;
+}
+
+// Cuts the link across edge `edge` of triangle `t` on both of its triangles.
+void SequenceConverter::Impl::break_link(uint32_t t, uint32_t edge) {
+  uint32_t p = tris[t].partner[edge];
+  Tri& pt = tris[p >> 2];
+  pt.partner[p & 3] = kNone;
+  pt.cut_mask |= static_cast<uint8_t>(1u << (p & 3));
+  tris[t].partner[edge] = kNone;
+  tris[t].cut_mask |= static_cast<uint8_t>(1u << edge);
+}
+
+// At finalization, after decide_spokes found a non-manifold spoke: walk each
+// fan and break links so that no fan holds two triangles that share a
+// non-manifold spoke; otherwise both would use the same edge of the sequence.
+void SequenceConverter::Impl::split_fans(uint32_t vslot) {
+  fan_corners.clear();
+  for (uint32_t e = vpool[vslot].head; e != kNone; e = next_corner(e)) fan_corners.push_back(e);
+  const std::vector<uint32_t>& corners = fan_corners;
+  size_t n = corners.size();
+  if (local_of.size() < tris.size()) local_of.resize(tris.size());
+  if (seen.size() < vpool.size()) seen.resize(vpool.size(), 0);
+  for (size_t i = 0; i < n; ++i) local_of[corners[i] >> 2] = static_cast<uint32_t>(i);
+  // Per local triangle: the triangle linked through its out- (0) and in-spoke (1).
+  fan_next.assign(n, {-1, -1});
+  for (size_t i = 0; i < n; ++i) {
+    const Tri& t = tris[corners[i] >> 2];
+    uint32_t c = corners[i] & 3;
+    uint32_t po = t.partner[c], pi = t.partner[kPrev[c]];
+    if (po != kNone) fan_next[i][0] = static_cast<int>(local_of[po >> 2]);
+    if (pi != kNone) fan_next[i][1] = static_cast<int>(local_of[pi >> 2]);
+  }
+  // The neighbour across side sl (0: out, 1: in) of local triangle i, if
+  // that spoke is non-manifold, else kNone.
+  auto nm_neighbour = [&](size_t i, int sl) -> uint32_t {
+    const Tri& t = tris[corners[i] >> 2];
+    uint32_t c = corners[i] & 3;
+    uint32_t edge = sl == 0 ? c : kPrev[c];
+    if (!((t.nm_mask >> edge) & 1)) return kNone;
+    return t.vs[sl == 0 ? kNext[c] : kPrev[c]];
+  };
+  visited.assign(n, 0);
   auto walk = [&](int start) {
     int prev = -1, cur = start;
-    seen.clear();
+    ++seen_stamp;  // the neighbours of non-manifold spokes seen since the last break
     while (cur >= 0 && !visited[cur]) {
       visited[cur] = 1;
       bool clash = false;
       for (int sl = 0; sl < 2; ++sl) {
-        const Spoke& s = spokes[spoke_index[cur][sl]];
-        if (is_nonmanifold(s) && std::find(seen.begin(), seen.end(), s.other) != seen.end()) clash = true;
+        uint32_t w = nm_neighbour(cur, sl);
+        if (w != kNone && seen[w] == seen_stamp) clash = true;
       }
       if (clash && prev >= 0) {
         // Break the link between prev and cur: it runs through their shared spoke.
+        uint32_t e = corners[cur];
+        uint32_t c = e & 3;
         for (int sl = 0; sl < 2; ++sl) {
-          if (next[cur][sl] == prev) broken.insert(edge_key(id, spokes[spoke_index[cur][sl]].other));
+          if (fan_next[cur][sl] == prev) break_link(e >> 2, sl == 0 ? c : kPrev[c]);
         }
-        seen.clear();
+        ++seen_stamp;
       }
       for (int sl = 0; sl < 2; ++sl) {
-        const Spoke& s = spokes[spoke_index[cur][sl]];
-        if (is_nonmanifold(s)) seen.push_back(s.other);
+        uint32_t w = nm_neighbour(cur, sl);
+        if (w != kNone) seen[w] = seen_stamp;
       }
       int nxt = -1;
       for (int sl = 0; sl < 2; ++sl) {
-        if (next[cur][sl] >= 0 && next[cur][sl] != prev && !visited[next[cur][sl]]) nxt = next[cur][sl];
+        int x = fan_next[cur][sl];
+        if (x >= 0 && x != prev && !visited[x]) nxt = x;
       }
       prev = cur;
       cur = nxt;
@@ -392,246 +690,173 @@ void SequenceConverter::Impl::split_fans(uint32_t id, Vert& v) {
   // Paths first, from their ends; whatever is left are closed fans, which
   // have no non-manifold spoke.
   for (size_t i = 0; i < n; ++i) {
-    if (!visited[i] && (next[i][0] < 0 || next[i][1] < 0)) walk(static_cast<int>(i));
+    if (!visited[i] && (fan_next[i][0] < 0 || fan_next[i][1] < 0)) walk(static_cast<int>(i));
   }
 }
 
-Status SequenceConverter::finalize(uint32_t id) {
-  Impl& m = *impl_;
-  uint32_t slot = m.ids.find(id);
-  if (slot == kNone || m.vpool[slot].finalized) {
-    return Status(ErrorCode::kBadIndex, "vertex " + std::to_string(id) + (slot == kNone ? " finalized but never given" : " finalized twice"));
+bool SequenceConverter::Impl::finalize(uint32_t id) {
+  uint32_t slot = ids.find(id);
+  if (slot == kNone || vpool[slot].finalized) {
+    bool twice = slot != kNone || (id != kNone && finalized_ids.contains(id));
+    return fail(Status(ErrorCode::kBadIndex,
+                       "vertex " + std::to_string(id) + (twice ? " finalized twice" : " finalized but never given")));
   }
-  Vert& v = m.vpool[slot];
-  if (!v.has_data) return Status(ErrorCode::kBadIndex, "vertex " + std::to_string(id) + " is used but was never given");
-  m.split_fans(id, v);
+  Vert& v = vpool[slot];
+  if (!v.has_data) return fail(Status(ErrorCode::kBadIndex, "vertex " + std::to_string(id) + " is used but was never given"));
+  finalized_ids.insert(id);
+  // Neighbours that waited only for this vertex go on to_settle.
+  to_settle.clear();
+  uint32_t waiting_nb;
+  if (decide_spokes(slot, &waiting_nb)) split_fans(slot);
   v.finalized = true;
-  // Neighbours: settle those that waited only for this vertex. A neighbour
-  // appears in two triangles of a fan; count each once by marking it.
-  m.to_settle.clear();
-  uint32_t waiting = 0;
-  ++m.visit_stamp;
-  for (uint32_t ts : v.tris) {
-    for (uint32_t us : m.tris[ts].vs) {
-      Vert& nv = m.vpool[us];
-      if (us == slot || nv.stamp == m.visit_stamp) continue;
-      nv.stamp = m.visit_stamp;
-      if (!nv.finalized) {
-        ++waiting;
-      } else if (!nv.settled && --nv.waiting_neighbors == 0) {
-        m.to_settle.push_back(us);
-      }
-    }
+  v.waiting_neighbors = waiting_nb;
+  if (waiting_nb == 0) to_settle.push_back(slot);
+  for (uint32_t u : to_settle) {
+    if (!settle(u)) return false;
   }
-  v.waiting_neighbors = waiting;
-  if (waiting == 0) m.to_settle.push_back(slot);
-  for (size_t i = 0; i < m.to_settle.size(); ++i) PSQ_RETURN_IF_ERROR(m.settle(m.to_settle[i]));
-  return m.drain();
+  return drain();
 }
 
-// Phase B: every neighbour is finalized, so every link around the vertex is
-// decided. Its fans become the vertex's segments; the partners of its spokes
-// are set on both triangles.
-Status SequenceConverter::Impl::settle(uint32_t vslot) {
+// Emits the dense vertex of fan `sg` of vertex `vslot`.
+bool SequenceConverter::Impl::emit_vertex(uint32_t vslot, uint32_t sg) {
   Vert& v = vpool[vslot];
-  const uint32_t id = v.id;
+  sv.index = next_dense++;
+  sv.slot = sg;
+  sv.reappears = v.first_dense;
+  if (v.first_dense == kNone) v.first_dense = sv.index;
+  sv.position[0] = v.position[0];
+  sv.position[1] = v.position[1];
+  sv.position[2] = v.position[2];
+  PropertyValues& values = vert_values[vslot];
+  if (v.has_values) sv.values.swap(values);  // lent to the sink, and back
+  Status s = out->vertex(sv);
+  if (v.has_values) sv.values.swap(values);
+  return s.ok() || fail(std::move(s));
+}
+
+// Every neighbour is finalized, so every edge around the vertex is decided:
+// its fans (triangles connected through links) become its segments.
+bool SequenceConverter::Impl::settle(uint32_t vslot) {
+  Vert& v = vpool[vslot];
   v.settled = true;
-  if (v.tris.empty()) {
+  if (v.head == kNone) {
     // An isolated vertex: introduced and finalized with no triangle. It
     // takes a slot like any vertex (free again at once).
-    uint32_t sg;
-    if (!free_segs.empty()) {
-      sg = free_segs.back();
-    } else {
-      sg = static_cast<uint32_t>(segs.size());
-      segs.emplace_back();
-      free_segs.push_back(sg);
-    }
-    sv.index = next_dense++;
-    sv.slot = sg;
-    sv.reappears = kNone;
-    std::copy(v.position, v.position + 3, sv.position);
-    sv.values = v.values;
-    PSQ_RETURN_IF_ERROR(out->vertex(sv));
-    PSQ_RETURN_IF_ERROR(out->finalize(sv.index));
+    uint32_t sg = new_seg();
+    free_segs.push_back(sg);
+    if (!emit_vertex(vslot, sg)) return false;
+    Status s = out->finalize(sv.index);
+    if (!s.ok()) return fail(std::move(s));
     release_vertex(vslot);
-    return Status();
+    return true;
   }
-  // For each triangle's out-spoke (sl 0: id -> next) and in-spoke (sl 1:
-  // prev -> id): the fan triangle it links to (or -1), or whether it is cut.
-  size_t n = v.tris.size();
-  mate.resize(n);
-  cut.resize(n);
-  if (!fan_neighbours(id, v, false)) {
-    // Fast path, every spoke has at most one triangle on each side: a spoke
-    // with two links them (unless a fan split broke the link), one with a
-    // single triangle is a border.
-    for (uint32_t i = 0; i < n; ++i) {
-      for (int sl = 0; sl < 2; ++sl) {
-        uint32_t w = sl == 0 ? fan_next[i] : fan_prev[i];
-        const std::vector<uint32_t>& other_side = sl == 0 ? fan_prev : fan_next;
-        int j = -1;
-        for (uint32_t k = 0; k < n; ++k) {
-          if (other_side[k] == w) {
-            j = static_cast<int>(k);
-            break;
-          }
-        }
-        bool link = j >= 0 && (broken.empty() || !broken.count(edge_key(id, w)));
-        mate[i][sl] = link ? j : -1;
-        cut[i][sl] = j >= 0 && !link;
-        if (j < 0 && id < w) ++stats.border_edges;  // each edge once: at its smaller end
-      }
-    }
-  } else {
-    spokes_of(id, v);
-    for (const Spoke& sp : spokes) {
-      if (id < sp.other) {  // each edge once: at the settling of its smaller end
-        if (sp.count == 1) ++stats.border_edges;
-        else if (sp.count > 2) ++stats.nonmanifold_edges;
-        else if (sp.out[0] == sp.out[1]) ++stats.misoriented_edges;
-      }
-    }
-    for (uint32_t i = 0; i < n; ++i) {
-      for (int sl = 0; sl < 2; ++sl) {
-        const Spoke& sp = spokes[spoke_index[i][sl]];
-        bool link = is_link(sp, id, broken);
-        mate[i][sl] = link ? static_cast<int>(sp.tris[0] == i ? sp.tris[1] : sp.tris[0]) : -1;
-        cut[i][sl] = !link && sp.count >= 2;
-      }
-    }
-  }
-  // Partners and cuts on the triangles.
-  for (uint32_t i = 0; i < n; ++i) {
-    Tri& t = tris[v.tris[i]];
-    int c = t.v[0] == id ? 0 : t.v[1] == id ? 1 : 2;
-    for (int sl = 0; sl < 2; ++sl) {
-      int k = sl == 0 ? c : (c + 2) % 3;  // out-spoke: edge c; in-spoke: edge c-1
-      uint8_t bit = static_cast<uint8_t>(1u << k);
-      // The edge's partner is decided at whichever end settles first.
-      if (t.linked_mask & bit) continue;
-      t.linked_mask |= bit;
-      int j = mate[i][sl];
-      if (j >= 0) {
-        t.partner[k] = v.tris[j];
-      } else if (cut[i][sl]) {
-        t.cut_mask |= bit;
-      }
-    }
-  }
-  // One segment per fan: the triangles connected through links (each has at
-  // most two), found by walking them.
-  seg_of.assign(n, kNone);
+  // One segment per fan. A fan is a path or a cycle of triangles linked
+  // across the vertex's edges: walk it from its first triangle forwards (out
+  // edges) and, unless it closed, backwards (in edges). Across an out-edge
+  // the vertex is the partner's corner after the shared edge's start; across
+  // an in-edge it is that edge's start.
   uint32_t fans = 0;
-  for (uint32_t start = 0; start < n; ++start) {
-    if (seg_of[start] != kNone) continue;
-    uint32_t sg;
-    if (!free_segs.empty()) {
-      sg = free_segs.back();
-      free_segs.pop_back();
-      segs[sg] = Seg();
-    } else {
-      sg = static_cast<uint32_t>(segs.size());
-      segs.emplace_back();
-    }
-    segs[sg].vertex = id;
+  for (uint32_t start = v.head; start != kNone; start = next_corner(start)) {
+    Tri& t0 = tris[start >> 2];
+    if (t0.seg[start & 3] != kNone) continue;
+    uint32_t sg = new_seg();
     ++fans;
-    stack.clear();
-    stack.push_back(start);
-    seg_of[start] = sg;
-    while (!stack.empty()) {
-      uint32_t i = stack.back();
-      stack.pop_back();
-      for (int sl = 0; sl < 2; ++sl) {
-        int j = mate[i][sl];
-        if (j >= 0 && seg_of[j] == kNone) {
-          seg_of[j] = sg;
-          stack.push_back(static_cast<uint32_t>(j));
-        }
+    t0.seg[start & 3] = sg;
+    uint32_t count = 1;
+    bool closed = false;
+    for (uint32_t e = start;;) {
+      uint32_t p = tris[e >> 2].partner[e & 3];
+      if (p == kNone) break;
+      e = (p & ~3u) | kNext[p & 3];
+      if (e == start) {
+        closed = true;
+        break;
+      }
+      tris[e >> 2].seg[e & 3] = sg;
+      ++count;
+    }
+    if (!closed) {
+      for (uint32_t e = start;;) {
+        uint32_t p = tris[e >> 2].partner[kPrev[e & 3]];
+        if (p == kNone) break;
+        e = p;
+        tris[e >> 2].seg[e & 3] = sg;
+        ++count;
       }
     }
+    segs[sg].remaining = count;
   }
-  for (uint32_t i = 0; i < n; ++i) {
-    uint32_t sg = seg_of[i];
-    ++segs[sg].remaining;
-    Tri& t = tris[v.tris[i]];
-    for (int k = 0; k < 3; ++k) {
-      if (t.v[k] == id) t.seg[k] = sg;
-    }
-    if (++t.settled == 3) make_ready(v.tris[i]);
+  for (uint32_t e = v.head; e != kNone;) {
+    uint32_t next = next_corner(e);
+    Tri& t = tris[e >> 2];
+    if ((++t.state & Tri::kSettledMask) == 3) make_ready(e >> 2);
+    e = next;
   }
+  v.head = v.tail = kNone;
   if (fans > 1) ++stats.nonmanifold_vertices;
-  return Status();
+  return true;
 }
 
 void SequenceConverter::Impl::make_ready(uint32_t slot) {
   Tri& t = tris[slot];
-  t.ready = true;
+  t.state |= Tri::kReady;
   ++ready;
   int c = classify(t);
-  if (c >= 0 && c < 4) buckets[c].push_back(slot);
-  starts.push_back(slot);
-  // Entries of emitted triangles, or of triangles that touch an emitted fan
-  // (growth reaches those), stay in `starts` until a start is needed, which
-  // coherent input rarely needs: drop them now and then so that the queue
-  // stays proportional to the waiting area, not to the mesh.
-  if (starts.size() > 2 * ready + 4096) {
-    std::deque<uint32_t> keep;
-    for (uint32_t x : starts) {
-      const Tri& tx = tris[x];
-      if (!tx.emitted && tx.ready && classify(tx) == 4) keep.push_back(x);
+  if (c >= 0 && c < 4) {
+    buckets[c].push(slot);
+  } else if (c == 4) {
+    // A triangle that is no start candidate now never becomes one (it
+    // touches an emitted fan, and fans only get emitted).
+    starts.push(slot);
+    // Entries of triangles that growth reached instead stay until a start
+    // is needed, which coherent input rarely needs: drop them now and then
+    // so that the queue stays proportional to the waiting area.
+    if (starts.size() > 2 * ready + 4096) {
+      starts.filter([&](uint32_t x) {
+        const Tri& tx = tris[x];
+        return !tx.emitted() && tx.ready() && classify(tx) == 4;
+      });
     }
-    starts.swap(keep);
   }
 }
 
 // 0 end, 1 fill, 2 join, 3 add, 4 start, -1 not emittable now.
 int SequenceConverter::Impl::classify(const Tri& t) const {
-  int fresh = 0;
-  for (int k = 0; k < 3; ++k) fresh += segs[t.seg[k]].dense == kNone;
-  switch (t.completed) {
-    case 3: return 0;
-    case 2: return 1;
-    case 1: return fresh == 0 ? 2 : 3;
-    default: return fresh == 3 ? 4 : -1;
-  }
+  int completed = t.completed();
+  if (completed >= 2) return 3 - completed;
+  int fresh = (segs[t.seg[0]].dense == kNone) + (segs[t.seg[1]].dense == kNone) + (segs[t.seg[2]].dense == kNone);
+  if (completed == 1) return fresh == 0 ? 2 : 3;
+  return fresh == 3 ? 4 : -1;
 }
 
-Status SequenceConverter::Impl::emit(uint32_t slot, int cls) {
+bool SequenceConverter::Impl::emit(uint32_t slot, int cls) {
   static const Op kOps[] = {Op::kEnd, Op::kFill, Op::kJoin, Op::kAdd, Op::kStart};
   Tri& t = tris[slot];
-  if (cls < 0) return Status(ErrorCode::kInternal, "converter emitted a triangle that is none of the five ops");
+  if (cls < 0) return fail(Status(ErrorCode::kInternal, "converter emitted a triangle that is none of the five ops"));
   st.op = kOps[cls];
-  st.new_mask = st.final_mask = st.border_mask = st.nonmanifold_mask = st.leaving_mask = st.entering_mask = 0;
-  for (int k = 0; k < 3; ++k) {
+  uint32_t new_mask = 0, final_mask = 0, border_mask = 0, nonmanifold_mask = 0, leaving_mask = 0, entering_mask = 0;
+  for (uint32_t k = 0; k < 3; ++k) {
     Seg& s = segs[t.seg[k]];
     if (s.dense == kNone) {
-      Vert& v = vpool[t.vs[k]];
-      s.dense = next_dense++;
-      sv.index = s.dense;
-      sv.slot = t.seg[k];
-      sv.reappears = v.first_dense;
-      if (v.first_dense == kNone) v.first_dense = s.dense;
-      std::copy(v.position, v.position + 3, sv.position);
-      sv.values = v.values;
-      PSQ_RETURN_IF_ERROR(out->vertex(sv));
-      st.new_mask |= static_cast<uint8_t>(1u << k);
+      if (!emit_vertex(t.vs[k], t.seg[k])) return false;
+      s.dense = sv.index;
+      new_mask |= 1u << k;
     }
     st.v[k] = s.dense;
     st.vslot[k] = t.seg[k];
-    if (s.remaining == 1) st.final_mask |= static_cast<uint8_t>(1u << k);
+    if (s.remaining == 1) final_mask |= 1u << k;
   }
-  for (int k = 0; k < 3; ++k) {
-    uint8_t bit = static_cast<uint8_t>(1u << k);
-    st.eslot[k] = kNone;
+  for (uint32_t k = 0; k < 3; ++k) {
+    uint32_t bit = 1u << k;
     if (t.partner[k] == kNone) {
-      st.border_mask |= bit;
-      if (t.cut_mask & bit) st.nonmanifold_mask |= bit;
+      border_mask |= bit;
+      nonmanifold_mask |= t.cut_mask & bit;
+      st.eslot[k] = kNone;
     } else if (t.done_mask & bit) {
-      st.leaving_mask |= bit;
+      leaving_mask |= bit;
       st.eslot[k] = t.eslot[k];
     } else {
-      st.entering_mask |= bit;
+      entering_mask |= bit;
       if (!free_edge_slots.empty()) {
         st.eslot[k] = free_edge_slots.back();
         free_edge_slots.pop_back();
@@ -640,37 +865,48 @@ Status SequenceConverter::Impl::emit(uint32_t slot, int cls) {
       }
     }
   }
-  st.values.swap(t.values);
-  PSQ_RETURN_IF_ERROR(out->triangle(st));
-  t.emitted = true;
+  st.new_mask = static_cast<uint8_t>(new_mask);
+  st.final_mask = static_cast<uint8_t>(final_mask);
+  st.border_mask = static_cast<uint8_t>(border_mask);
+  st.nonmanifold_mask = static_cast<uint8_t>(nonmanifold_mask);
+  st.leaving_mask = static_cast<uint8_t>(leaving_mask);
+  st.entering_mask = static_cast<uint8_t>(entering_mask);
+  if (t.state & Tri::kHasValues) {
+    st.values.swap(tri_values[slot]);
+  } else {
+    st.values.clear();
+  }
+  {
+    Status s = out->triangle(st);
+    if (!s.ok()) return fail(std::move(s));
+  }
+  if (t.state & Tri::kHasValues) {
+    st.values.swap(tri_values[slot]);
+    tri_values[slot].clear();
+  }
+  t.state |= Tri::kEmitted;
   // Tell unemitted partners that their edge is now on the boundary.
-  for (int k = 0; k < 3; ++k) {
+  for (uint32_t k = 0; k < 3; ++k) {
+    if (!(entering_mask & (1u << k))) continue;
     uint32_t p = t.partner[k];
-    if (p == kNone || (t.done_mask & (1u << k))) continue;
-    Tri& pt = tris[p];
-    for (int j = 0; j < 3; ++j) {
-      // The same edge, reversed (two triangles may share more than one edge).
-      if (pt.partner[j] == slot && pt.v[j] == t.v[(k + 1) % 3] && pt.v[(j + 1) % 3] == t.v[k]) {
-        pt.done_mask |= static_cast<uint8_t>(1u << j);
-        pt.eslot[j] = st.eslot[k];
-        ++pt.completed;
-        break;
-      }
-    }
-    if (pt.ready) {
+    Tri& pt = tris[p >> 2];
+    pt.done_mask |= static_cast<uint8_t>(1u << (p & 3));
+    pt.eslot[p & 3] = st.eslot[k];
+    if (pt.ready()) {
       int c = classify(pt);
-      if (c >= 0 && c < 4) buckets[c].push_back(p);
+      if (c >= 0 && c < 4) buckets[c].push(p >> 2);
     }
   }
   // Edges this triangle completed leave the boundary: their slots are free.
-  for (int k = 0; k < 3; ++k) {
-    if (st.leaving_mask & (1u << k)) free_edge_slots.push_back(st.eslot[k]);
+  for (uint32_t k = 0; k < 3; ++k) {
+    if (leaving_mask & (1u << k)) free_edge_slots.push_back(st.eslot[k]);
   }
   // Finalize fans that this triangle completes; forget finished vertices.
-  for (int k = 0; k < 3; ++k) {
+  for (uint32_t k = 0; k < 3; ++k) {
     Seg& s = segs[t.seg[k]];
     if (--s.remaining == 0) {
-      PSQ_RETURN_IF_ERROR(out->finalize(s.dense));
+      Status st_f = out->finalize(s.dense);
+      if (!st_f.ok()) return fail(std::move(st_f));
       free_segs.push_back(t.seg[k]);
     }
     Vert& v = vpool[t.vs[k]];
@@ -678,26 +914,24 @@ Status SequenceConverter::Impl::emit(uint32_t slot, int cls) {
   }
   --waiting;
   --ready;
-  t.values.clear();
   free_tris.push_back(slot);
-  return Status();
+  return true;
 }
 
-Status SequenceConverter::Impl::drain() {
+bool SequenceConverter::Impl::drain() {
   for (;;) {
     bool emitted = false;
     for (int b = 0; b < 4 && !emitted; ++b) {
       while (!buckets[b].empty()) {
-        uint32_t slot = buckets[b].front();
-        buckets[b].pop_front();
-        Tri& t = tris[slot];
-        if (t.emitted || !t.ready) continue;  // stale entry (slots are reused only after emission)
+        uint32_t slot = buckets[b].pop();
+        const Tri& t = tris[slot];
+        if (t.emitted() || !t.ready()) continue;  // stale entry (slots are reused only after emission)
         int c = classify(t);
         if (c != b) {
-          if (c >= 0 && c < 4) buckets[c].push_back(slot);
+          if (c >= 0 && c < 4) buckets[c].push(slot);
           continue;
         }
-        PSQ_RETURN_IF_ERROR(emit(slot, c));
+        if (!emit(slot, c)) return false;
         emitted = true;
         break;
       }
@@ -707,38 +941,39 @@ Status SequenceConverter::Impl::drain() {
     // still arrives only once enough triangles wait, since the triangles
     // that continue the current regions may simply not be ready yet; each
     // needless start costs a join later.
-    if (!finishing && ready < kStartDelay) return Status();
+    if (!finishing && ready < kStartDelay) return true;
     while (!starts.empty()) {
-      uint32_t slot = starts.front();
-      starts.pop_front();
-      Tri& t = tris[slot];
-      if (t.emitted || !t.ready) continue;
+      uint32_t slot = starts.pop();
+      const Tri& t = tris[slot];
+      if (t.emitted() || !t.ready()) continue;
       if (classify(t) == 4) {
-        PSQ_RETURN_IF_ERROR(emit(slot, 4));
+        if (!emit(slot, 4)) return false;
         emitted = true;
         break;
       }
     }
-    if (!emitted) return Status();
+    if (!emitted) return true;
   }
 }
 
-Status SequenceConverter::finish() {
-  Impl& m = *impl_;
-  m.finishing = true;
+bool SequenceConverter::Impl::finish() {
+  finishing = true;
   // Finalize what the caller left open (a source that finalizes nothing
   // leaves the whole mesh to this point).
   std::vector<uint32_t> open;
-  m.ids.for_each([&](uint32_t id, uint32_t slot) {
-    if (!m.vpool[slot].finalized) open.push_back(id);
+  ids.for_each([&](uint32_t id, uint32_t slot) {
+    if (!vpool[slot].finalized) open.push_back(id);
   });
   std::sort(open.begin(), open.end());
-  for (uint32_t id : open) PSQ_RETURN_IF_ERROR(finalize(id));
-  PSQ_RETURN_IF_ERROR(m.drain());
-  if (m.waiting != 0 || m.ids.size() != 0) {
-    return Status(ErrorCode::kInternal, std::to_string(m.waiting) + " triangles left in the waiting area");
+  for (uint32_t id : open) {
+    if (!finalize(id)) return false;
   }
-  return m.out->finish();
+  if (!drain()) return false;
+  if (waiting != 0 || ids.size() != 0) {
+    return fail(Status(ErrorCode::kInternal, std::to_string(waiting) + " triangles left in the waiting area"));
+  }
+  Status s = out->finish();
+  return s.ok() || fail(std::move(s));
 }
 
 }  // namespace psq

@@ -4,8 +4,6 @@
 #include "psq/sequence_check.h"
 
 #include <string>
-#include <unordered_map>
-#include <unordered_map>
 #include <unordered_set>
 #include <vector>
 
@@ -43,12 +41,86 @@ class UnionFind {
   std::vector<uint32_t> parent_;
 };
 
+// uint64_t -> V, open addressing with linear probing and backward-shift
+// deletion: no allocation per element. Key ~0 is reserved.
+template <class V>
+class FlatMap {
+ public:
+  FlatMap() { rehash(64); }
+  size_t size() const { return size_; }
+  V* find(uint64_t key) {
+    for (size_t i = hash(key);; i = (i + 1) & mask_) {
+      if (cells_[i].key == kEmpty) return nullptr;
+      if (cells_[i].key == key) return &cells_[i].value;
+    }
+  }
+  // False (and nothing changed) when the key is there already. Invalidates
+  // pointers from find().
+  bool insert(uint64_t key, const V& value) {
+    if (2 * (size_ + 1) > cells_.size()) rehash(2 * cells_.size());
+    size_t i = hash(key);
+    for (; cells_[i].key != kEmpty; i = (i + 1) & mask_) {
+      if (cells_[i].key == key) return false;
+    }
+    cells_[i].key = key;
+    cells_[i].value = value;
+    ++size_;
+    return true;
+  }
+  void erase(uint64_t key) {
+    size_t i = hash(key);
+    while (cells_[i].key != key) {
+      if (cells_[i].key == kEmpty) return;
+      i = (i + 1) & mask_;
+    }
+    for (size_t j = (i + 1) & mask_; cells_[j].key != kEmpty; j = (j + 1) & mask_) {
+      size_t home = hash(cells_[j].key);
+      if (((j - home) & mask_) >= ((j - i) & mask_)) {
+        cells_[i] = cells_[j];
+        i = j;
+      }
+    }
+    cells_[i].key = kEmpty;
+    --size_;
+  }
+
+ private:
+  static constexpr uint64_t kEmpty = ~uint64_t{0};
+  struct Cell {
+    uint64_t key = kEmpty;
+    V value{};
+  };
+  size_t hash(uint64_t key) const { return static_cast<size_t>((key * 0x9E3779B97F4A7C15ull) >> 24) & mask_; }
+  void rehash(size_t capacity) {
+    std::vector<Cell> old(capacity);
+    old.swap(cells_);
+    mask_ = capacity - 1;
+    size_ = 0;
+    for (const Cell& c : old) {
+      if (c.key != kEmpty) insert(c.key, c.value);
+    }
+  }
+  std::vector<Cell> cells_;
+  size_t mask_ = 0;
+  size_t size_ = 0;
+};
+
+struct Empty {};
+
 struct Active {
   uint32_t slot = kNoSlot;      // as the producer gave it
   uint32_t uses = 0;            // triangles so far
   uint32_t open_edges = 0;      // boundary edges (entering, not yet completed) at this vertex
   bool fresh = true;            // introduced, not yet used by a triangle
-  std::vector<uint64_t> border; // keys of border edges, to forget them at finalization
+  std::vector<uint64_t> edges;  // keys of the edges at it (in Impl::edges), to forget them at finalization
+};
+
+// An edge between active vertices: open (on the boundary, in one direction)
+// or closed (a border, or completed by its second triangle; rule 3).
+struct Edge {
+  enum State : uint8_t { kOpenUp, kOpenDown, kClosed };  // up: from the smaller index to the larger
+  uint32_t slot = kNoSlot;  // of an open edge, as the producer gave it
+  State state = kClosed;
 };
 
 }  // namespace
@@ -81,11 +153,30 @@ Status pump_sequence(SequenceSource& source, SequenceSink& sink) {
 struct SequenceChecker::Impl {
   SequenceStats stats;
   uint64_t introduced = 0;
-  std::unordered_map<uint32_t, Active> active;
-  std::unordered_map<uint64_t, uint32_t> boundary;  // directed edges waiting for their partner -> edge slot
-  std::unordered_set<uint32_t> vertex_slots;        // slots of active vertices
-  std::unordered_set<uint32_t> edge_slots;          // slots of open boundary edges
-  std::unordered_set<uint64_t> borders;   // undirected border edges between active vertices
+  // Active vertices: dense index -> record in `pool` (kNoVertex once
+  // finalized); records are recycled, keeping their edge lists' capacity.
+  std::vector<uint32_t> active_of;
+  std::vector<Active> pool;
+  std::vector<uint32_t> free_pool;
+  uint64_t active = 0;
+  // Undirected edges between active vertices: the boundary (open edges) and
+  // the closed edges that no later triangle may use.
+  FlatMap<Edge> edges;
+  uint64_t open_edges = 0;
+  FlatMap<Empty> vertex_slots;  // slots of active vertices
+  FlatMap<Empty> edge_slots;    // slots of open boundary edges
+  // Rule 1: vertices introduced since the last triangle or finalize event,
+  // waiting for the next triangle (at most 3).
+  uint32_t fresh[3] = {0, 0, 0};
+  int fresh_count = 0;
+  // Rule 4: corners of the last triangle that no boundary edge touches any
+  // more, to be finalized next, in this order.
+  uint32_t pending[3] = {0, 0, 0};
+  int pending_count = 0, pending_next = 0;
+  // True once a triangle carried leaving, entering or final masks: from then
+  // on every triangle must carry them (a producer that computes no masks,
+  // such as a parsed dump, leaves all three zero throughout).
+  bool masks = false;
   UnionFind components;                   // by dense vertex, cut vertices joined to their origin
   UnionFind loops;                        // by dense vertex, over border edges (cut mesh)
   UnionFind holes;                        // by first occurrence, over true border edges
@@ -96,8 +187,21 @@ struct SequenceChecker::Impl {
   std::vector<uint8_t> on_border;          // dense index -> has a border edge
   std::vector<uint8_t> on_hole;            // first occurrence -> has a true border edge
 
+  Active* find_active(uint32_t index) {
+    if (index >= active_of.size() || active_of[index] == kNoVertex) return nullptr;
+    return &pool[active_of[index]];
+  }
   Status bad(const std::string& m) const {
     return Status(ErrorCode::kBadSequence, "triangle " + std::to_string(stats.triangles) + ": " + m);
+  }
+  // Rule 4: the corners the last triangle left without boundary edges must
+  // be finalized before anything else happens.
+  Status check_no_pending(const char* what) const {
+    if (pending_next == pending_count) return Status();
+    return Status(ErrorCode::kBadSequence,
+                  "triangle " + std::to_string(stats.triangles - 1) + ": no boundary edge touches vertex " +
+                      std::to_string(pending[pending_next]) + " after it, but " + what +
+                      " comes before its finalization (finalization must follow the triangle at once, in corner order)");
   }
 };
 
@@ -111,6 +215,11 @@ Status SequenceChecker::begin(const MeshSchema&) {
 
 Status SequenceChecker::vertex(const SequenceVertex& v) {
   Impl& m = *impl_;
+  PSQ_RETURN_IF_ERROR(m.check_no_pending("a vertex event"));
+  if (m.fresh_count == 3) {
+    return m.bad("vertex " + std::to_string(v.index) + " is the fourth vertex introduced before a triangle: vertex " +
+                 std::to_string(m.fresh[0]) + " is not used by the next triangle");
+  }
   if (v.index != m.introduced) {
     return m.bad("vertex introduced as " + std::to_string(v.index) + ", expected " + std::to_string(m.introduced));
   }
@@ -131,25 +240,38 @@ Status SequenceChecker::vertex(const SequenceVertex& v) {
   m.holes.add();
   m.components.add();
   m.loops.add();
-  if (v.slot != kNoSlot && !m.vertex_slots.insert(v.slot).second) {
+  if (v.slot != kNoSlot && !m.vertex_slots.insert(v.slot, Empty())) {
     return m.bad("vertex " + std::to_string(v.index) + " takes slot " + std::to_string(v.slot) + ", which an active vertex holds");
   }
-  Active fresh;
+  uint32_t record;
+  if (!m.free_pool.empty()) {
+    record = m.free_pool.back();
+    m.free_pool.pop_back();
+  } else {
+    record = static_cast<uint32_t>(m.pool.size());
+    m.pool.emplace_back();
+  }
+  Active& fresh = m.pool[record];
   fresh.slot = v.slot;
-  m.active.emplace(v.index, fresh);
-  m.stats.max_boundary_vertices = std::max<uint64_t>(m.stats.max_boundary_vertices, m.active.size());
+  fresh.uses = fresh.open_edges = 0;
+  fresh.fresh = true;
+  fresh.edges.clear();
+  m.active_of.push_back(record);
+  ++m.active;
+  m.fresh[m.fresh_count++] = v.index;
+  m.stats.max_boundary_vertices = std::max<uint64_t>(m.stats.max_boundary_vertices, m.active);
   return Status();
 }
 
 Status SequenceChecker::triangle(const SequenceTriangle& t) {
   Impl& m = *impl_;
+  PSQ_RETURN_IF_ERROR(m.check_no_pending("the next triangle"));
   Active* a[3];
   for (int k = 0; k < 3; ++k) {
-    auto it = m.active.find(t.v[k]);
-    if (it == m.active.end()) {
+    a[k] = m.find_active(t.v[k]);
+    if (a[k] == nullptr) {
       return m.bad("vertex " + std::to_string(t.v[k]) + (t.v[k] < m.introduced ? " was finalized" : " was never introduced"));
     }
-    a[k] = &it->second;
   }
   if (t.v[0] == t.v[1] || t.v[1] == t.v[2] || t.v[2] == t.v[0]) return m.bad("repeats a vertex");
 
@@ -167,22 +289,39 @@ Status SequenceChecker::triangle(const SequenceTriangle& t) {
     }
     n += is_new;
   }
+  // Rule 1: the vertices introduced since the last event are this
+  // triangle's new corners, all of them.
+  if (n != m.fresh_count) {
+    for (int i = 0; i < m.fresh_count; ++i) {
+      uint32_t f = m.fresh[i];
+      if (f != t.v[0] && f != t.v[1] && f != t.v[2]) {
+        return m.bad("vertex " + std::to_string(f) + " was introduced right before this triangle but is not one of its corners");
+      }
+    }
+  }
+  Edge* found[3];
   for (int k = 0; k < 3; ++k) {
     uint32_t x = t.v[k], y = t.v[(k + 1) % 3];
     bool border = ((t.border_mask >> k) & 1) != 0;
-    if (m.borders.count(undirected(x, y))) return m.bad("edge " + std::to_string(k) + " reuses an edge flagged border");
-    if (m.boundary.count(directed(x, y))) {
-      return m.bad("edge " + std::to_string(k) + " has the orientation of an open boundary edge (inconsistent orientation)");
-    }
-    if (m.boundary.count(directed(y, x))) {
+    found[k] = m.edges.find(undirected(x, y));
+    if (found[k] != nullptr) {
+      if (found[k]->state == Edge::kClosed) {
+        return m.bad("edge " + std::to_string(k) + " reuses a closed edge (flagged border, or completed by two triangles)");
+      }
+      if (found[k]->state == (x < y ? Edge::kOpenUp : Edge::kOpenDown)) {
+        return m.bad("edge " + std::to_string(k) + " has the orientation of an open boundary edge (inconsistent orientation)");
+      }
       if (border) return m.bad("edge " + std::to_string(k) + " is flagged border but completes a boundary edge");
       leaving |= static_cast<uint8_t>(1u << k);
       ++e;
     } else if (!border) {
       entering |= static_cast<uint8_t>(1u << k);
+    } else if (t.eslot[k] != kNoSlot) {
+      return m.bad("edge " + std::to_string(k) + " is a border but names edge slot " + std::to_string(t.eslot[k]));
     }
   }
-  if ((t.leaving_mask | t.entering_mask) != 0 && (t.leaving_mask != leaving || t.entering_mask != entering)) {
+  if ((t.leaving_mask | t.entering_mask | t.final_mask) != 0) m.masks = true;
+  if (m.masks && (t.leaving_mask != leaving || t.entering_mask != entering)) {
     return m.bad("leaving/entering flags disagree with the boundary");
   }
   if ((t.nonmanifold_mask & ~t.border_mask) != 0) return m.bad("a non-manifold edge that is not a border");
@@ -202,32 +341,54 @@ Status SequenceChecker::triangle(const SequenceTriangle& t) {
                  " completed edges it is none of the five ops");
   }
   if (op != t.op) return m.bad(std::string("claims op ") + op_name(t.op) + " but is " + op_name(op));
+  if (op == Op::kJoin) {
+    // Rule 2: the vertex opposite the completed edge is on the boundary.
+    int third = leaving == 1 ? 2 : leaving == 2 ? 0 : 1;
+    if (a[third]->open_edges == 0) {
+      return m.bad("a join whose third vertex " + std::to_string(t.v[third]) + " is not on the boundary");
+    }
+  }
 
-  // Apply.
+  // Apply: completed edges first (inserting others may move the edges
+  // found above).
+  for (int k = 0; k < 3; ++k) {
+    if (!((leaving >> k) & 1)) continue;
+    Edge& edge = *found[k];
+    if (t.eslot[k] != kNoSlot && t.eslot[k] != edge.slot) {
+      return m.bad("edge " + std::to_string(k) + " completes an edge of slot " + std::to_string(edge.slot) +
+                   " but names slot " + std::to_string(t.eslot[k]));
+    }
+    if (edge.slot != kNoSlot) m.edge_slots.erase(edge.slot);
+    edge.state = Edge::kClosed;
+    --m.open_edges;
+    --a[k]->open_edges;
+    --a[(k + 1) % 3]->open_edges;
+  }
   for (int k = 0; k < 3; ++k) {
     uint32_t x = t.v[k], y = t.v[(k + 1) % 3];
+    Active* ax = a[k];
+    Active* ay = a[(k + 1) % 3];
     if ((leaving >> k) & 1) {
-      auto it = m.boundary.find(directed(y, x));
-      if (t.eslot[k] != kNoSlot && t.eslot[k] != it->second) {
-        return m.bad("edge " + std::to_string(k) + " completes an edge of slot " + std::to_string(it->second) +
-                     " but names slot " + std::to_string(t.eslot[k]));
-      }
-      m.edge_slots.erase(it->second);
-      m.boundary.erase(it);
-      --a[k]->open_edges;
-      --a[(k + 1) % 3]->open_edges;
+      continue;
     } else if ((entering >> k) & 1) {
-      if (t.eslot[k] != kNoSlot && !m.edge_slots.insert(t.eslot[k]).second) {
+      if (t.eslot[k] != kNoSlot && !m.edge_slots.insert(t.eslot[k], Empty())) {
         return m.bad("edge " + std::to_string(k) + " enters with slot " + std::to_string(t.eslot[k]) + ", which an open edge holds");
       }
-      m.boundary.emplace(directed(x, y), t.eslot[k]);
-      ++a[k]->open_edges;
-      ++a[(k + 1) % 3]->open_edges;
+      uint64_t key = undirected(x, y);
+      Edge edge;
+      edge.slot = t.eslot[k];
+      edge.state = x < y ? Edge::kOpenUp : Edge::kOpenDown;
+      m.edges.insert(key, edge);
+      ax->edges.push_back(key);
+      ay->edges.push_back(key);
+      ++m.open_edges;
+      ++ax->open_edges;
+      ++ay->open_edges;
     } else {
       uint64_t key = undirected(x, y);
-      m.borders.insert(key);
-      a[k]->border.push_back(key);
-      a[(k + 1) % 3]->border.push_back(key);
+      m.edges.insert(key, Edge());
+      ax->edges.push_back(key);
+      ay->edges.push_back(key);
       ++m.stats.border_edges;
       m.loops.unite(x, y);
       m.on_border[x] = m.on_border[y] = 1;
@@ -239,44 +400,83 @@ Status SequenceChecker::triangle(const SequenceTriangle& t) {
       }
     }
   }
+  // Rule 4: the corners no boundary edge touches any more are finalized
+  // next, in corner order; final_mask must say so.
+  uint8_t finals = 0;
+  m.pending_count = m.pending_next = 0;
+  for (int k = 0; k < 3; ++k) {
+    if (a[k]->open_edges == 0) {
+      finals |= static_cast<uint8_t>(1u << k);
+      m.pending[m.pending_count++] = t.v[k];
+    }
+  }
+  if (m.masks && t.final_mask != finals) {
+    return m.bad("final_mask " + std::to_string(t.final_mask) + " disagrees with the corners left without boundary edges (" +
+                 std::to_string(finals) + ")");
+  }
   for (int k = 0; k < 3; ++k) {
     a[k]->fresh = false;
     ++a[k]->uses;
     m.used[t.v[k]] = 1;
   }
+  m.fresh_count = 0;
   m.components.unite(t.v[0], t.v[1]);
   m.components.unite(t.v[1], t.v[2]);
   ++m.stats.triangles;
   ++m.stats.ops[static_cast<int>(op)];
-  m.stats.max_boundary_edges = std::max<uint64_t>(m.stats.max_boundary_edges, m.boundary.size());
+  m.stats.max_boundary_edges = std::max<uint64_t>(m.stats.max_boundary_edges, m.open_edges);
   return Status();
 }
 
 Status SequenceChecker::finalize(uint32_t index) {
   Impl& m = *impl_;
-  auto it = m.active.find(index);
-  if (it == m.active.end()) {
+  bool expected = m.pending_next < m.pending_count;
+  if (expected && index != m.pending[m.pending_next]) {
+    return m.check_no_pending(("the finalization of vertex " + std::to_string(index)).c_str());
+  }
+  Active* found = m.find_active(index);
+  if (found == nullptr) {
     return m.bad("finalizes vertex " + std::to_string(index) + (index < m.introduced ? " twice" : " before introducing it"));
   }
-  Active& a = it->second;
+  Active& a = *found;
   if (a.open_edges != 0) {
     return m.bad("finalizes vertex " + std::to_string(index) + " with " + std::to_string(a.open_edges) +
                  " boundary edges still open (they should be flagged border)");
   }
+  if (expected) {
+    ++m.pending_next;
+  } else if (a.fresh) {
+    // Rule 1: an isolated vertex is finalized right after its vertex event.
+    if (m.fresh_count != 1) {
+      return m.bad("finalizes isolated vertex " + std::to_string(index) + " while vertex " +
+                   std::to_string(m.fresh[0] == index ? m.fresh[1] : m.fresh[0]) + " waits for its triangle");
+    }
+    m.fresh_count = 0;
+  } else if (m.fresh_count != 0) {
+    return m.bad("finalizes vertex " + std::to_string(index) + " while vertex " + std::to_string(m.fresh[0]) +
+                 " waits for its triangle");
+  } else {
+    // A used vertex without boundary edges was due right after the triangle
+    // that closed its last one (rule 4).
+    return m.bad("finalizes vertex " + std::to_string(index) + " later than right after the triangle that closed its last boundary edge");
+  }
   if (a.uses == 0) ++m.stats.isolated_vertices;
   if (a.slot != kNoSlot) m.vertex_slots.erase(a.slot);
-  for (uint64_t key : a.border) m.borders.erase(key);
-  m.active.erase(it);
+  for (uint64_t key : a.edges) m.edges.erase(key);  // the other end may have done so already
+  m.free_pool.push_back(m.active_of[index]);
+  m.active_of[index] = kNoVertex;
+  --m.active;
   return Status();
 }
 
 Status SequenceChecker::finish() {
   Impl& m = *impl_;
-  if (!m.active.empty()) {
-    return Status(ErrorCode::kBadSequence, std::to_string(m.active.size()) + " vertices never finalized");
+  PSQ_RETURN_IF_ERROR(m.check_no_pending("the end of the stream"));
+  if (m.active != 0) {
+    return Status(ErrorCode::kBadSequence, std::to_string(m.active) + " vertices never finalized");
   }
-  if (!m.boundary.empty()) {
-    return Status(ErrorCode::kBadSequence, std::to_string(m.boundary.size()) + " boundary edges left open");
+  if (m.open_edges != 0) {
+    return Status(ErrorCode::kBadSequence, std::to_string(m.open_edges) + " boundary edges left open");
   }
   // Components of the cut mesh (for its Euler characteristic), then of the
   // input mesh: a cut vertex joins the component of its first occurrence.

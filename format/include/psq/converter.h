@@ -14,17 +14,37 @@
 //   each of its vertices is complete, and how the fan is cut is decided.
 // - An edge with exactly two triangles of opposite orientation links them;
 //   any other edge with two or more triangles is non-manifold and is cut.
+//   Each edge is decided once, when the first of its two ends is finalized
+//   (all its triangles are in then).
 // - Around a vertex, the triangles connected through links form fans. Each
 //   fan becomes one vertex of the sequence; a second fan of the same input
 //   vertex re-appears it (non-manifold vertex). Where a fan would hold two
 //   triangles sharing a cut edge, the fan is split so that the sequence
 //   stays an oriented manifold with borders.
 // - Within that manifold every unemitted triangle of an active fan is
-//   reachable across a boundary edge, so emission never gets stuck.
+//   reachable across a boundary edge, so emission never gets stuck. A fan's
+//   boundary edges are exactly its links between emitted and unemitted
+//   triangles, so a sequence vertex is finalized right after the triangle
+//   that emits the last triangle of its fan, which is when no boundary edge
+//   touches it any more: finalization is canonical (spec/psq-dump.md, A.2
+//   rule 4), in the triangle's corner order; an isolated vertex is
+//   finalized right after its vertex event.
+//
+// Cost: linear in the input, also around a vertex of any valence (the
+// triangles of a vertex are grouped by neighbour through a mark on the
+// neighbour, never by comparing pairs).
 //
 // Memory: the waiting area (triangles not yet emitted and their vertices),
 // which a spatially coherent input keeps proportional to the sweep front,
-// never to the mesh.
+// never to the mesh; plus the set of finalized input ids (see vertex()):
+// per range of 2^16 ids, nothing once all its ids are finalized, else the
+// smaller of 2 bytes per finalized id and 8 KiB (a bitmap). Ids numbered
+// densely and finalized roughly in increasing order (any coherent input)
+// thus cost a few KiB; in any order, about one bit per id of the ranges
+// in use.
+//
+// Errors are sticky: after a call fails, every later call (begin included)
+// returns the same error and does nothing.
 #ifndef PSQ_CONVERTER_H_
 #define PSQ_CONVERTER_H_
 
@@ -60,18 +80,21 @@ class SequenceConverter {
 
   // Passes the schema on to the sink. Errors: the sink's.
   Status begin(const MeshSchema& schema);
-  // The data of input vertex `id` (any 32-bit number, given once). It may
-  // come before or after triangles that use it, but before its finalize().
-  // Errors: kBadIndex (given twice or after its finalization).
+  // The data of input vertex `id` (any 32-bit number but 4294967295, given
+  // once). It may come before or after triangles that use it, but before its
+  // finalize(). Errors: kBadIndex (given twice, or after its finalization,
+  // also long after: finalized ids are remembered, see Memory above).
   Status vertex(uint32_t id, const double position[3], const PropertyValues& values);
   // A triangle over input vertex ids not yet finalized. Degenerate
-  // triangles are dropped and counted. Errors: kBadIndex (a finalized vertex).
+  // triangles are dropped and counted. Errors: kBadIndex (a finalized
+  // vertex, however long ago), kLimit (more than 2^30 triangles waiting).
   Status triangle(const uint32_t id[3], const PropertyValues& values);
   // No triangle given from now on uses vertex `id`. Errors: kBadIndex (the
   // vertex was never given, or finalized twice), and the sink's errors.
   Status finalize(uint32_t id);
-  // Everything was given and finalized; emits the rest and calls the sink's
-  // finish(). Errors: kBadIndex (vertices never finalized), the sink's.
+  // Everything was given; emits the rest and calls the sink's finish().
+  // Vertices not finalized yet are finalized here. Errors: kBadIndex (a
+  // vertex that triangles use was never given), the sink's.
   Status finish();
 
   const ConverterStats& stats() const;

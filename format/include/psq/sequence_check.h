@@ -2,13 +2,26 @@
 // in one streaming pass (paper section 3 and Table 1).
 //
 // SequenceChecker is a SequenceSink that recomputes the processing boundary
-// from the triangles alone and checks every claim of the stream: each
-// triangle's op, its new and last-use corners, its border, leaving and
-// entering edges, consistent orientation (an edge completes only a boundary
-// edge of the opposite direction), and that nothing stays open at the end.
+// from the triangles alone and checks every claim of the stream against the
+// rules of spec/psq-dump.md, A.2: each triangle's op (a join's third vertex
+// on the boundary), its new corners (exactly the vertices introduced right
+// before it), its border, leaving and entering edges, consistent orientation
+// (an edge completes only a boundary edge of the opposite direction), that no
+// triangle uses a closed edge (a border, or an edge two triangles completed),
+// canonical finalization (a vertex is finalized right after the triangle
+// that leaves no boundary edge at it, in corner order; an isolated vertex
+// right after its vertex event), slots (a border edge has none), and that
+// nothing stays open at the end.
+//
+// Masks: new_mask is always checked. leaving_mask, entering_mask and
+// final_mask are checked from the first triangle that carries any of them
+// on; a producer that computes none of them (a parsed dump) leaves all
+// three zero on every triangle. Slots are checked where given (not kNoSlot).
+//
 // It also counts what `psq info` reports. Memory is proportional to the
-// boundary, plus 12 bytes per vertex for the component, border-loop and hole
-// union-finds.
+// boundary (its vertices with their closed edges), plus 16 bytes per vertex
+// for the component, border-loop and hole union-finds and the index of the
+// active vertices.
 #ifndef PSQ_SEQUENCE_CHECK_H_
 #define PSQ_SEQUENCE_CHECK_H_
 
