@@ -259,6 +259,17 @@ class SlotQueue {
   bool empty() const { return head_ == items_.size(); }
   size_t size() const { return items_.size() - head_; }
   void push(uint32_t x) { items_.push_back(x); }
+  // The most recently pushed item.
+  uint32_t pop_newest() {
+    uint32_t x = items_.back();
+    items_.pop_back();
+    if (items_.size() == head_) {
+      items_.clear();
+      head_ = 0;
+    }
+    return x;
+  }
+  // The oldest item.
   uint32_t pop() {
     uint32_t x = items_[head_++];
     if (head_ == items_.size()) {
@@ -312,6 +323,7 @@ struct SequenceConverter::Impl {
   std::vector<uint32_t> free_edge_slots;
   // Emission candidates by op preference: end, fill, join, add.
   SlotQueue buckets[4];
+  uint32_t prefer[3] = {kNone, kNone, kNone};  // neighbours of the last triangle
   SlotQueue starts;  // ready triangles that are start candidates
   uint32_t next_dense = 0;
   uint64_t waiting = 0;
@@ -885,6 +897,20 @@ bool SequenceConverter::Impl::emit(uint32_t slot, int cls) {
     tri_values[slot].clear();
   }
   t.state |= Tri::kEmitted;
+  // The next triangle should continue here (drain()): the neighbours across
+  // this one's entering edges, starting after its first leaving edge (the
+  // reference edge of the .psq gate coder, spec/psq-format.md 6.2.1).
+  {
+    int g = 2;  // a start has no leaving edge: edge 0 first
+    for (int k = 2; k >= 0; --k)
+      if (leaving_mask & (1u << k)) g = k;
+    int n = 0;
+    for (int i = 1; i <= 3; ++i) {
+      const int k = (g + i) % 3;
+      if (entering_mask & (1u << k)) prefer[n++] = t.partner[k] >> 2;
+    }
+    for (; n < 3; ++n) prefer[n] = kNone;
+  }
   // Tell unemitted partners that their edge is now on the boundary.
   for (uint32_t k = 0; k < 3; ++k) {
     if (!(entering_mask & (1u << k))) continue;
@@ -921,9 +947,28 @@ bool SequenceConverter::Impl::emit(uint32_t slot, int cls) {
 bool SequenceConverter::Impl::drain() {
   for (;;) {
     bool emitted = false;
+    // Locality first (it keeps the boundary short and the .psq gate codes
+    // cheap): a neighbour of the last triangle, unless a better op waits
+    // elsewhere (an end or fill before a join or add).
+    for (int i = 0; i < 3 && !emitted; ++i) {
+      const uint32_t slot = prefer[i];
+      if (slot == kNone) continue;
+      const Tri& t = tris[slot];
+      if (t.emitted() || !t.ready()) continue;
+      const int c = classify(t);
+      if (c < 0 || c > 3) continue;
+      bool better = false;
+      for (int b = 0; b < c && b < 2; ++b) better = better || !buckets[b].empty();
+      if (better) continue;
+      if (!emit(slot, c)) return false;
+      emitted = true;
+    }
+    if (emitted) continue;
+    // Then the newest candidate of the best op (depth first: the region
+    // grows in a spiral instead of jumping along the whole boundary).
     for (int b = 0; b < 4 && !emitted; ++b) {
       while (!buckets[b].empty()) {
-        uint32_t slot = buckets[b].pop();
+        uint32_t slot = buckets[b].pop_newest();
         const Tri& t = tris[slot];
         if (t.emitted() || !t.ready()) continue;  // stale entry (slots are reused only after emission)
         int c = classify(t);
