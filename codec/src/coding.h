@@ -107,14 +107,15 @@ inline int slot_bits(uint32_t capacity) { return capacity <= 1 ? 0 : 32 - __buil
 // of the format).
 enum Cost { kCostConnectivity = 0, kCostGeometry = 1, kCostCount = 2 };
 
-// -log2(p / 4096) for a 12-bit probability p (1..4095).
+// -log2(p / 4096) for a probability p in 1/4096 units (callers shift
+// the models' 16-bit probabilities by 4).
 double bit_cost(uint32_t p12);
 
 class Encoder {
  public:
   Encoder(RangeEncoder* rc, double* cost) : rc_(rc), cost_(cost) {}
   void bit(BitModel& m, int b, Cost c) {
-    if (cost_) cost_[c] += bit_cost(b ? 4096u - m.p0 : m.p0);
+    if (cost_) cost_[c] += bit_cost((b ? 65536u - m.p0 : m.p0) >> 4);
     rc_->encode_bit(m, b);
   }
   void symbol(SymbolModel& m, uint32_t s, Cost c) {
@@ -159,7 +160,7 @@ class Decoder {
   int bit(BitModel& m, Cost c) {
     uint16_t p0 = m.p0;
     int b = rc_->decode_bit(m);
-    if (cost_) cost_[c] += bit_cost(b ? 4096u - p0 : p0);
+    if (cost_) cost_[c] += bit_cost((b ? 65536u - p0 : p0) >> 4);
     return b;
   }
   uint32_t symbol(SymbolModel& m, Cost c) {

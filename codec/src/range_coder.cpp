@@ -1,8 +1,8 @@
 // The adaptive binary range coder (psq/range_coder.h). A range coder in
 // the style of Martin (1979), with 32-bit range, bottom renormalisation by
 // bytes and carry propagation through a cached byte and a run of 0xff bytes
-// (the scheme of Subbotin's and LZMA's coders); 12-bit adaptive bit models
-// with shift-5 updates; integers as bit length + sign + low bits as in
+// (the scheme of Subbotin's and LZMA's coders); 16-bit adaptive bit models
+// whose update rate slows as they learn (adapt_shift); integers as bit length + sign + low bits as in
 // LASzip's integer coder (Isenburg, "LASzip: lossless compression of LiDAR
 // data", 2013).
 #include "psq/range_coder.h"
@@ -10,9 +10,6 @@
 namespace psq {
 namespace {
 
-constexpr int kProbBits = 12;
-constexpr uint32_t kProbOne = 1u << kProbBits;
-constexpr int kAdaptShift = 5;
 constexpr uint32_t kTop = 1u << 24;
 
 int bit_length(uint32_t v) { return v == 0 ? 0 : 32 - __builtin_clz(v); }
@@ -42,14 +39,16 @@ void RangeEncoder::shift_low() {
 }
 
 void RangeEncoder::encode_bit(BitModel& m, int bit) {
-  uint32_t bound = (range_ >> kProbBits) * m.p0;
+  uint32_t bound = (range_ >> 16) * m.p0;
+  const int sh = adapt_shift(m.n);
+  if (m.n < 255) ++m.n;
   if (bit == 0) {
     range_ = bound;
-    m.p0 = static_cast<uint16_t>(m.p0 + ((kProbOne - m.p0) >> kAdaptShift));
+    m.p0 = static_cast<uint16_t>(m.p0 + ((65536u - 32 - m.p0) >> sh));
   } else {
     low_ += bound;
     range_ -= bound;
-    m.p0 = static_cast<uint16_t>(m.p0 - (m.p0 >> kAdaptShift));
+    m.p0 = static_cast<uint16_t>(m.p0 - ((m.p0 - 32) >> sh));
   }
   while (range_ < kTop) {
     range_ <<= 8;

@@ -7,7 +7,10 @@
 // followed by the bits below the leading one (after the integer coder of
 // LASzip, Isenburg 2013).
 //
-// Probabilities are 12-bit (1/4096 units) and adapt by 1/32 of the error
+// Probabilities are 16-bit (1/65536 units, kept within [32, 65504]) and
+// adapt by 1/2^s of the error, where s grows from 2 to 6 with the number of
+// updates the model has seen (fast learning, then stable estimates; spec
+// 5.1)
 // after each decision. The encoder appends to a byte vector; the decoder
 // reads a byte span and never reads outside it: past the end it reads zero
 // bytes and remembers that it overran, which the caller turns into an error
@@ -25,10 +28,13 @@
 
 namespace psq {
 
-// An adaptive binary probability: the chance of a 0, in 1/4096 units.
+// An adaptive binary probability (spec 5.1).
 struct BitModel {
-  uint16_t p0 = 2048;
+  uint16_t p0 = 32768;  // the chance of a 0, in 1/65536 units
+  uint16_t n = 0;       // updates so far (saturates at 255): sets the adaptation rate
 };
+// The adaptation shift after n updates: 2, 3, 4, 5, then 6 from n = 30 on.
+inline int adapt_shift(uint16_t n) { return n < 2 ? 2 : n < 6 ? 3 : n < 14 ? 4 : n < 30 ? 5 : 6; }
 
 // An adaptive model for symbols of `bits` bits (1..16): a binary tree of
 // BitModels, most significant bit first.
@@ -79,16 +85,18 @@ class RangeDecoder {
 
   // Inline: the decoder's innermost operation (spec/psq-format.md 5).
   int decode_bit(BitModel& m) {
-    const uint32_t bound = (range_ >> 12) * m.p0;
+    const uint32_t bound = (range_ >> 16) * m.p0;
+    const int sh = adapt_shift(m.n);
+    if (m.n < 255) ++m.n;
     int bit;
     if (code_ < bound) {
       range_ = bound;
-      m.p0 = static_cast<uint16_t>(m.p0 + ((4096u - m.p0) >> 5));
+      m.p0 = static_cast<uint16_t>(m.p0 + ((65536u - 32 - m.p0) >> sh));
       bit = 0;
     } else {
       code_ -= bound;
       range_ -= bound;
-      m.p0 = static_cast<uint16_t>(m.p0 - (m.p0 >> 5));
+      m.p0 = static_cast<uint16_t>(m.p0 - ((m.p0 - 32) >> sh));
       bit = 1;
     }
     if (range_ < (1u << 24)) normalize();
