@@ -4,7 +4,7 @@
 #   ./build.sh test       install what is missing, build (Release), run the whole test suite
 #   ./build.sh sanitize   the same suite built with AddressSanitizer + UBSan
 #   ./build.sh fuzz       clang + libFuzzer: build the fuzz targets, run each for 20 s (ctest -L fuzz;
-#                         PSQ_FUZZ_SECONDS=N to change)
+#                         PSQ_FUZZ_SECONDS=N to change; PSQ_FUZZ_TARGETS="fuzz_psq ..." for some)
 #   ./build.sh build      just build (Release) into build/
 # Dependencies come from Debian 12's packages only.
 set -euo pipefail
@@ -71,8 +71,14 @@ case "$cmd" in
     install_deps
     CC=clang CXX=clang++ cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPSQ_FUZZ=ON -DPSQ_BUILD_TESTS=OFF -DPSQ_BUILD_BENCH=OFF \
       "-DPSQ_FUZZ_SECONDS=${PSQ_FUZZ_SECONDS:-20}" >/dev/null
-    cmake --build build-fuzz -j "$JOBS"
-    (cd build-fuzz && ctest -L fuzz --output-on-failure -j "$JOBS")
+    if [ -n "${PSQ_FUZZ_TARGETS:-}" ]; then
+      # Only these targets (space-separated), e.g. PSQ_FUZZ_TARGETS=fuzz_psq.
+      for target in $PSQ_FUZZ_TARGETS; do cmake --build build-fuzz -j "$JOBS" --target "$target"; done
+      (cd build-fuzz && ctest -L fuzz --output-on-failure -j "$JOBS" -R "^($(echo "$PSQ_FUZZ_TARGETS" | tr ' ' '|'))\$")
+    else
+      cmake --build build-fuzz -j "$JOBS"
+      (cd build-fuzz && ctest -L fuzz --output-on-failure -j "$JOBS")
+    fi
     ;;
   *)
     echo "usage: ./build.sh [demo|test|sanitize|fuzz|build]" >&2
