@@ -39,7 +39,9 @@ struct PsqDecoder::Impl {
   std::unique_ptr<PropertyUnpacker> props;
   PsqStats stats;
   double cost[kCostCount] = {0, 0};
-  uint32_t file_crc = 0;
+  uint32_t file_crc = 0;     // of the header's bytes (spec 4.2)
+  bool in_header = true;
+  uint32_t chain_crc = 0;    // spec 4.5: the block checksums, in order
 
   // The current chunk.
   std::vector<uint8_t> conn, packed, raw;
@@ -70,7 +72,7 @@ struct PsqDecoder::Impl {
         return Status(ErrorCode::kTruncated, "the stream ends inside a chunk or before its end record", in->offset());
       return s;
     }
-    file_crc = crc32c_update(file_crc, dst, n);
+    if (in_header) file_crc = crc32c_update(file_crc, dst, n);
     return Status();
   }
   // Reads n bytes in steps, so that a huge declared size allocates only as
@@ -119,7 +121,7 @@ Status PsqDecoder::Impl::open(InputStream* stream) {
     return Status(ErrorCode::kUnsupported, "format version " + std::to_string(header.version_major) + "." +
                                                std::to_string(header.version_minor) + "; this psq reads 1.x", 8);
   if (flags & ~kKnownFlags)
-    return Status(ErrorCode::kUnsupported, "unknown header flags 0x" + std::to_string(flags & ~kKnownFlags), 10);
+    return Status(ErrorCode::kUnsupported, "unknown header flags (value " + std::to_string(flags & ~kKnownFlags) + ")", 10);
   if (length > kMaxHeaderPayload)
     return Status(ErrorCode::kLimit, "header payload of " + std::to_string(length) + " bytes (limit " +
                                          std::to_string(kMaxHeaderPayload) + ")", 12);
@@ -132,6 +134,8 @@ Status PsqDecoder::Impl::open(InputStream* stream) {
   PSQ_RETURN_IF_ERROR(read(c, 4));
   if (!checksum_ok(Get(c, 4).u32(), expect))
     return Status(ErrorCode::kChecksum, "header checksum mismatch", kFixedHeaderBytes + length);
+  in_header = false;
+  chain_crc = crc32c_update(0, c, 4);
   PSQ_RETURN_IF_ERROR(parse_header_payload(payload.data(), payload.size(), kFixedHeaderBytes, &header));
   stats.header_bytes = kFixedHeaderBytes + length + 4;
   boundary = Boundary(header.boundary_limit);
@@ -175,6 +179,7 @@ Status PsqDecoder::Impl::next_chunk() {
   uint64_t crc_at = in->offset();
   PSQ_RETURN_IF_ERROR(read(c, 4));
   if (!checksum_ok(Get(c, 4).u32(), crc)) return Status(ErrorCode::kChecksum, "chunk checksum mismatch", crc_at);
+  chain_crc = crc32c_update(chain_crc, c, 4);
   if (has_props) {
     if (!zstd_decompress(packed.data(), packed.size(), prop_raw, &raw))
       return Status(ErrorCode::kBadValue, "property section does not decompress to its declared size",
@@ -198,7 +203,8 @@ Status PsqDecoder::Impl::next_chunk() {
 Status PsqDecoder::Impl::read_end() {
   uint8_t f[kEndFieldBytes - 1];
   PSQ_RETURN_IF_ERROR(read(f, sizeof f));
-  uint32_t expect = file_crc;
+  const uint8_t tag = kEndTag;
+  const uint32_t expect = crc32c_update(crc32c_update(chain_crc, &tag, 1), f, sizeof f);
   Get get(f, sizeof f);
   uint64_t vertices = get.u64(), triangles = get.u64(), chunks = get.u64();
   uint32_t max_active = get.u32(), max_open = get.u32();
@@ -380,7 +386,7 @@ Status PsqDecoder::Impl::decode_record() {
     ev.vertex.slot = s;
     bt.c[k] = s;
   }
-  if (!boundary.find_completions(bt)) return corrupt("triangle puts an edge on the boundary twice or reuses a border edge");
+  if (!boundary.find_completions(bt)) return corrupt("triangle puts an edge on the boundary twice or reuses a closed edge");
   const int start = g_sym == kGateStart ? 1 : 0;
   int completed = 0;
   for (int k = 0; k < 3; ++k) {

@@ -22,6 +22,7 @@ Status bad_sequence(const std::string& what) { return Status(ErrorCode::kBadSequ
 
 struct PendingVertex {
   uint32_t in_index;
+  uint32_t in_slot = kNoSlot;  // the input's boundary slot
   uint32_t reappears;  // input numbering, or kNoVertex
   int64_t pos[3];
   PropertyValues values;
@@ -42,7 +43,9 @@ struct PsqEncoder::Impl {
   PsqStats stats;
   double cost[kCostCount] = {0, 0};
 
-  // Input dense index -> vertex slot, for active vertices.
+  // Active vertices by the input's boundary slot (the converter's and the
+  // decoder's sequences have them: no hashing), else by input dense index.
+  std::vector<uint32_t> by_inslot;
   std::unordered_map<uint32_t, uint32_t> slot_of;
   // Input index -> decoded index where they differ (spec 2.3: an isolated
   // vertex coded while others wait for their triangle).
@@ -59,10 +62,11 @@ struct PsqEncoder::Impl {
   std::vector<uint8_t> records;
   std::unique_ptr<RangeEncoder> rc;
   uint32_t chunk_records = 0, chunk_vertices = 0, chunk_triangles = 0;
-  uint32_t file_crc = 0;
+  // Spec 4.5: the stream checksum chains the checksums of the header and
+  // of every chunk (their last 4 bytes), then the end record's fields.
+  uint32_t chain_crc = 0;
 
   Status emit(const std::vector<uint8_t>& bytes) {
-    file_crc = crc32c_update(file_crc, bytes.data(), bytes.size());
     stats.total_bytes += bytes.size();
     return out->write(bytes.data(), bytes.size());
   }
@@ -148,6 +152,7 @@ Status PsqEncoder::Impl::begin(const MeshSchema& schema) {
                               "cannot encode this mesh: " + hs.message());
   stats.header_bytes = h.size();
   rc = std::make_unique<RangeEncoder>(&records);
+  chain_crc = crc32c_update(chain_crc, h.data() + h.size() - 4, 4);
   return emit(h);
 }
 
@@ -225,6 +230,15 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
       if (pending[i].in_index == t.v[k]) pend[k] = static_cast<int>(i);
     if (pend[k] >= 0) {
       ++nnew;
+      continue;
+    }
+    const uint32_t hint = t.vslot[k];
+    if (hint != kNoSlot) {
+      const uint32_t s = hint < by_inslot.size() ? by_inslot[hint] : kNone;
+      if (s == kNone || !boundary.vertex_live(s) || boundary.vertex(s).key != t.v[k])
+        return bad_sequence("triangle uses vertex " + std::to_string(t.v[k]) + " with boundary slot " +
+                            std::to_string(hint) + ", which is not its active vertex's");
+      slots[k] = s;
       continue;
     }
     auto it = slot_of.find(t.v[k]);
@@ -362,7 +376,12 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
       return Status(ErrorCode::kLimit, "more than " + std::to_string(opt.boundary_limit) +
                                            " active vertices (the boundary limit)");
     bt.c[k] = s;
-    slot_of[v.in_index] = s;
+    if (v.in_slot != kNoSlot) {
+      if (v.in_slot >= by_inslot.size()) by_inslot.resize(std::max<size_t>(v.in_slot + 1, 2 * by_inslot.size()), kNone);
+      by_inslot[v.in_slot] = s;
+    } else {
+      slot_of[v.in_index] = s;
+    }
   }
 
   if (!boundary.find_completions(bt))
@@ -404,7 +423,7 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
     if (bt.final[k]) {
       const BVertex& v = boundary.vertex(bt.c[k]);
       expect_final.push_back(v.key);
-      slot_of.erase(v.key);
+      if (!slot_of.empty()) slot_of.erase(v.key);
       boundary.free_vertex(bt.c[k]);
     }
   if (!props->add_face(t.values))
@@ -464,6 +483,7 @@ Status PsqEncoder::Impl::close_chunk() {
   records.clear();
   rc = std::make_unique<RangeEncoder>(&records);
   chunk_records = chunk_vertices = chunk_triangles = 0;
+  chain_crc = crc32c_update(chain_crc, chunk.data() + chunk.size() - 4, 4);
   return emit(chunk);
 }
 
@@ -483,7 +503,7 @@ Status PsqEncoder::Impl::finish() {
   put.u64(stats.chunks);
   put.u32(stats.max_active_vertices);
   put.u32(stats.max_open_edges);
-  put.u32(crc32c_update(file_crc, end.data(), end.size()));
+  put.u32(crc32c_update(chain_crc, end.data(), end.size()));
   stats.chunk_overhead_bytes += end.size();
   stats.connectivity_bits = cost[kCostConnectivity];
   stats.geometry_bits = cost[kCostGeometry];
@@ -525,6 +545,7 @@ Status PsqEncoder::vertex(const SequenceVertex& v) {
     return m.fail(Status(ErrorCode::kBadValue, "vertex property values do not match the schema"));
   PendingVertex p;
   p.in_index = v.index;
+  p.in_slot = v.slot;
   p.reappears = v.reappears;
   p.values = v.values;
   Status s = m.coded_position(v.position, p.pos);
@@ -559,9 +580,8 @@ Status PsqEncoder::finalize(uint32_t index) {
       Status s = m.isolated(i);
       return s.ok() ? s : m.fail(s);
     }
-  if (m.slot_of.count(index))
-    return m.fail(bad_sequence("vertex " + std::to_string(index) + " is finalized while boundary edges touch it"));
-  return m.fail(bad_sequence("vertex " + std::to_string(index) + " is finalized but not active"));
+  return m.fail(bad_sequence("vertex " + std::to_string(index) +
+                             " is finalized while boundary edges touch it, or is not active"));
 }
 
 Status PsqEncoder::finish() {

@@ -182,7 +182,9 @@ void zstd_compress(const std::vector<uint8_t>& raw, int level, std::vector<uint8
 }
 
 bool zstd_decompress(const uint8_t* data, size_t size, size_t raw_size, std::vector<uint8_t>* out) {
-  // Exactly one frame (spec 8.2), declaring its content size.
+  // Exactly one Zstandard frame (spec 8.2; not a skippable or legacy one),
+  // declaring its content size.
+  if (size < 4 || data[0] != 0x28 || data[1] != 0xb5 || data[2] != 0x2f || data[3] != 0xfd) return false;
   if (ZSTD_findFrameCompressedSize(data, size) != size) return false;
   unsigned long long declared = ZSTD_getFrameContentSize(data, size);
   if (declared != raw_size) return false;

@@ -108,8 +108,11 @@ class PsqEncoder : public SequenceSink {
   // Writes the header. Errors: kUsage (bad options; quantization without
   // the schema's bounds), kLimit (schema too large), the writer's.
   Status begin(const MeshSchema& schema) override;
-  // Errors for the events: kBadSequence when they do not form a valid
-  // processing sequence (spec/psq-dump.md A.2), kLimit when the boundary
+  // A vertex introduced with a boundary slot (SequenceVertex::slot) must be
+  // referenced by triangles with that slot (SequenceTriangle::vslot), as the
+  // converter and the decoder do; the encoder then finds it without
+  // hashing. Errors for the events: kBadSequence when they do not form a
+  // valid processing sequence (spec/psq-dump.md A.2), kLimit when the boundary
   // exceeds the limit, kBadValue for a position that is not finite or not of
   // the position type, and the writer's errors. Errors are sticky.
   Status vertex(const SequenceVertex& v) override;
