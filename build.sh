@@ -46,15 +46,24 @@ case "$cmd" in
   demo)
     install_deps
     configure_build build -DPSQ_BUILD_TESTS=OFF
-    mesh=tests/data/max_export_nm.ply
     out=$(mktemp -d)
     trap 'rm -rf "$out"' EXIT
-    echo "== psq info $mesh"
-    build/psq info "$mesh"
-    echo "== psq convert $mesh mesh.obj, then back to PLY"
-    build/psq convert "$mesh" "$out/mesh.obj"
-    build/psq convert "$out/mesh.obj" "$out/mesh.ply"
-    build/psq info "$out/mesh.ply" | head -4
+    echo "== build/psq-meshgen --triangles 200k -o mesh.ply   (a generated test mesh)"
+    build/psq-meshgen --triangles 200k -o "$out/mesh.ply" >/dev/null
+    echo "== psq convert mesh.ply mesh.psq   (16-bit positions, like draco_encoder -qp 16)"
+    build/psq convert "$out/mesh.ply" "$out/mesh.psq"
+    echo "== psq info mesh.psq"
+    build/psq info "$out/mesh.psq"
+    echo "== psq convert mesh.psq back.ply; psq verify mesh.psq"
+    build/psq convert "$out/mesh.psq" "$out/back.ply"
+    build/psq verify "$out/mesh.psq"
+    if build/psq convert --help | grep -q drc; then
+      build/psq convert "$out/mesh.ply" "$out/mesh.drc" -q
+    fi
+    echo "== sizes"
+    for f in mesh.ply mesh.psq mesh.drc back.ply; do
+      [ -f "$out/$f" ] && printf '%-10s %10d bytes\n' "$f" "$(stat -c %s "$out/$f")"
+    done
     ;;
   test)
     install_deps
