@@ -7,6 +7,7 @@
 
 #include "cli_util.h"
 #include "commands.h"
+#include "psq/draco.h"
 #include "psq/mesh_formats.h"
 #include "psq/obj.h"
 #include "psq/psq_codec.h"
@@ -20,18 +21,24 @@ const char kHelp[] =
     "\n"
     "Converts IN to OUT, streaming: one element in memory at a time (an OBJ\n"
     "with normals or texture coordinates is read in memory; see README).\n"
-    "The input format is recognised by content (PLY, OBJ, OFF, STL, .psq);\n"
-    "the output format comes from --to or OUT's extension (.ply, .obj,\n"
-    ".psq). IN and OUT may be '-'. To .psq, the mesh goes through the\n"
-    "processing-sequence converter (one pass when coherent, else an external\n"
-    "sort within --memory). The output is written to a temporary file and\n"
-    "renamed on success.\n"
+    "The input format is recognised by content (PLY, OBJ, OFF, STL, .psq,\n"
+    "Draco); the output format comes from --to or OUT's extension (.ply,\n"
+    ".obj, .psq, .drc). IN and OUT may be '-'. To .psq, the mesh goes through\n"
+    "the processing-sequence converter (one pass when coherent, else an\n"
+    "external sort within --memory). Draco (.drc) is in-core: the whole mesh\n"
+    "is held in memory, and a mesh that would take more than --memory is\n"
+    "refused. To .drc, normals, uchar colors, u/v and other scalar vertex\n"
+    "properties are kept; face and list properties are dropped (named in a\n"
+    "note). The output is written to a temporary file and renamed on success.\n"
     "\n"
     "Options:\n"
-    "  --to FORMAT    output format: ply, obj or psq (needed when OUT is '-')\n"
-    "  --bits N       .psq: quantize positions to N bits, 1..31 (default 16)\n"
-    "  --lossless     .psq: keep positions bit-exact instead of quantizing\n"
-    "  --memory SIZE  memory budget of the external sort (default 512M)\n"
+    "  --to FORMAT    output format: ply, obj, psq or drc (needed when OUT is '-')\n"
+    "  --bits N       .psq: quantize positions to N bits, 1..31 (default 16);\n"
+    "                 .drc: 1..30 (Draco edgebreaker, compression level 7)\n"
+    "  --lossless     .psq, .drc: keep positions bit-exact instead of quantizing\n"
+    "                 (Draco stores unquantized floats raw)\n"
+    "  --memory SIZE  memory budget of the external sort and of Draco input\n"
+    "                 or output (default 512M)\n"
     "  --chunk SIZE   .psq: close a chunk at this many coded bytes (default 1M)\n"
     "  --ascii        write ascii PLY instead of binary little-endian\n"
     "  --tmpdir DIR   directory for temporary spool files (default $TMPDIR)\n"
@@ -127,9 +134,11 @@ int cmd_convert(int argc, char** argv) {
 
   MeshFormat out_format = to.empty() ? format_from_extension(out) : format_from_name(to);
   if (out_format == MeshFormat::kUnknown) {
-    if (!to.empty()) return usage_error("convert", "unknown output format '" + to + "' (ply, obj or psq)");
-    return usage_error("convert", "cannot tell the output format from '" + out + "': use --to ply|obj|psq");
+    if (!to.empty()) return usage_error("convert", "unknown output format '" + to + "' (ply, obj, psq or drc)");
+    return usage_error("convert", "cannot tell the output format from '" + out + "': use --to ply|obj|psq|drc");
   }
+  if (out_format == MeshFormat::kDraco && !lossless && encode_options.bits > 30)
+    return usage_error("convert", "bad --bits " + bits_text + " for Draco (1..30)");
   if (same_file(in, out)) return usage_error("convert", "IN and OUT are the same file");
   if (out == "-" && json) return usage_error("convert", "--json needs OUT to be a file (stdout carries the mesh)");
   if (out == "-" && ::isatty(STDOUT_FILENO) && !(out_format == MeshFormat::kObj || ascii)) {
@@ -138,6 +147,7 @@ int cmd_convert(int argc, char** argv) {
 
   OpenOptions open_options;
   open_options.spool_dir = tmpdir;
+  open_options.memory_budget = build_options.memory_budget;
   OpenedMesh mesh;
   Status s = open_mesh(in, open_options, &mesh);
   if (!s.ok()) return report_error(in, s);
@@ -149,6 +159,9 @@ int cmd_convert(int argc, char** argv) {
   WriteOptions write_options;
   write_options.ascii = ascii;
   write_options.spool_dir = tmpdir;
+  write_options.draco_bits = encode_options.bits;
+  write_options.lossless = lossless;
+  write_options.memory_budget = build_options.memory_budget;
   std::unique_ptr<MeshSink> writer = make_mesh_writer(out_format, &output, write_options);
 
   // Count what passes through for the summary.
@@ -182,6 +195,12 @@ int cmd_convert(int argc, char** argv) {
     for (const std::string& d : static_cast<ObjWriter*>(writer.get())->dropped()) {
       notes.push_back("property '" + d + "' dropped: OBJ cannot hold it");
     }
+  }
+  if (out_format == MeshFormat::kDraco) {
+    for (const std::string& d : static_cast<DracoWriter*>(writer.get())->dropped()) {
+      notes.push_back("property '" + d + "' dropped: Draco output keeps scalar vertex properties only");
+    }
+    for (const std::string& n : static_cast<DracoWriter*>(writer.get())->notes()) notes.push_back(n);
   }
   if (!quiet) {
     for (const std::string& n : notes) note(in, n);

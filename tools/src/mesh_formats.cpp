@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cctype>
 
+#include "psq/draco.h"
 #include "psq/obj.h"
 #include "psq/off.h"
 #include "psq/ply.h"
@@ -19,6 +20,7 @@ const char* format_name(MeshFormat f) {
     case MeshFormat::kOff: return "off";
     case MeshFormat::kStl: return "stl";
     case MeshFormat::kPsq: return "psq";
+    case MeshFormat::kDraco: return "drc";
     case MeshFormat::kUnknown: break;
   }
   return "unknown";
@@ -30,6 +32,7 @@ MeshFormat format_from_name(const std::string& name) {
   if (n == "ply") return MeshFormat::kPly;
   if (n == "obj") return MeshFormat::kObj;
   if (n == "psq") return MeshFormat::kPsq;
+  if (n == "drc" || n == "draco") return MeshFormat::kDraco;
   return MeshFormat::kUnknown;
 }
 
@@ -42,6 +45,7 @@ MeshFormat format_from_extension(const std::string& path) {
 
 MeshFormat detect_format(const uint8_t* data, size_t size, int64_t total_size) {
   if (is_psq(data, size)) return MeshFormat::kPsq;
+  if (looks_like_draco(data, size)) return MeshFormat::kDraco;
   if (looks_like_ply(data, size)) return MeshFormat::kPly;
   // With a known size: a binary STL of exactly the size its count implies
   // (whatever its header says), or an ascii "solid ... facet".
@@ -96,10 +100,16 @@ Status open_mesh(const std::string& path, const OpenOptions& options, OpenedMesh
       out->source = std::make_unique<PsqMeshSource>(out->decoder.get());
       return Status();
     }
+    case MeshFormat::kDraco: {
+      auto reader = std::make_unique<DracoReader>();
+      PSQ_RETURN_IF_ERROR(reader->open(out->stream.get(), options.memory_budget));
+      out->source = std::move(reader);
+      return Status();
+    }
     case MeshFormat::kUnknown: break;
   }
   if (avail == 0) return Status(ErrorCode::kUnknownFormat, "empty input", 0);
-  return Status(ErrorCode::kUnknownFormat, "not a PLY, OBJ, OFF or STL file (unrecognised content)", 0);
+  return Status(ErrorCode::kUnknownFormat, "not a PLY, OBJ, OFF, STL, .psq or Draco file (unrecognised content)", 0);
 }
 
 std::unique_ptr<MeshSink> make_mesh_writer(MeshFormat format, OutputFile* out, const WriteOptions& options) {
@@ -111,6 +121,13 @@ std::unique_ptr<MeshSink> make_mesh_writer(MeshFormat format, OutputFile* out, c
       return std::make_unique<PlyWriter>(out, o);
     }
     case MeshFormat::kObj: return std::make_unique<ObjWriter>(out);
+    case MeshFormat::kDraco: {
+      DracoWriteOptions o;
+      o.bits = options.draco_bits;
+      o.lossless = options.lossless;
+      o.memory_budget = options.memory_budget;
+      return std::make_unique<DracoWriter>(out, o);
+    }
     case MeshFormat::kOff:
     case MeshFormat::kStl:
     case MeshFormat::kPsq:

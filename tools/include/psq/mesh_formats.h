@@ -16,11 +16,11 @@
 
 namespace psq {
 
-enum class MeshFormat { kUnknown, kPly, kObj, kOff, kStl, kPsq };
+enum class MeshFormat { kUnknown, kPly, kObj, kOff, kStl, kPsq, kDraco };
 
-// "ply", "obj", "off", "stl", "psq" or "unknown".
+// "ply", "obj", "off", "stl", "psq", "drc" or "unknown".
 const char* format_name(MeshFormat f);
-// The output format named `name` ("ply", "obj", "psq"; case-insensitive),
+// The output format named `name` ("ply", "obj", "psq", "drc"; case-insensitive),
 // or kUnknown (also for "off" and "stl", which psq does not write).
 MeshFormat format_from_name(const std::string& name);
 // The format of an output path by its extension, or kUnknown.
@@ -44,6 +44,8 @@ struct OpenedMesh {
 
 struct OpenOptions {
   std::string spool_dir;  // for inputs that must be spooled (empty: $TMPDIR)
+  // Draco input is decoded in memory: the most it may take (bytes).
+  uint64_t memory_budget = uint64_t{512} << 20;
 };
 
 // Opens `path` ("-": standard input), detects its format by content and
@@ -53,11 +55,15 @@ Status open_mesh(const std::string& path, const OpenOptions& options, OpenedMesh
 struct WriteOptions {
   bool ascii = false;     // PLY: ascii instead of binary little-endian
   std::string spool_dir;  // PLY: where to spool when counts are unknown
+  int draco_bits = 16;    // Draco: position quantization bits (1..30)
+  bool lossless = false;  // Draco: positions and float attributes unquantized
+  uint64_t memory_budget = uint64_t{512} << 20;  // Draco: in-core limit (bytes)
 };
 
 // A sink writing `format` to `out`, which must outlive it. Never null for
-// kPly and kObj; null for kUnknown, kOff and kStl (input formats only) and
-// kPsq (a sequence format: its writer is PsqEncoder).
+// kPly, kObj and kDraco (a DracoWriter, in-core); null for kUnknown, kOff
+// and kStl (input formats only) and kPsq (a sequence format: its writer is
+// PsqEncoder).
 std::unique_ptr<MeshSink> make_mesh_writer(MeshFormat format, OutputFile* out,
                                            const WriteOptions& options);
 

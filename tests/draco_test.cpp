@@ -1,0 +1,336 @@
+// Draco (.drc) reading and writing: round trips, attributes, corrupt input,
+// the memory budget, and the CLI.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <random>
+#include <set>
+#include <string>
+
+#include "psq/draco.h"
+#include "psq/mesh_formats.h"
+#include "psq/ply.h"
+#include "test_util.h"
+
+namespace psq {
+namespace {
+
+using test::Mesh;
+using test::run_psq;
+
+// A sphere with normals, uchar colors, u/v, two other scalar properties, a
+// list property and a face property.
+Mesh decorated_sphere() {
+  Mesh m = test::make_sphere(12, 20);
+  auto& vp = m.schema.vertex_properties;
+  for (const char* n : {"nx", "ny", "nz"}) vp.push_back({n, ScalarType::kFloat32});
+  for (const char* n : {"red", "green", "blue"}) vp.push_back({n, ScalarType::kUInt8});
+  for (const char* n : {"u", "v"}) vp.push_back({n, ScalarType::kFloat32});
+  vp.push_back({"confidence", ScalarType::kFloat32});
+  vp.push_back({"label", ScalarType::kUInt16});
+  Property list;
+  list.name = "tags";
+  list.type = ScalarType::kInt32;
+  list.is_list = true;
+  vp.push_back(list);
+  m.schema.face_properties.push_back({"segment", ScalarType::kInt32});
+  for (size_t i = 0; i < m.positions.size(); ++i) {
+    const auto& p = m.positions[i];
+    const double len = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+    m.vertex_values[i] = {static_cast<float>(p[0] / len), static_cast<float>(p[1] / len), static_cast<float>(p[2] / len),
+                          static_cast<double>(i % 256), static_cast<double>((i * 7) % 256), 200,
+                          static_cast<float>(0.5 + 0.5 * p[0]), static_cast<float>(0.5 + 0.5 * p[1]),
+                          static_cast<float>(0.25 + i * 0.125), static_cast<double>(i % 9),
+                          2, 1, -static_cast<double>(i)};
+  }
+  for (size_t t = 0; t < m.triangles.size(); ++t) m.face_values[t] = {static_cast<double>(t)};
+  return m;
+}
+
+// Encodes `m` to a .drc file at `path`; returns the writer's status.
+Status write_drc(const Mesh& m, const std::string& path, DracoWriteOptions options,
+                 std::vector<std::string>* dropped = nullptr) {
+  OutputFile out;
+  Status s = out.open(path, true);
+  if (!s.ok()) return s;
+  DracoWriter w(&out, options);
+  test::MemorySource src(m);
+  s = pump(src, w);
+  if (!s.ok()) return s;
+  if (dropped) *dropped = w.dropped();
+  return out.commit();
+}
+
+// Reads a .drc held in memory with the given budget.
+Status read_drc(const std::string& bytes, uint64_t budget, Mesh* mesh) {
+  InputStream in;
+  in.open_memory(bytes.data(), bytes.size(), "mem.drc");
+  DracoReader r;
+  Status s = r.open(&in, budget);
+  if (!s.ok()) return s;
+  test::MemorySink sink;
+  s = pump(r, sink);
+  *mesh = sink.mesh;
+  return s;
+}
+
+int prop_index(const Mesh& m, const std::string& name) {
+  const auto& vp = m.schema.vertex_properties;
+  for (size_t i = 0; i < vp.size(); ++i)
+    if (vp[i].name == name) return static_cast<int>(i);
+  return -1;
+}
+
+// Matches each vertex of `got` to the nearest vertex of `want` (within
+// `tol` on every axis, one to one) and checks that the triangles are the
+// same under that matching. Returns the matching.
+std::vector<uint32_t> match(const Mesh& want, const Mesh& got, double tol) {
+  std::vector<uint32_t> to_want(got.positions.size(), 0);
+  std::set<uint32_t> taken;
+  for (size_t i = 0; i < got.positions.size(); ++i) {
+    double best = 1e300;
+    uint32_t bi = 0;
+    for (size_t j = 0; j < want.positions.size(); ++j) {
+      double d = 0;
+      for (int k = 0; k < 3; ++k) d = std::max(d, std::fabs(got.positions[i][k] - want.positions[j][k]));
+      if (d < best) best = d, bi = static_cast<uint32_t>(j);
+    }
+    EXPECT_LE(best, tol) << "vertex " << i;
+    EXPECT_TRUE(taken.insert(bi).second) << "two vertices match original vertex " << bi;
+    to_want[i] = bi;
+  }
+  Mesh mapped = got;
+  for (auto& t : mapped.triangles)
+    for (auto& v : t) v = to_want[v];
+  EXPECT_EQ(test::canonical_triangles(mapped), test::canonical_triangles(want));
+  return to_want;
+}
+
+TEST(Draco, DetectsByContent) {
+  const uint8_t drc[] = {'D', 'R', 'A', 'C', 'O', 2, 2, 1, 1};
+  EXPECT_TRUE(looks_like_draco(drc, sizeof drc));
+  EXPECT_EQ(detect_format(drc, sizeof drc, sizeof drc), MeshFormat::kDraco);
+  EXPECT_FALSE(looks_like_draco(drc, 4));
+  EXPECT_EQ(format_from_extension("a/b.drc"), MeshFormat::kDraco);
+  EXPECT_EQ(format_from_name("drc"), MeshFormat::kDraco);
+  EXPECT_STREQ(format_name(MeshFormat::kDraco), "drc");
+}
+
+TEST(Draco, RoundTripKeepsCountsPositionsAndAttributes) {
+  test::TempDir dir;
+  Mesh m = decorated_sphere();
+  DracoWriteOptions o;
+  o.bits = 14;
+  std::vector<std::string> dropped;
+  ASSERT_TRUE(write_drc(m, dir.file("a.drc"), o, &dropped).ok());
+  EXPECT_EQ(dropped, (std::vector<std::string>{"tags", "segment"}));
+
+  Mesh got;
+  Status s = read_drc(test::read_file(dir.file("a.drc")), uint64_t{64} << 20, &got);
+  ASSERT_TRUE(s.ok()) << s.to_string();
+  ASSERT_EQ(got.positions.size(), m.positions.size());
+  ASSERT_EQ(got.triangles.size(), m.triangles.size());
+  EXPECT_EQ(got.schema.vertex_count, static_cast<int64_t>(m.positions.size()));
+  EXPECT_EQ(got.schema.triangle_count, static_cast<int64_t>(m.triangles.size()));
+  // The sphere spans 2 units: half a step of the 14-bit grid, plus float rounding.
+  const double half_step = 2.0 / ((1 << 14) - 1) / 2;
+  std::vector<uint32_t> to_want = match(m, got, half_step * 1.001 + 1e-6);
+
+  for (const char* n : {"nx", "ny", "nz", "red", "green", "blue", "u", "v", "confidence", "label"})
+    ASSERT_GE(prop_index(got, n), 0) << n;
+  EXPECT_EQ(prop_index(got, "tags"), -1);
+  EXPECT_TRUE(got.schema.face_properties.empty());
+  EXPECT_EQ(got.schema.vertex_properties[prop_index(got, "red")].type, ScalarType::kUInt8);
+  EXPECT_EQ(got.schema.vertex_properties[prop_index(got, "label")].type, ScalarType::kUInt16);
+  for (size_t i = 0; i < got.positions.size(); ++i) {
+    const PropertyValues& w = m.vertex_values[to_want[i]];
+    const PropertyValues& g = got.vertex_values[i];
+    const char* normal[3] = {"nx", "ny", "nz"};
+    for (int k = 0; k < 3; ++k) EXPECT_NEAR(g[prop_index(got, normal[k])], w[k], 0.01);
+    EXPECT_EQ(g[prop_index(got, "red")], w[3]);
+    EXPECT_EQ(g[prop_index(got, "green")], w[4]);
+    EXPECT_EQ(g[prop_index(got, "blue")], w[5]);
+    EXPECT_NEAR(g[prop_index(got, "u")], w[6], 1.0 / 4095);
+    EXPECT_NEAR(g[prop_index(got, "v")], w[7], 1.0 / 4095);
+    EXPECT_EQ(g[prop_index(got, "confidence")], w[8]);
+    EXPECT_EQ(g[prop_index(got, "label")], w[9]);
+  }
+}
+
+TEST(Draco, LosslessKeepsPositionsBitExact) {
+  test::TempDir dir;
+  Mesh m = test::make_grid(9);
+  for (auto& p : m.positions) p[2] = static_cast<float>(0.1 * p[0] * p[1] + 1e-3);
+  DracoWriteOptions o;
+  o.lossless = true;
+  ASSERT_TRUE(write_drc(m, dir.file("a.drc"), o).ok());
+  Mesh got;
+  ASSERT_TRUE(read_drc(test::read_file(dir.file("a.drc")), uint64_t{64} << 20, &got).ok());
+  ASSERT_EQ(got.positions.size(), m.positions.size());
+  match(m, got, 0.0);
+}
+
+TEST(Draco, PointCloudGivesVerticesOnly) {
+  test::TempDir dir;
+  Mesh m = test::make_grid(5);
+  m.triangles.clear();
+  m.face_values.clear();
+  m.schema.triangle_count = 0;
+  ASSERT_TRUE(write_drc(m, dir.file("p.drc"), {}).ok());
+  Mesh got;
+  Status s = read_drc(test::read_file(dir.file("p.drc")), uint64_t{64} << 20, &got);
+  ASSERT_TRUE(s.ok()) << s.to_string();
+  EXPECT_EQ(got.positions.size(), m.positions.size());
+  EXPECT_TRUE(got.triangles.empty());
+}
+
+TEST(Draco, CorruptInputGivesCleanErrors) {
+  test::TempDir dir;
+  ASSERT_TRUE(write_drc(decorated_sphere(), dir.file("a.drc"), {}).ok());
+  const std::string good = test::read_file(dir.file("a.drc"));
+  auto check = [](const std::string& bytes, const std::string& what) {
+    Mesh got;
+    Status s = read_drc(bytes, uint64_t{64} << 20, &got);
+    if (s.ok()) return;
+    // kLimit: a corrupt count that asks libdraco for more memory than there is.
+    EXPECT_TRUE(s.code() == ErrorCode::kBadValue || s.code() == ErrorCode::kUnknownFormat ||
+                s.code() == ErrorCode::kBadIndex || s.code() == ErrorCode::kLimit)
+        << what << ": " << s.to_string();
+    EXPECT_FALSE(s.message().empty()) << what;
+    EXPECT_EQ(s.message().find('\n'), std::string::npos) << what;
+  };
+  // Every cut of the header, and cuts through the body.
+  for (size_t n = 0; n < good.size(); n += (n < 64 ? 1 : 7)) {
+    Mesh got;
+    Status s = read_drc(good.substr(0, n), uint64_t{64} << 20, &got);
+    EXPECT_FALSE(s.ok()) << "cut at " << n;
+    check(good.substr(0, n), "cut at " + std::to_string(n));
+  }
+  std::mt19937 rng(12345);
+  for (int trial = 0; trial < 300; ++trial) {
+    std::string bad = good;
+    const int flips = 1 + trial % 4;
+    for (int f = 0; f < flips; ++f) bad[rng() % bad.size()] ^= static_cast<char>(1 + rng() % 255);
+    check(bad, "trial " + std::to_string(trial));
+  }
+}
+
+TEST(Draco, MemoryBudgetIsEnforced) {
+  test::TempDir dir;
+  Mesh m = decorated_sphere();
+  ASSERT_TRUE(write_drc(m, dir.file("a.drc"), {}).ok());
+  const std::string bytes = test::read_file(dir.file("a.drc"));
+  Mesh got;
+  // Smaller than the file.
+  Status s = read_drc(bytes, bytes.size() / 2, &got);
+  EXPECT_EQ(s.code(), ErrorCode::kLimit) << s.to_string();
+  EXPECT_NE(s.message().find("memory"), std::string::npos);
+  // Holds the file but not the decoded mesh.
+  s = read_drc(bytes, bytes.size() + 16, &got);
+  EXPECT_EQ(s.code(), ErrorCode::kLimit) << s.to_string();
+  // The writer.
+  DracoWriteOptions o;
+  o.memory_budget = 4096;
+  s = write_drc(m, dir.file("b.drc"), o);
+  EXPECT_EQ(s.code(), ErrorCode::kLimit) << s.to_string();
+}
+
+TEST(Draco, WriterRefusesBadBits) {
+  test::TempDir dir;
+  DracoWriteOptions o;
+  o.bits = 31;
+  EXPECT_EQ(write_drc(test::make_grid(2), dir.file("a.drc"), o).code(), ErrorCode::kUsage);
+}
+
+// Writes a generated mesh as binary PLY.
+void write_ply(const Mesh& m, const std::string& path) {
+  OutputFile out;
+  ASSERT_TRUE(out.open(path, false).ok());
+  PlyWriter w(&out);
+  test::MemorySource src(m);
+  ASSERT_TRUE(pump(src, w).ok());
+  ASSERT_TRUE(out.commit().ok());
+}
+
+TEST(DracoCli, PlyToDrcToPsqToInfo) {
+  test::TempDir dir;
+  Mesh m = decorated_sphere();
+  write_ply(m, dir.file("a.ply"));
+  std::string out, err;
+  ASSERT_EQ(run_psq("convert " + dir.file("a.ply") + " " + dir.file("a.drc"), &out, &err), 0) << err;
+  EXPECT_NE(err.find("'segment' dropped"), std::string::npos) << err;
+  ASSERT_EQ(run_psq("convert " + dir.file("a.drc") + " " + dir.file("b.psq"), &out, &err), 0) << err;
+  ASSERT_EQ(run_psq("info " + dir.file("b.psq") + " --json", &out, &err), 0) << err;
+  EXPECT_NE(out.find(std::to_string(m.positions.size())), std::string::npos) << out;
+  EXPECT_NE(out.find(std::to_string(m.triangles.size())), std::string::npos) << out;
+  ASSERT_EQ(run_psq("info " + dir.file("a.drc"), &out, &err), 0) << err;
+  EXPECT_NE(out.find("drc"), std::string::npos) << out;
+  // .psq -> .drc and back to PLY.
+  ASSERT_EQ(run_psq("convert " + dir.file("b.psq") + " " + dir.file("c.drc"), &out, &err), 0) << err;
+  ASSERT_EQ(run_psq("convert " + dir.file("c.drc") + " " + dir.file("c.ply"), &out, &err), 0) << err;
+  Mesh back;
+  ASSERT_TRUE(test::load_mesh(dir.file("c.ply"), &back).ok());
+  EXPECT_EQ(back.positions.size(), m.positions.size());
+  EXPECT_EQ(back.triangles.size(), m.triangles.size());
+}
+
+TEST(DracoCli, PlyDrcPlyRoundTrip) {
+  test::TempDir dir;
+  Mesh m = test::make_sphere(8, 12);
+  write_ply(m, dir.file("a.ply"));
+  std::string out, err;
+  ASSERT_EQ(run_psq("convert --bits 12 " + dir.file("a.ply") + " " + dir.file("a.drc"), &out, &err), 0) << err;
+  ASSERT_EQ(run_psq("convert " + dir.file("a.drc") + " " + dir.file("b.ply"), &out, &err), 0) << err;
+  Mesh got;
+  ASSERT_TRUE(test::load_mesh(dir.file("b.ply"), &got).ok());
+  ASSERT_EQ(got.positions.size(), m.positions.size());
+  match(m, got, 2.0 / 4095 / 2 * 1.001 + 1e-6);
+  // Lossless.
+  ASSERT_EQ(run_psq("convert --lossless " + dir.file("a.ply") + " " + dir.file("l.drc"), &out, &err), 0) << err;
+  ASSERT_EQ(run_psq("convert " + dir.file("l.drc") + " " + dir.file("l.ply"), &out, &err), 0) << err;
+  ASSERT_TRUE(test::load_mesh(dir.file("l.ply"), &got).ok());
+  match(m, got, 0.0);
+}
+
+TEST(DracoCli, NotesWhatEdgebreakerDrops) {
+  test::TempDir dir;
+  test::write_file(dir.file("a.ply"),
+                   "ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nproperty float y\n"
+                   "property float z\nelement face 3\nproperty list uchar int vertex_indices\nend_header\n"
+                   "0 0 0\n1 0 0\n0 1 0\n0 0 1\n5 5 5\n3 0 1 2\n3 0 2 3\n3 0 0 1\n");
+  std::string out, err;
+  ASSERT_EQ(run_psq("convert " + dir.file("a.ply") + " " + dir.file("a.drc"), &out, &err), 0) << err;
+  EXPECT_NE(err.find("1 unreferenced vertex(es) dropped"), std::string::npos) << err;
+  EXPECT_NE(err.find("1 degenerate triangle(s) dropped"), std::string::npos) << err;
+  Mesh got;
+  ASSERT_TRUE(test::load_mesh(dir.file("a.drc"), &got).ok());
+  EXPECT_EQ(got.positions.size(), 4u);
+  EXPECT_EQ(got.triangles.size(), 2u);
+}
+
+TEST(DracoCli, ErrorsAndLimits) {
+  test::TempDir dir;
+  write_ply(decorated_sphere(), dir.file("a.ply"));
+  std::string out, err;
+  EXPECT_EQ(run_psq("convert --bits 31 " + dir.file("a.ply") + " " + dir.file("x.drc"), &out, &err), 2) << err;
+  EXPECT_FALSE(test::file_exists(dir.file("x.drc")));
+  EXPECT_EQ(run_psq("convert --memory 4K " + dir.file("a.ply") + " " + dir.file("x.drc"), &out, &err), 1) << err;
+  EXPECT_NE(err.find("memory"), std::string::npos) << err;
+  EXPECT_FALSE(test::file_exists(dir.file("x.drc")));
+  ASSERT_EQ(run_psq("convert " + dir.file("a.ply") + " " + dir.file("a.drc"), &out, &err), 0) << err;
+  EXPECT_EQ(run_psq("convert --memory 1K " + dir.file("a.drc") + " " + dir.file("x.ply"), &out, &err), 1) << err;
+  EXPECT_NE(err.find("memory"), std::string::npos) << err;
+  std::string bytes = test::read_file(dir.file("a.drc"));
+  test::write_file(dir.file("cut.drc"), bytes.substr(0, bytes.size() / 2));
+  EXPECT_EQ(run_psq("convert " + dir.file("cut.drc") + " " + dir.file("x.ply"), &out, &err), 1) << err;
+  EXPECT_NE(err.find("psq: error: " + dir.file("cut.drc")), std::string::npos) << err;
+  EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
+  ASSERT_EQ(run_psq("convert --help", &out, &err), 0);
+  EXPECT_NE(out.find("Draco"), std::string::npos);
+  EXPECT_NE(out.find("--memory"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace psq

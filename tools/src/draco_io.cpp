@@ -1,0 +1,573 @@
+// Draco (.drc) reader and writer (psq/draco.h), on libdraco's in-core API.
+#include "psq/draco.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <exception>
+#include <limits>
+#include <new>
+#include <set>
+
+#include "draco/attributes/geometry_attribute.h"
+#include "draco/attributes/point_attribute.h"
+#include "draco/compression/config/compression_shared.h"
+#include "draco/compression/decode.h"
+#include "draco/compression/expert_encode.h"
+#include "draco/core/decoder_buffer.h"
+#include "draco/core/encoder_buffer.h"
+#include "draco/mesh/mesh.h"
+#include "draco/metadata/geometry_metadata.h"
+#include "draco/point_cloud/point_cloud.h"
+
+namespace psq {
+namespace {
+
+constexpr char kMagic[] = "DRACO";
+constexpr size_t kMagicSize = 5;
+
+std::string mib(uint64_t bytes) { return std::to_string((bytes + (1 << 20) - 1) >> 20) + " MiB"; }
+
+// The psq type that holds every value of a Draco component type, or false.
+bool scalar_of(draco::DataType dt, ScalarType* t) {
+  switch (dt) {
+    case draco::DT_INT8: *t = ScalarType::kInt8; return true;
+    case draco::DT_UINT8: *t = ScalarType::kUInt8; return true;
+    case draco::DT_BOOL: *t = ScalarType::kUInt8; return true;
+    case draco::DT_INT16: *t = ScalarType::kInt16; return true;
+    case draco::DT_UINT16: *t = ScalarType::kUInt16; return true;
+    case draco::DT_INT32: *t = ScalarType::kInt32; return true;
+    case draco::DT_UINT32: *t = ScalarType::kUInt32; return true;
+    case draco::DT_FLOAT32: *t = ScalarType::kFloat32; return true;
+    case draco::DT_FLOAT64: *t = ScalarType::kFloat64; return true;
+    default: return false;  // 64-bit integers, invalid
+  }
+}
+
+draco::DataType draco_of(ScalarType t) {
+  switch (t) {
+    case ScalarType::kInt8: return draco::DT_INT8;
+    case ScalarType::kUInt8: return draco::DT_UINT8;
+    case ScalarType::kInt16: return draco::DT_INT16;
+    case ScalarType::kUInt16: return draco::DT_UINT16;
+    case ScalarType::kInt32: return draco::DT_INT32;
+    case ScalarType::kUInt32: return draco::DT_UINT32;
+    case ScalarType::kFloat32: return draco::DT_FLOAT32;
+    case ScalarType::kFloat64: return draco::DT_FLOAT64;
+  }
+  return draco::DT_FLOAT64;
+}
+
+// Reads component `k` of type `dt` at `p` as a double.
+double component(draco::DataType dt, const uint8_t* p, int k) {
+  auto get = [&](auto v) {
+    std::memcpy(&v, p + k * sizeof(v), sizeof(v));
+    return static_cast<double>(v);
+  };
+  switch (dt) {
+    case draco::DT_INT8: return get(int8_t{});
+    case draco::DT_UINT8: return get(uint8_t{});
+    case draco::DT_BOOL: return get(uint8_t{}) != 0 ? 1.0 : 0.0;
+    case draco::DT_INT16: return get(int16_t{});
+    case draco::DT_UINT16: return get(uint16_t{});
+    case draco::DT_INT32: return get(int32_t{});
+    case draco::DT_UINT32: return get(uint32_t{});
+    case draco::DT_INT64: return get(int64_t{});
+    case draco::DT_UINT64: return get(uint64_t{});
+    case draco::DT_FLOAT32: return get(float{});
+    case draco::DT_FLOAT64: return get(double{});
+    default: return 0;
+  }
+}
+
+// Writes `v` as component `k` of type `dt` at `p`.
+void put_component(draco::DataType dt, uint8_t* p, int k, double v) {
+  auto put = [&](auto x) { std::memcpy(p + k * sizeof(x), &x, sizeof(x)); };
+  switch (dt) {
+    case draco::DT_INT8: put(static_cast<int8_t>(v)); break;
+    case draco::DT_UINT8: put(static_cast<uint8_t>(v)); break;
+    case draco::DT_INT16: put(static_cast<int16_t>(v)); break;
+    case draco::DT_UINT16: put(static_cast<uint16_t>(v)); break;
+    case draco::DT_INT32: put(static_cast<int32_t>(v)); break;
+    case draco::DT_UINT32: put(static_cast<uint32_t>(v)); break;
+    case draco::DT_FLOAT32: put(static_cast<float>(v)); break;
+    default: put(v); break;
+  }
+}
+
+// "what: libdraco's message", on one line.
+std::string corrupt(const char* what, const draco::Status& s) {
+  std::string m = s.error_msg_string();
+  for (char& c : m)
+    if (c == '\n' || c == '\r') c = ' ';
+  return m.empty() ? std::string(what) : std::string(what) + ": " + m;
+}
+
+bool valid_property_name(const std::string& s) {
+  if (s.empty() || s.size() > 64) return false;
+  for (unsigned char c : s)
+    if (c <= ' ' || c >= 127) return false;
+  return s != "x" && s != "y" && s != "z";
+}
+
+}  // namespace
+
+bool looks_like_draco(const uint8_t* data, size_t size) {
+  return size >= kMagicSize && std::memcmp(data, kMagic, kMagicSize) == 0;
+}
+
+// ------------------------------------------------------------------ reader
+
+struct DracoReader::Impl {
+  struct Column {
+    const draco::PointAttribute* att = nullptr;
+    int components = 0;
+  };
+  MeshSchema schema;
+  SourceReport report;
+  std::string name;
+  std::unique_ptr<draco::PointCloud> cloud;
+  const draco::Mesh* mesh = nullptr;  // cloud, when it has faces
+  const draco::PointAttribute* position = nullptr;
+  std::vector<Column> columns;
+  uint32_t num_points = 0;
+  uint32_t num_faces = 0;
+  uint32_t next_vertex = 0;
+  uint32_t next_face = 0;
+  bool ended = false;
+  Status error;
+
+  // The bytes of value `point` of `att`, or null when the file's mapping or
+  // buffer does not hold them.
+  static const uint8_t* value_at(const draco::PointAttribute* att, uint32_t point) {
+    if (!att->is_mapping_identity() && point >= att->indices_map_size()) return nullptr;
+    draco::AttributeValueIndex avi = att->mapped_index(draco::PointIndex(point));
+    if (avi.value() >= att->size()) return nullptr;
+    const draco::DataBuffer* b = att->buffer();
+    if (b == nullptr) return nullptr;
+    const int64_t len = static_cast<int64_t>(draco::DataTypeLength(att->data_type())) * att->num_components();
+    const int64_t pos = att->byte_offset() + att->byte_stride() * static_cast<int64_t>(avi.value());
+    if (pos < 0 || len <= 0 || pos + len > static_cast<int64_t>(b->data_size())) return nullptr;
+    return b->data() + pos;
+  }
+};
+
+DracoReader::DracoReader() : impl_(std::make_unique<Impl>()) {}
+DracoReader::~DracoReader() = default;
+
+Status DracoReader::open(InputStream* in, uint64_t memory_budget) {
+  Impl& m = *impl_;
+  m.name = in->name();
+  if (in->size() >= 0 && static_cast<uint64_t>(in->size()) > memory_budget) {
+    return Status(ErrorCode::kLimit, "Draco is read in memory: the file (" + mib(in->size()) +
+                                         ") exceeds the memory budget of " + mib(memory_budget) + " (--memory)");
+  }
+  std::vector<char> bytes;
+  for (;;) {
+    size_t avail = 0;
+    PSQ_RETURN_IF_ERROR(in->fill(size_t{1} << 20, &avail));
+    if (avail == 0) break;
+    if (bytes.size() + avail > memory_budget) {
+      return Status(ErrorCode::kLimit, "Draco is read in memory: the input exceeds the memory budget of " +
+                                           mib(memory_budget) + " (--memory)");
+    }
+    bytes.insert(bytes.end(), in->cursor(), in->cursor() + avail);
+    in->advance(avail);
+  }
+  if (!looks_like_draco(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()))
+    return Status(ErrorCode::kUnknownFormat, "not a Draco file (no DRACO magic)", 0);
+
+  draco::DecoderBuffer buffer;
+  buffer.Init(bytes.data(), bytes.size());
+  auto type = draco::Decoder::GetEncodedGeometryType(&buffer);
+  if (!type.ok()) return Status(ErrorCode::kBadValue, corrupt("corrupt Draco header", type.status()), 0);
+  buffer.Init(bytes.data(), bytes.size());
+  draco::Decoder decoder;
+  // libdraco allocates what the file's counts ask for; a corrupt count may
+  // ask for more than there is.
+  try {
+    if (type.value() == draco::TRIANGULAR_MESH) {
+      auto decoded = decoder.DecodeMeshFromBuffer(&buffer);
+      if (!decoded.ok() || !decoded.value())
+        return Status(ErrorCode::kBadValue, corrupt("corrupt Draco mesh", decoded.status()));
+      std::unique_ptr<draco::Mesh> mesh = std::move(decoded).value();
+      m.mesh = mesh.get();
+      m.num_faces = mesh->num_faces();
+      m.cloud = std::move(mesh);
+    } else if (type.value() == draco::POINT_CLOUD) {
+      auto decoded = decoder.DecodePointCloudFromBuffer(&buffer);
+      if (!decoded.ok() || !decoded.value())
+        return Status(ErrorCode::kBadValue, corrupt("corrupt Draco point cloud", decoded.status()));
+      m.cloud = std::move(decoded).value();
+    } else {
+      return Status(ErrorCode::kBadValue, "unsupported Draco geometry type " + std::to_string(type.value()), 0);
+    }
+  } catch (const std::bad_alloc&) {
+    return Status(ErrorCode::kLimit, "out of memory decoding the Draco data (corrupt counts, or a mesh too large)");
+  } catch (const std::exception& e) {
+    return Status(ErrorCode::kBadValue, std::string("corrupt Draco data: ") + e.what());
+  }
+  m.num_points = m.cloud->num_points();
+
+  // What the decoded geometry takes, against the budget.
+  uint64_t used = bytes.size() + uint64_t{12} * m.num_faces;
+  for (int32_t a = 0; a < m.cloud->num_attributes(); ++a) {
+    const draco::PointAttribute* att = m.cloud->attribute(a);
+    if (att == nullptr) continue;
+    if (att->buffer()) used += att->buffer()->data_size();
+    used += uint64_t{4} * att->indices_map_size();
+  }
+  if (used > memory_budget) {
+    return Status(ErrorCode::kLimit, "Draco is read in memory: the decoded mesh takes " + mib(used) +
+                                         ", over the memory budget of " + mib(memory_budget) + " (--memory)");
+  }
+
+  // Attributes to properties.
+  std::set<std::string> names;
+  bool have_normal = false, have_color = false, have_uv = false;
+  auto add = [&](const std::string& n, ScalarType t) {
+    Property p;
+    p.name = n;
+    p.type = t;
+    m.schema.vertex_properties.push_back(p);
+    names.insert(n);
+  };
+  for (int32_t a = 0; a < m.cloud->num_attributes(); ++a) {
+    const draco::PointAttribute* att = m.cloud->attribute(a);
+    if (att == nullptr || att->num_components() == 0) continue;
+    const int nc = att->num_components();
+    ScalarType t;
+    if (!scalar_of(att->data_type(), &t)) {
+      if (att->data_type() == draco::DT_INT64 || att->data_type() == draco::DT_UINT64) {
+        t = ScalarType::kFloat64;
+        m.report.notes.push_back("Draco attribute " + std::to_string(a) + " has 64-bit integers: read as double");
+      } else {
+        m.report.notes.push_back("Draco attribute " + std::to_string(a) + " has an unknown data type: skipped");
+        continue;
+      }
+    }
+    const auto at = att->attribute_type();
+    if (at == draco::GeometryAttribute::POSITION && m.position == nullptr && nc <= 3) {
+      m.position = att;
+      m.schema.position_type = (t == ScalarType::kFloat64 || t == ScalarType::kInt32 || t == ScalarType::kUInt32)
+                                   ? ScalarType::kFloat64
+                                   : ScalarType::kFloat32;
+      continue;
+    }
+    Impl::Column col{att, nc};
+    if (at == draco::GeometryAttribute::NORMAL && !have_normal && nc == 3 &&
+        !names.count("nx") && !names.count("ny") && !names.count("nz")) {
+      have_normal = true;
+      add("nx", t), add("ny", t), add("nz", t);
+    } else if (at == draco::GeometryAttribute::COLOR && !have_color && (nc == 3 || nc == 4) &&
+               !names.count("red") && !names.count("green") && !names.count("blue") && !names.count("alpha")) {
+      have_color = true;
+      add("red", t), add("green", t), add("blue", t);
+      if (nc == 4) add("alpha", t);
+    } else if (at == draco::GeometryAttribute::TEX_COORD && !have_uv && nc == 2 && !names.count("u") &&
+               !names.count("v")) {
+      have_uv = true;
+      add("u", t), add("v", t);
+    } else {
+      std::string meta;
+      const draco::AttributeMetadata* md = m.cloud->GetAttributeMetadataByAttributeId(a);
+      if (nc == 1 && md != nullptr && md->GetEntryString("name", &meta) && valid_property_name(meta) &&
+          !names.count(meta)) {
+        add(meta, t);
+      } else {
+        for (int k = 0; k < nc; ++k) {
+          std::string n = "attr" + std::to_string(a) + "_" + std::to_string(k);
+          while (names.count(n)) n += "_";
+          add(n, t);
+        }
+      }
+    }
+    m.columns.push_back(col);
+  }
+  if (m.position == nullptr) return Status(ErrorCode::kBadValue, "Draco geometry without a position attribute");
+  m.schema.vertex_count = m.num_points;
+  m.schema.triangle_count = m.num_faces;
+  if (m.mesh == nullptr) m.report.notes.push_back("Draco point cloud: vertices only");
+  return Status();
+}
+
+const MeshSchema& DracoReader::schema() const { return impl_->schema; }
+const SourceReport& DracoReader::report() const { return impl_->report; }
+
+Status DracoReader::next(MeshItem* item) {
+  Impl& m = *impl_;
+  if (!m.error.ok()) return m.error;
+  item->values.clear();
+  if (m.next_vertex < m.num_points) {
+    const uint32_t i = m.next_vertex;
+    const uint8_t* p = Impl::value_at(m.position, i);
+    if (p == nullptr) return m.error = Status(ErrorCode::kBadValue, "corrupt Draco data: point " + std::to_string(i) + " has no position");
+    const int nc = m.position->num_components();
+    for (int k = 0; k < 3; ++k) {
+      item->position[k] = k < nc ? component(m.position->data_type(), p, k) : 0.0;
+      if (!std::isfinite(item->position[k]))
+        return m.error = Status(ErrorCode::kBadValue, "Draco point " + std::to_string(i) + " has a non-finite position");
+    }
+    for (const Impl::Column& c : m.columns) {
+      const uint8_t* q = Impl::value_at(c.att, i);
+      if (q == nullptr)
+        return m.error = Status(ErrorCode::kBadValue, "corrupt Draco data: point " + std::to_string(i) + " has no attribute value");
+      for (int k = 0; k < c.components; ++k) item->values.push_back(component(c.att->data_type(), q, k));
+    }
+    item->kind = MeshItem::Kind::kVertex;
+    ++m.next_vertex;
+    return Status();
+  }
+  if (m.mesh != nullptr && m.next_face < m.num_faces) {
+    const draco::Mesh::Face& f = m.mesh->face(draco::FaceIndex(m.next_face));
+    for (int k = 0; k < 3; ++k) {
+      if (f[k].value() >= m.num_points)
+        return m.error = Status(ErrorCode::kBadIndex, "corrupt Draco data: face " + std::to_string(m.next_face) +
+                                                          " refers to point " + std::to_string(f[k].value()) + " of " +
+                                                          std::to_string(m.num_points));
+      item->index[k] = f[k].value();
+    }
+    item->kind = MeshItem::Kind::kTriangle;
+    ++m.next_face;
+    return Status();
+  }
+  item->kind = MeshItem::Kind::kEnd;
+  return Status();
+}
+
+// ------------------------------------------------------------------ writer
+
+struct DracoWriter::Impl {
+  // One Draco attribute made of vertex properties.
+  struct Group {
+    draco::GeometryAttribute::Type type = draco::GeometryAttribute::GENERIC;
+    draco::DataType data_type = draco::DT_FLOAT32;
+    bool normalized = false;
+    std::vector<int> props;  // indices into the schema's vertex properties
+    std::string name;        // GENERIC: the property's name
+  };
+  OutputFile* out = nullptr;
+  DracoWriteOptions options;
+  MeshSchema schema;
+  std::vector<Group> groups;
+  std::vector<int> kept;          // schema property index -> slot in `values`, or -1
+  size_t slots = 0;               // kept values per vertex
+  std::vector<double> positions;  // 3 per vertex
+  std::vector<double> values;     // `slots` per vertex
+  std::vector<uint32_t> indices;  // 3 per triangle
+  uint64_t vertex_cost = 0;       // bytes per vertex, buffered and in Draco
+  uint64_t used = 0;
+  std::vector<std::string> dropped;
+  std::vector<std::string> notes;
+
+  Status charge(uint64_t bytes) {
+    used += bytes;
+    if (used > options.memory_budget) {
+      return Status(ErrorCode::kLimit, "Draco is written in memory: the mesh exceeds the memory budget of " +
+                                           mib(options.memory_budget) + " (--memory)");
+    }
+    return Status();
+  }
+};
+
+DracoWriter::DracoWriter(OutputFile* out, DracoWriteOptions options) : impl_(std::make_unique<Impl>()) {
+  impl_->out = out;
+  impl_->options = options;
+}
+DracoWriter::~DracoWriter() = default;
+
+const std::vector<std::string>& DracoWriter::dropped() const { return impl_->dropped; }
+const std::vector<std::string>& DracoWriter::notes() const { return impl_->notes; }
+
+Status DracoWriter::begin(const MeshSchema& schema) {
+  Impl& m = *impl_;
+  if (!m.options.lossless && (m.options.bits < 1 || m.options.bits > 30))
+    return Status(ErrorCode::kUsage, "Draco quantizes positions to 1..30 bits, not " + std::to_string(m.options.bits));
+  m.schema = schema;
+  const auto& props = schema.vertex_properties;
+  auto find = [&](const char* n) -> int {
+    for (size_t i = 0; i < props.size(); ++i)
+      if (props[i].name == n && !props[i].is_list) return static_cast<int>(i);
+    return -1;
+  };
+  std::vector<bool> used(props.size(), false);
+  int nx = find("nx"), ny = find("ny"), nz = find("nz");
+  if (nx >= 0 && ny >= 0 && nz >= 0) {
+    Impl::Group g;
+    g.type = draco::GeometryAttribute::NORMAL;
+    g.props = {nx, ny, nz};
+    m.groups.push_back(g);
+  }
+  int r = find("red"), gr = find("green"), b = find("blue"), al = find("alpha");
+  auto is_uchar = [&](int i) { return i >= 0 && props[i].type == ScalarType::kUInt8; };
+  if (is_uchar(r) && is_uchar(gr) && is_uchar(b)) {
+    Impl::Group g;
+    g.type = draco::GeometryAttribute::COLOR;
+    g.data_type = draco::DT_UINT8;
+    g.normalized = true;
+    g.props = {r, gr, b};
+    if (is_uchar(al)) g.props.push_back(al);
+    m.groups.push_back(g);
+  }
+  int u = find("u"), v = find("v");
+  if (u >= 0 && v >= 0) {
+    Impl::Group g;
+    g.type = draco::GeometryAttribute::TEX_COORD;
+    g.props = {u, v};
+    m.groups.push_back(g);
+  }
+  for (const Impl::Group& g : m.groups)
+    for (int i : g.props) used[i] = true;
+  for (size_t i = 0; i < props.size(); ++i) {
+    if (used[i]) continue;
+    if (props[i].is_list) {
+      m.dropped.push_back(props[i].name);
+      continue;
+    }
+    Impl::Group g;
+    g.type = draco::GeometryAttribute::GENERIC;
+    g.data_type = draco_of(props[i].type);
+    g.props = {static_cast<int>(i)};
+    g.name = props[i].name;
+    m.groups.push_back(g);
+  }
+  for (const Property& p : schema.face_properties) m.dropped.push_back(p.name);
+  m.kept.assign(props.size(), -1);
+  uint64_t draco_bytes = 12;  // position
+  for (const Impl::Group& g : m.groups) {
+    for (int i : g.props) m.kept[i] = static_cast<int>(m.slots++);
+    draco_bytes += static_cast<uint64_t>(draco::DataTypeLength(g.data_type)) * g.props.size();
+  }
+  m.vertex_cost = 24 + 8 * m.slots + draco_bytes;
+  return Status();
+}
+
+Status DracoWriter::vertex(const double position[3], const PropertyValues& values) {
+  Impl& m = *impl_;
+  if (m.positions.size() / 3 >= static_cast<size_t>(std::numeric_limits<int32_t>::max()))
+    return Status(ErrorCode::kLimit, "Draco holds at most 2^31 - 1 points");
+  PSQ_RETURN_IF_ERROR(m.charge(m.vertex_cost));
+  m.positions.insert(m.positions.end(), position, position + 3);
+  // Scalar values of kept properties, skipping lists.
+  const auto& props = m.schema.vertex_properties;
+  size_t at = 0;
+  const size_t base = m.values.size();
+  m.values.resize(base + m.slots, 0.0);
+  for (size_t i = 0; i < props.size() && at < values.size(); ++i) {
+    if (props[i].is_list) {
+      at += 1 + static_cast<size_t>(values[at]);
+      continue;
+    }
+    if (m.kept[i] >= 0) m.values[base + m.kept[i]] = values[at];
+    ++at;
+  }
+  return Status();
+}
+
+Status DracoWriter::triangle(const uint32_t index[3], const PropertyValues& values) {
+  Impl& m = *impl_;
+  PSQ_RETURN_IF_ERROR(m.charge(12 + 12 + 12));  // buffered, Draco's face, its corner table (roughly)
+  m.indices.insert(m.indices.end(), index, index + 3);
+  return Status();
+}
+
+Status DracoWriter::finish() {
+  Impl& m = *impl_;
+  const uint32_t nv = static_cast<uint32_t>(m.positions.size() / 3);
+  const uint32_t nt = static_cast<uint32_t>(m.indices.size() / 3);
+  if (nv == 0) return Status(ErrorCode::kUnsupported, "Draco cannot hold a mesh without vertices");
+  for (uint32_t i : m.indices)
+    if (i >= nv) return Status(ErrorCode::kBadIndex, "triangle refers to vertex " + std::to_string(i) + " of " + std::to_string(nv));
+  if (nt > 0) {
+    // What edgebreaker will not keep, for the user.
+    std::vector<bool> referenced(nv, false);
+    uint64_t degenerate = 0;
+    for (uint32_t f = 0; f < nt; ++f) {
+      const uint32_t* t = &m.indices[3 * size_t{f}];
+      if (t[0] == t[1] || t[1] == t[2] || t[2] == t[0]) {
+        ++degenerate;
+        continue;
+      }
+      for (int k = 0; k < 3; ++k) referenced[t[k]] = true;
+    }
+    const uint64_t unreferenced = static_cast<uint64_t>(std::count(referenced.begin(), referenced.end(), false));
+    if (unreferenced)
+      m.notes.push_back(std::to_string(unreferenced) + " unreferenced vertex(es) dropped: Draco meshes keep only vertices of triangles");
+    if (degenerate)
+      m.notes.push_back(std::to_string(degenerate) + " degenerate triangle(s) dropped by Draco");
+  }
+
+  draco::Mesh mesh;
+  mesh.set_num_points(nv);
+  auto add_attribute = [&](draco::GeometryAttribute::Type type, draco::DataType dt, int nc, bool normalized) {
+    draco::GeometryAttribute ga;
+    ga.Init(type, nullptr, static_cast<uint8_t>(nc), dt, normalized, int64_t{draco::DataTypeLength(dt)} * nc, 0);
+    return mesh.AddAttribute(ga, true, nv);
+  };
+  const bool double_positions = m.options.lossless && m.schema.position_type == ScalarType::kFloat64;
+  const draco::DataType pos_type = double_positions ? draco::DT_FLOAT64 : draco::DT_FLOAT32;
+  const int pos_id = add_attribute(draco::GeometryAttribute::POSITION, pos_type, 3, false);
+  {
+    draco::PointAttribute* att = mesh.attribute(pos_id);
+    uint8_t buf[24];
+    for (uint32_t i = 0; i < nv; ++i) {
+      for (int k = 0; k < 3; ++k) put_component(pos_type, buf, k, m.positions[3 * size_t{i} + k]);
+      att->SetAttributeValue(draco::AttributeValueIndex(i), buf);
+    }
+  }
+  std::vector<double>().swap(m.positions);
+  std::vector<std::pair<int, const Impl::Group*>> ids;
+  for (const Impl::Group& g : m.groups) {
+    const int nc = static_cast<int>(g.props.size());
+    const int id = add_attribute(g.type, g.data_type, nc, g.normalized);
+    draco::PointAttribute* att = mesh.attribute(id);
+    std::vector<uint8_t> buf(static_cast<size_t>(draco::DataTypeLength(g.data_type)) * nc);
+    for (uint32_t i = 0; i < nv; ++i) {
+      for (int k = 0; k < nc; ++k)
+        put_component(g.data_type, buf.data(), k, m.values[size_t{i} * m.slots + m.kept[g.props[k]]]);
+      att->SetAttributeValue(draco::AttributeValueIndex(i), buf.data());
+    }
+    if (g.type == draco::GeometryAttribute::GENERIC) {
+      auto md = std::make_unique<draco::AttributeMetadata>();
+      md->AddEntryString("name", g.name);
+      mesh.AddAttributeMetadata(id, std::move(md));
+    }
+    ids.emplace_back(id, &g);
+  }
+  std::vector<double>().swap(m.values);
+  mesh.SetNumFaces(nt);
+  for (uint32_t f = 0; f < nt; ++f) {
+    draco::Mesh::Face face;
+    for (int k = 0; k < 3; ++k) face[k] = draco::PointIndex(m.indices[3 * size_t{f} + k]);
+    mesh.SetFace(draco::FaceIndex(f), face);
+  }
+  std::vector<uint32_t>().swap(m.indices);
+
+  const draco::PointCloud& geometry = mesh;
+  std::unique_ptr<draco::ExpertEncoder> encoder =
+      nt > 0 ? std::make_unique<draco::ExpertEncoder>(mesh) : std::make_unique<draco::ExpertEncoder>(geometry);
+  encoder->SetSpeedOptions(3, 3);
+  if (nt > 0) {
+    encoder->SetEncodingMethod(draco::MESH_EDGEBREAKER_ENCODING);
+  } else {
+    encoder->SetEncodingMethod(draco::POINT_CLOUD_SEQUENTIAL_ENCODING);
+  }
+  if (!m.options.lossless) {
+    encoder->SetAttributeQuantization(pos_id, m.options.bits);
+    for (const auto& [id, g] : ids) {
+      if (g->type == draco::GeometryAttribute::NORMAL) encoder->SetAttributeQuantization(id, 10);
+      if (g->type == draco::GeometryAttribute::TEX_COORD) encoder->SetAttributeQuantization(id, 12);
+    }
+  }
+  draco::EncoderBuffer buffer;
+  draco::Status s;
+  try {
+    s = encoder->EncodeToBuffer(&buffer);
+  } catch (const std::bad_alloc&) {
+    return Status(ErrorCode::kLimit, "out of memory encoding the Draco mesh");
+  }
+  if (!s.ok()) return Status(ErrorCode::kInternal, "Draco refused to encode the mesh: " + s.error_msg_string());
+  return m.out->write(buffer.data(), buffer.size());
+}
+
+}  // namespace psq
