@@ -6,6 +6,7 @@
 #include <string>
 
 #include "cli_util.h"
+#include "progress.h"
 #include "commands.h"
 #include "psq/draco.h"
 #include "psq/mesh_formats.h"
@@ -30,6 +31,9 @@ const char kHelp[] =
     "refused. To .drc, normals, uchar colors, u/v and other scalar vertex\n"
     "properties are kept; face and list properties are dropped (named in a\n"
     "note). The output is written to a temporary file and renamed on success.\n"
+    "When standard error is a terminal, a progress line (percent of input,\n"
+    "triangles per second, time left; at most ten updates a second) and a\n"
+    "one-line summary go there.\n"
     "\n"
     "Options:\n"
     "  --to FORMAT    output format: ply, obj, psq or drc (needed when OUT is '-')\n"
@@ -43,7 +47,7 @@ const char kHelp[] =
     "  --ascii        write ascii PLY instead of binary little-endian\n"
     "  --tmpdir DIR   directory for temporary spool files (default $TMPDIR)\n"
     "  -f, --force    overwrite OUT if it exists\n"
-    "  -q, --quiet    print no notes\n"
+    "  -q, --quiet    print no notes, no progress line and no summary\n"
     "  --json         print a JSON summary on standard output (not with OUT '-')\n"
     "  -h, --help     show this help\n";
 
@@ -55,10 +59,13 @@ int to_psq(const std::string& in, const std::string& out, OpenedMesh& mesh, Outp
   PsqEncoder encoder(&writer, encode_options);
   Status s;
   BuildReport report;
+  Progress progress(mesh.stream.get(), !quiet);
+  ProgressSequenceSink sink(&encoder, &progress);
   if (mesh.decoder) {
-    s = mesh.decoder->pump(encoder);
+    s = mesh.decoder->pump(sink);
   } else {
-    s = build_sequence(*mesh.source, encoder, build_options, &report);
+    ProgressSource source(mesh.source.get(), &progress);
+    s = build_sequence(source, sink, build_options, &report);
   }
   if (!s.ok()) {
     output.discard();
@@ -73,6 +80,13 @@ int to_psq(const std::string& in, const std::string& out, OpenedMesh& mesh, Outp
   if (!quiet)
     for (const std::string& n : notes) note(in, n);
   const double nv = st.vertices ? static_cast<double>(st.vertices) : 1.0;
+  {
+    char summary[256];
+    std::snprintf(summary, sizeof summary, "%llu triangles, %llu -> %llu bytes, %.2f bits/vertex",
+                  static_cast<unsigned long long>(st.triangles), static_cast<unsigned long long>(mesh.stream->offset()),
+                  static_cast<unsigned long long>(output.size()), 8.0 * st.total_bytes / nv);
+    progress.finish(in, out, summary);
+  }
   if (json) {
     std::string o = "{\"input\": \"" + json_escape(in) + "\", \"output\": \"" + json_escape(out) +
                     "\", \"input_format\": \"" + format_name(mesh.format) +
@@ -181,7 +195,9 @@ int cmd_convert(int argc, char** argv) {
   } counter;
   counter.next = writer.get();
 
-  s = pump(*mesh.source, counter);
+  Progress progress(mesh.stream.get(), !quiet);
+  ProgressSource source(mesh.source.get(), &progress);
+  s = pump(source, counter);
   // Errors of the sink are about OUT unless they carry an input place.
   if (!s.ok()) {
     output.discard();
@@ -205,6 +221,9 @@ int cmd_convert(int argc, char** argv) {
   if (!quiet) {
     for (const std::string& n : notes) note(in, n);
   }
+  progress.finish(in, out,
+                  std::to_string(counter.triangles) + " triangles, " + std::to_string(mesh.stream->offset()) + " -> " +
+                      std::to_string(output.size()) + " bytes");
   if (json) {
     std::string o = "{\"input\": \"" + json_escape(in) + "\", \"output\": \"" + json_escape(out) +
                     "\", \"input_format\": \"" + format_name(mesh.format) + "\", \"output_format\": \"" +
