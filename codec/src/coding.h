@@ -158,16 +158,18 @@ class Decoder {
  public:
   Decoder(RangeDecoder* rc, double* cost) : rc_(rc), cost_(cost) {}
   int bit(BitModel& m, Cost c) {
-    uint16_t p0 = m.p0;
-    int b = rc_->decode_bit(m);
-    if (cost_) cost_[c] += bit_cost((b ? 65536u - p0 : p0) >> 4);
+    if (!cost_) return rc_->decode_bit(m);
+    const uint16_t p0 = m.p0;
+    const int b = rc_->decode_bit(m);
+    cost_[c] += bit_cost((b ? 65536u - p0 : p0) >> 4);
     return b;
   }
   uint32_t symbol(SymbolModel& m, Cost c) {
     BitModel* tree = m.tree();
+    const int bits = m.bits();  // local: bit() writes models, which would force reloads
     uint32_t node = 1;
-    for (int i = 0; i < m.bits(); ++i) node = (node << 1) | static_cast<uint32_t>(bit(tree[node], c));
-    return node - (1u << m.bits());
+    for (int i = 0; i < bits; ++i) node = (node << 1) | static_cast<uint32_t>(bit(tree[node], c));
+    return node - (1u << bits);
   }
   uint64_t raw(int bits, Cost c) {
     if (cost_) cost_[c] += bits;

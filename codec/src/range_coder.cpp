@@ -41,7 +41,7 @@ void RangeEncoder::shift_low() {
 void RangeEncoder::encode_bit(BitModel& m, int bit) {
   uint32_t bound = (range_ >> 16) * m.p0;
   const int sh = adapt_shift(m.n);
-  if (m.n < 255) ++m.n;
+  m.n = static_cast<uint16_t>(m.n + (m.n < 30));
   if (bit == 0) {
     range_ = bound;
     m.p0 = static_cast<uint16_t>(m.p0 + ((65536u - 32 - m.p0) >> sh));

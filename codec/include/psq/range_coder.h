@@ -31,10 +31,15 @@ namespace psq {
 // An adaptive binary probability (spec 5.1).
 struct BitModel {
   uint16_t p0 = 32768;  // the chance of a 0, in 1/65536 units
-  uint16_t n = 0;       // updates so far (saturates at 255): sets the adaptation rate
+  uint16_t n = 0;       // updates so far, counted up to 30: sets the adaptation rate
 };
-// The adaptation shift after n updates: 2, 3, 4, 5, then 6 from n = 30 on.
-inline int adapt_shift(uint16_t n) { return n < 2 ? 2 : n < 6 ? 3 : n < 14 ? 4 : n < 30 ? 5 : 6; }
+// The adaptation shift after n updates: 2, 3, 4, 5, then 6 from n = 30 on
+// (spec 5.1 counts on to 255; the shift is the same from 30 on).
+inline int adapt_shift(uint16_t n) {
+  static const uint8_t kShift[31] = {2, 2, 3, 3, 3, 3, 4, 4, 4, 4, 4, 4, 4, 4, 5, 5,
+                                     5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 6};
+  return kShift[n];
+}
 
 // An adaptive model for symbols of `bits` bits (1..16): a binary tree of
 // BitModels, most significant bit first.
@@ -87,7 +92,7 @@ class RangeDecoder {
   int decode_bit(BitModel& m) {
     const uint32_t bound = (range_ >> 16) * m.p0;
     const int sh = adapt_shift(m.n);
-    if (m.n < 255) ++m.n;
+    m.n = static_cast<uint16_t>(m.n + (m.n < 30));
     int bit;
     if (code_ < bound) {
       range_ = bound;
