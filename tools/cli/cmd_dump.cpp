@@ -3,6 +3,7 @@
 #include <string>
 
 #include "cli_util.h"
+#include "progress.h"
 #include "commands.h"
 #include "psq/mesh_formats.h"
 #include "psq/sequence_builder.h"
@@ -64,8 +65,13 @@ int cmd_dump(int argc, char** argv) {
   DumpWriter writer(&out);
   BuildReport report;
   // A .psq holds a processing sequence already: print it as decoded.
-  if (mesh.decoder) s = mesh.decoder->pump(writer);
-  else s = build_sequence(*mesh.source, writer, options, &report);
+  // Progress only when the dump goes to a file (stderr may share the
+  // terminal with a dump on stdout).
+  Progress progress(mesh.stream.get(), out_path != "-");
+  ProgressSequenceSink sink(&writer, &progress);
+  ProgressSource source(mesh.source.get(), &progress);
+  if (mesh.decoder) s = mesh.decoder->pump(sink);
+  else s = build_sequence(source, sink, options, &report);
   if (!s.ok()) {
     out.discard();
     return report_pipeline_error(in, out_path, s);

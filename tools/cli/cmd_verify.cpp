@@ -3,6 +3,7 @@
 #include <string>
 
 #include "cli_util.h"
+#include "progress.h"
 #include "commands.h"
 #include "psq/mesh_formats.h"
 
@@ -51,8 +52,11 @@ int cmd_verify(int argc, char** argv) {
     Status finalize(uint32_t) override { return Status(); }
     Status finish() override { return Status(); }
   } discard;
-  s = mesh.decoder->pump(discard);
+  Progress progress(mesh.stream.get(), !quiet);
+  ProgressSequenceSink sink(&discard, &progress);
+  s = mesh.decoder->pump(sink);
   if (!s.ok()) return report_error(file, s);
+  progress.finish(file, "verified", std::to_string(mesh.decoder->stats().triangles) + " triangles");
   if (!quiet) {
     const PsqStats& st = mesh.decoder->stats();
     std::printf("%s: ok: %llu vertices, %llu triangles, %llu chunks, %llu bytes, boundary at most %u vertices\n",

@@ -37,9 +37,11 @@ void Progress::draw(bool force) {
   if (!force && now - last_ < std::chrono::milliseconds(100)) return;  // at most 10 a second
   last_ = now;
   const double t = std::chrono::duration<double>(now - start_).count();
-  const double rate = t > 0 ? static_cast<double>(triangles_) / t : 0;
-  std::string line = "psq: " + human(static_cast<double>(triangles_), " triangles") + ", " +
-                     human(rate, " triangles/s");
+  // Triangles read, or (when nothing counts input triangles, as for a .psq
+  // decoded into a sink) triangles written.
+  const uint64_t count = triangles_ ? triangles_ : written_;
+  const double rate = t > 0 ? static_cast<double>(count) / t : 0;
+  std::string line = "psq: " + human(static_cast<double>(count), " triangles") + ", " + human(rate, " triangles/s");
   const uint64_t at = input_ ? input_->offset() : 0;
   if (input_ && input_->size() > 0) {
     const double frac = static_cast<double>(at) / static_cast<double>(input_->size());
@@ -49,7 +51,7 @@ void Progress::draw(bool force) {
       line = "psq: " + std::string(buf) + line.substr(5);
       std::snprintf(buf, sizeof buf, ", %.0f s left", t / frac - t);
       line += buf;
-    } else if (frac >= 1 && written_ > 0 && triangles_ > 0) {
+    } else if (frac >= 1 && written_ > 0 && triangles_ > 0 && written_ < triangles_) {
       // Input read (spooled): now the share of its triangles written.
       const double w = static_cast<double>(written_) / static_cast<double>(triangles_);
       const double wrate = t > 0 ? static_cast<double>(written_) / t : 0;
