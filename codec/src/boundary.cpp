@@ -2,6 +2,9 @@
 // section 6.1.
 #include "boundary.h"
 
+#include "coding.h"
+#include "geometry.h"
+
 namespace psq {
 namespace codec {
 
@@ -236,6 +239,25 @@ bool Boundary::apply(BTriangle& t) {
     t.final[k] = v.open == 0;
   }
   return true;
+}
+
+Prediction predict_new_vertex(const Boundary& boundary, uint32_t gate, int i, const int64_t last[3],
+                              const int64_t first[3], const int64_t second[3]) {
+  Prediction p;
+  p.kind = kPredOther;
+  p.scale = 0;
+  if (gate != kNone) {
+    const BEdge& g = boundary.edge(gate);
+    const int64_t* a = boundary.vertex(g.org).pos;
+    const int64_t* b = boundary.vertex(g.dst).pos;
+    for (int k = 0; k < 3; ++k) p.pos[k] = wrap_sub(wrap_add(a[k], b[k]), g.opp[k]);
+    p.kind = kPredParallelogram;
+    p.scale = gate_scale(a, b);
+    return p;
+  }
+  for (int k = 0; k < 3; ++k)
+    p.pos[k] = i == 0 ? last[k] : i == 1 ? first[k] : midpoint(first[k], second[k]);
+  return p;
 }
 
 }  // namespace codec

@@ -144,6 +144,20 @@ class Boundary {
   uint32_t reference_ = kNone;
 };
 
+// The prediction of a record's i-th new vertex (spec 7.3) and its residual
+// contexts (7.4): across the gate for an add (gate != kNone; the
+// parallelogram of the gate's endpoints and its opposite vertex, scaled by
+// the gate's length); for a start's vertices, the last coded position, then
+// the first vertex, then the midpoint of the first two. `first` and `second`
+// are the start's vertices coded so far.
+struct Prediction {
+  int64_t pos[3];
+  int kind;   // kPredParallelogram or kPredOther (coding.h)
+  int scale;  // the x-residual context: the gate's bit length, or 0
+};
+Prediction predict_new_vertex(const Boundary& boundary, uint32_t gate, int i, const int64_t last[3],
+                              const int64_t first[3], const int64_t second[3]);
+
 }  // namespace codec
 }  // namespace psq
 

@@ -358,28 +358,10 @@ Status PsqDecoder::Impl::decode_record() {
   int64_t first[3] = {0, 0, 0}, second[3] = {0, 0, 0};
   for (int i = 0; i < nintro; ++i) {
     const int k = static_cast<int>(intro[i]);
-    int64_t pred[3], pos[3];
-    int kind = kPredOther;
-    int scale = 0;
-    if (nintro == 1) {
-      const BEdge& g = boundary.edge(gate);
-      scale = gate_scale(boundary.vertex(g.org).pos, boundary.vertex(g.dst).pos);
-    }
-    for (int a = 0; a < 3; ++a) {
-      if (nintro == 1) {
-        const BEdge& g = boundary.edge(gate);
-        pred[a] = wrap_sub(wrap_add(boundary.vertex(g.org).pos[a], boundary.vertex(g.dst).pos[a]), g.opp[a]);
-        kind = kPredParallelogram;
-      } else if (i == 0) {
-        pred[a] = last_pos[a];
-      } else if (i == 1) {
-        pred[a] = first[a];
-      } else {
-        pred[a] = midpoint(first[a], second[a]);
-      }
-    }
+    int64_t pos[3];
+    const Prediction pr = predict_new_vertex(boundary, nintro == 1 ? gate : kNone, i, last_pos, first, second);
     SequenceEvent& ev = push();
-    PSQ_RETURN_IF_ERROR(new_vertex(dec, pred, kind, scale, pos, &ev));
+    PSQ_RETURN_IF_ERROR(new_vertex(dec, pr.pos, pr.kind, pr.scale, pos, &ev));
     for (int a = 0; a < 3; ++a) (i == 0 ? first : second)[a] = pos[a];
     uint32_t s = boundary.new_vertex(ev.vertex.index, 0, pos);
     if (s == kNone) return Status(ErrorCode::kLimit, "more active vertices than the header's boundary limit", conn_offset);

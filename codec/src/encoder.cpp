@@ -350,27 +350,10 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
     PendingVertex& v = pending[cp[k]];
     PSQ_RETURN_IF_ERROR(introduce(v));
     v.coded = true;
-    int64_t pred[3];
-    int kind = kPredOther;
-    int scale = 0;
-    if (nnew == 1) {
-      const BEdge& g = boundary.edge(gate);
-      scale = gate_scale(boundary.vertex(g.org).pos, boundary.vertex(g.dst).pos);
-    }
-    for (int a = 0; a < 3; ++a) {
-      if (nnew == 1) {
-        const BEdge& g = boundary.edge(gate);
-        pred[a] = wrap_sub(wrap_add(boundary.vertex(g.org).pos[a], boundary.vertex(g.dst).pos[a]), g.opp[a]);
-        kind = kPredParallelogram;
-      } else if (i == 0) {
-        pred[a] = last_pos[a];
-      } else if (i == 1) {
-        pred[a] = pending[cp[intro[0]]].pos[a];
-      } else {
-        pred[a] = midpoint(pending[cp[intro[0]]].pos[a], pending[cp[intro[1]]].pos[a]);
-      }
-    }
-    code_new_vertex(enc, v, pred, kind, scale);
+    const int64_t* first = i >= 1 ? pending[cp[intro[0]]].pos : nullptr;
+    const int64_t* second = i >= 2 ? pending[cp[intro[1]]].pos : nullptr;
+    const Prediction pr = predict_new_vertex(boundary, nnew == 1 ? gate : kNone, i, last_pos, first, second);
+    code_new_vertex(enc, v, pr.pos, pr.kind, pr.scale);
     uint32_t s = boundary.new_vertex(out_index_of(v.in_index), v.in_index, v.pos);
     if (s == kNone)
       return Status(ErrorCode::kLimit, "more than " + std::to_string(opt.boundary_limit) +
