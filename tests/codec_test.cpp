@@ -196,17 +196,6 @@ Events round_trip(const Events& ev, const EncodeOptions& o, PsqStats* stats = nu
   return back;
 }
 
-Mesh from(std::vector<std::array<double, 3>> p, std::vector<Tri> t) {
-  Mesh m;
-  m.positions = std::move(p);
-  m.triangles = std::move(t);
-  m.vertex_values.assign(m.positions.size(), {});
-  m.face_values.assign(m.triangles.size(), {});
-  m.schema.vertex_count = static_cast<int64_t>(m.positions.size());
-  m.schema.triangle_count = static_cast<int64_t>(m.triangles.size());
-  return m;
-}
-
 // Several components, a non-manifold edge and vertex, isolated vertices.
 Mesh messy_mesh() {
   Mesh m = test::make_grid(12);
@@ -222,10 +211,7 @@ Mesh messy_mesh() {
   m.positions.push_back({9, 9, 9});  // isolated
   m.triangles.push_back({0, 1, a});
   m.triangles.push_back({5, a + 1, a + 2});
-  m.vertex_values.assign(m.positions.size(), {});
-  m.face_values.assign(m.triangles.size(), {});
-  m.schema.vertex_count = static_cast<int64_t>(m.positions.size());
-  m.schema.triangle_count = static_cast<int64_t>(m.triangles.size());
+  test::reset_values(&m);
   return m;
 }
 
@@ -270,7 +256,7 @@ TEST(Codec, NonManifoldSoupAndShuffledInput) {
                    std::uniform_real_distribution<double>(0, 1)(rng)});
     t.push_back({3 * i, 3 * i + 1, 3 * i + 2});
   }
-  Events soup = sequence_of(from(p, t));
+  Events soup = sequence_of(test::make_mesh(p, t));
   expect_same(soup, round_trip(soup, o), half_step(soup, 14));
 }
 

@@ -124,13 +124,7 @@ SequenceStats check(const Mesh& m, bool force_sort, uint64_t budget = uint64_t{6
 }
 
 Mesh from(std::vector<std::array<double, 3>> p, std::vector<Tri> t) {
-  Mesh m;
-  m.positions = std::move(p);
-  m.triangles = std::move(t);
-  m.vertex_values.assign(m.positions.size(), {});
-  m.face_values.assign(m.triangles.size(), {});
-  m.schema.vertex_count = static_cast<int64_t>(m.positions.size());
-  m.schema.triangle_count = static_cast<int64_t>(m.triangles.size());
+  Mesh m = test::make_mesh(std::move(p), std::move(t));
   add_ids(&m);
   return m;
 }

@@ -93,6 +93,21 @@ Mesh make_sphere(int rings, int segments) {
   return m;
 }
 
+void reset_values(Mesh* m) {
+  m->vertex_values.assign(m->positions.size(), {});
+  m->face_values.assign(m->triangles.size(), {});
+  m->schema.vertex_count = static_cast<int64_t>(m->positions.size());
+  m->schema.triangle_count = static_cast<int64_t>(m->triangles.size());
+}
+
+Mesh make_mesh(std::vector<std::array<double, 3>> positions, std::vector<std::array<uint32_t, 3>> triangles) {
+  Mesh m;
+  m.positions = std::move(positions);
+  m.triangles = std::move(triangles);
+  reset_values(&m);
+  return m;
+}
+
 Mesh make_grid(int n) {
   Mesh m;
   for (int j = 0; j <= n; ++j)

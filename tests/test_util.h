@@ -52,6 +52,10 @@ class MemorySource : public MeshSource {
 Mesh make_sphere(int rings, int segments);
 // An open grid of (n+1)^2 vertices and 2 n^2 triangles in the z = 0 plane.
 Mesh make_grid(int n);
+// A mesh of these positions and triangles, without properties, counts set.
+Mesh make_mesh(std::vector<std::array<double, 3>> positions, std::vector<std::array<uint32_t, 3>> triangles);
+// Sets empty property values for every vertex and triangle and the counts.
+void reset_values(Mesh* mesh);
 
 // Reads the whole file; fails the test when it cannot.
 std::string read_file(const std::string& path);
