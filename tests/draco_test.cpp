@@ -196,7 +196,9 @@ TEST(Draco, CorruptInputGivesCleanErrors) {
     if (s.ok()) return;
     // kLimit: a corrupt count that asks libdraco for more memory than there is.
     EXPECT_TRUE(s.code() == ErrorCode::kBadValue || s.code() == ErrorCode::kUnknownFormat ||
-                s.code() == ErrorCode::kBadIndex || s.code() == ErrorCode::kLimit)
+                s.code() == ErrorCode::kBadIndex || s.code() == ErrorCode::kLimit ||
+                s.code() == ErrorCode::kTruncated || s.code() == ErrorCode::kBadHeader ||
+                s.code() == ErrorCode::kUnsupported)
         << what << ": " << s.to_string();
     EXPECT_FALSE(s.message().empty()) << what;
     EXPECT_EQ(s.message().find('\n'), std::string::npos) << what;
@@ -215,6 +217,163 @@ TEST(Draco, CorruptInputGivesCleanErrors) {
     for (int f = 0; f < flips; ++f) bad[rng() % bad.size()] ^= static_cast<char>(1 + rng() % 255);
     check(bad, "trial " + std::to_string(trial));
   }
+}
+
+// ---------------------------------------------------------- hostile input
+
+// The 11-byte header: magic, version, geometry type, method, flags.
+std::string drc_header(int major, int minor, int type, int method, int flags = 0) {
+  std::string h = "DRACO";
+  for (int b : {major, minor, type, method, flags & 0xff, flags >> 8}) h.push_back(static_cast<char>(b));
+  return h;
+}
+
+// `v` as Draco's LEB128 varint.
+std::string varint(uint64_t v) {
+  std::string out;
+  do {
+    uint8_t b = v & 0x7f;
+    v >>= 7;
+    out.push_back(static_cast<char>(v ? (b | 0x80) : b));
+  } while (v);
+  return out;
+}
+
+// An edgebreaker mesh header (bitstream 2.2) with the given counts,
+// followed by `tail` filler bytes.
+std::string edgebreaker(int traversal, uint64_t vertices, uint64_t faces, uint64_t symbols, size_t tail = 64) {
+  return drc_header(2, 2, 1, 1) + static_cast<char>(traversal) + varint(vertices) + varint(faces) +
+         std::string(1, '\0') + varint(symbols) + varint(0) + std::string(tail, '\0');
+}
+
+// A failed read of `bytes` must be `code`, carry a byte offset inside the
+// file, and be one line.
+void expect_refused(const std::string& bytes, ErrorCode code, const std::string& what,
+                    uint64_t budget = uint64_t{64} << 20) {
+  Mesh got;
+  Status s = read_drc(bytes, budget, &got);
+  ASSERT_FALSE(s.ok()) << what;
+  EXPECT_EQ(s.code(), code) << what << ": " << s.to_string() << " (" << error_name(s.code()) << ")";
+  EXPECT_NE(s.offset(), Status::kNoPlace) << what << ": " << s.to_string();
+  if (s.offset() != Status::kNoPlace) {
+    EXPECT_LE(s.offset(), bytes.size()) << what;
+  }
+  EXPECT_EQ(s.message().find('\n'), std::string::npos) << what;
+}
+
+TEST(DracoHostile, TruncatedAtSeveralLengths) {
+  test::TempDir dir;
+  ASSERT_TRUE(write_drc(decorated_sphere(), dir.file("a.drc"), {}).ok());
+  const std::string good = test::read_file(dir.file("a.drc"));
+  ASSERT_TRUE(check_draco_header(reinterpret_cast<const uint8_t*>(good.data()), good.size(), uint64_t{64} << 20).ok());
+  // In the header: the magic, the version, the flags.
+  expect_refused(good.substr(0, 3), ErrorCode::kUnknownFormat, "cut in the magic");
+  for (size_t n : {5, 6, 8, 10}) expect_refused(good.substr(0, n), ErrorCode::kTruncated, "cut at " + std::to_string(n));
+  // In the metadata the writer adds for the generic attributes, and in the
+  // element counts.
+  ASSERT_EQ(static_cast<uint8_t>(good[10]) & 0x80, 0x80);
+  // A count that the bytes left cannot hold may be corrupt as well as cut
+  // short: kBadValue or kTruncated.
+  for (size_t n : {11, 12, 14, 20, 30}) {
+    Mesh got;
+    Status s = read_drc(good.substr(0, n), uint64_t{64} << 20, &got);
+    EXPECT_TRUE(s.code() == ErrorCode::kTruncated || s.code() == ErrorCode::kBadValue) << n << ": " << s.to_string();
+    EXPECT_NE(s.offset(), Status::kNoPlace) << n;
+    EXPECT_LE(s.offset(), n) << s.to_string();
+  }
+  // In the body: libdraco refuses; the offset is where it stopped.
+  for (size_t n : {good.size() / 4, good.size() / 2, good.size() - 1}) {
+    Mesh got;
+    Status s = read_drc(good.substr(0, n), uint64_t{64} << 20, &got);
+    ASSERT_FALSE(s.ok()) << n;
+    EXPECT_NE(s.offset(), Status::kNoPlace) << n << ": " << s.to_string();
+    EXPECT_LE(s.offset(), n) << s.to_string();
+  }
+}
+
+TEST(DracoHostile, CorruptHeader) {
+  const std::string body = edgebreaker(0, 3, 1, 1).substr(11);
+  auto with_byte = [&](size_t at, int value) {
+    std::string b = drc_header(2, 2, 1, 1) + body;
+    b[at] = static_cast<char>(value);
+    return b;
+  };
+  expect_refused(with_byte(0, 'd'), ErrorCode::kUnknownFormat, "magic");
+  expect_refused(with_byte(5, 3), ErrorCode::kUnsupported, "major version 3");
+  expect_refused(with_byte(6, 3), ErrorCode::kUnsupported, "mesh version 2.3");
+  expect_refused(with_byte(5, 0), ErrorCode::kUnsupported, "major version 0");
+  expect_refused(with_byte(7, 2), ErrorCode::kBadHeader, "geometry type 2");
+  expect_refused(with_byte(8, 4), ErrorCode::kBadHeader, "method 4");
+  expect_refused(with_byte(9, 1), ErrorCode::kBadHeader, "unknown flag");
+  expect_refused(with_byte(11, 7), ErrorCode::kBadHeader, "edgebreaker traversal 7");
+  // The offsets name the bad field.
+  Mesh got;
+  EXPECT_EQ(read_drc(with_byte(5, 3), uint64_t{1} << 20, &got).offset(), 5u);
+  EXPECT_EQ(read_drc(with_byte(7, 2), uint64_t{1} << 20, &got).offset(), 7u);
+  EXPECT_EQ(read_drc(with_byte(8, 4), uint64_t{1} << 20, &got).offset(), 8u);
+  // Metadata whose counts the bytes cannot hold, or nested without end.
+  expect_refused(drc_header(2, 2, 1, 1, 0x8000) + varint(1000000) + std::string(40, '\0'), ErrorCode::kBadValue,
+                 "a million attribute metadata");
+  expect_refused(drc_header(2, 2, 1, 1, 0x8000) + varint(0) + varint(4000000000u) + std::string(40, '\0'),
+                 ErrorCode::kBadValue, "4e9 metadata entries");
+  std::string deep = drc_header(2, 2, 1, 1, 0x8000) + varint(0) + varint(0) + varint(1);
+  for (int i = 0; i < 100; ++i) deep += std::string(1, '\0') + varint(0) + varint(1);
+  expect_refused(deep + std::string(40, '\0'), ErrorCode::kUnsupported, "metadata 100 levels deep");
+  // A varint longer than 32 bits.
+  expect_refused(drc_header(2, 2, 1, 1) + std::string(1, '\0') + std::string(5, '\xff') + std::string(20, '\x01'),
+                 ErrorCode::kBadValue, "six-byte varint");
+}
+
+TEST(DracoHostile, AbsurdCounts) {
+  // Edgebreaker counts that contradict each other.
+  expect_refused(edgebreaker(2, 3, 1, 2), ErrorCode::kBadValue, "more symbols than faces");
+  expect_refused(edgebreaker(2, 1000, 10, 10), ErrorCode::kBadValue, "more vertices than corners");
+  expect_refused(edgebreaker(2, 3, 0xffffffffu, 1), ErrorCode::kBadValue, "2^32-1 faces");
+  // Standard traversal: a bit per symbol at least.
+  expect_refused(edgebreaker(0, 300000000, 100000000, 100000000), ErrorCode::kBadValue,
+                 "1e8 symbols in 64 bytes");
+  // Valence traversal (entropy coded): the memory estimate.
+  expect_refused(edgebreaker(2, 30000000, 10000000, 10000000), ErrorCode::kLimit, "1e7 faces, 64 MiB");
+  {
+    Mesh got;
+    Status s = read_drc(edgebreaker(2, 30000000, 10000000, 10000000), uint64_t{64} << 20, &got);
+    EXPECT_EQ(s.offset(), 12u) << s.to_string();  // the counts, after the traversal byte
+    EXPECT_NE(s.message().find("--memory"), std::string::npos) << s.to_string();
+  }
+  // Sequential mesh with raw indices that are not in the file.
+  expect_refused(drc_header(2, 2, 1, 0) + varint(1000) + varint(100) + '\x01' + std::string(100, '\0'),
+                 ErrorCode::kBadValue, "1000 faces of raw indices in 100 bytes");
+  expect_refused(drc_header(2, 2, 1, 0) + varint(100000000) + varint(3) + '\x00' + std::string(100, '\0'),
+                 ErrorCode::kLimit, "1e8 compressed faces");
+  // Point clouds: an int32 count.
+  auto cloud = [](uint32_t points) {
+    std::string b = drc_header(2, 3, 0, 0);
+    for (int k = 0; k < 4; ++k) b.push_back(static_cast<char>(points >> (8 * k)));
+    return b + std::string(64, '\0');
+  };
+  expect_refused(cloud(0x80000000u), ErrorCode::kBadValue, "negative point count");
+  expect_refused(cloud(0x7fffffffu), ErrorCode::kLimit, "2^31-1 points");
+  expect_refused(cloud(2000000), ErrorCode::kLimit, "2e6 points, 16 MiB", uint64_t{16} << 20);
+}
+
+TEST(DracoHostile, CliNamesFileAndOffset) {
+  test::TempDir dir;
+  test::write_file(dir.file("huge.drc"), edgebreaker(2, 30000000, 10000000, 10000000));
+  std::string out, err;
+  EXPECT_EQ(run_psq("convert --memory 64M " + dir.file("huge.drc") + " " + dir.file("x.ply"), &out, &err), 1) << err;
+  EXPECT_NE(err.find("psq: error: " + dir.file("huge.drc") + ": byte 12: "), std::string::npos) << err;
+  EXPECT_NE(err.find("--memory"), std::string::npos) << err;
+  EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
+  EXPECT_FALSE(test::file_exists(dir.file("x.ply")));
+  // Counts within the budget: libdraco then refuses the filler, and the
+  // error still names the file and a byte.
+  test::write_file(dir.file("filler.drc"), edgebreaker(2, 3000, 1000, 1000));
+  EXPECT_EQ(run_psq("convert " + dir.file("filler.drc") + " " + dir.file("x.ply"), &out, &err), 1) << err;
+  EXPECT_NE(err.find("psq: error: " + dir.file("filler.drc") + ": byte "), std::string::npos) << err;
+  EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
+  test::write_file(dir.file("bad.drc"), drc_header(9, 0, 1, 1) + std::string(20, '\0'));
+  EXPECT_EQ(run_psq("info " + dir.file("bad.drc"), &out, &err), 1) << err;
+  EXPECT_NE(err.find("psq: error: " + dir.file("bad.drc") + ": byte 5: "), std::string::npos) << err;
 }
 
 TEST(Draco, MemoryBudgetIsEnforced) {

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <exception>
 #include <limits>
@@ -103,6 +104,298 @@ std::string corrupt(const char* what, const draco::Status& s) {
   return m.empty() ? std::string(what) : std::string(what) + ": " + m;
 }
 
+// ---------------------------------------------------------------- pre-check
+//
+// libdraco sizes its allocations by the counts a file declares, before it
+// has read the data those counts describe. The pre-check below reads the
+// few header fields that drive those allocations, with its own bounds
+// checks, and refuses a file whose counts cannot describe its bytes or
+// whose decoding would not fit the memory budget. It follows the Draco
+// bitstream as libdraco 1.5.5 reads it (versions 1.0 to 2.2 for meshes, to
+// 2.3 for point clouds; the layout of counts changed at 2.0 and 2.2).
+
+constexpr uint8_t kMeshMajor = 2, kMeshMinor = 2;    // newest mesh bitstream of libdraco 1.5.5
+constexpr uint8_t kCloudMajor = 2, kCloudMinor = 3;  // newest point cloud bitstream
+constexpr uint16_t kMetadataFlag = 0x8000;           // the only flag Draco defines
+constexpr size_t kHeaderSize = 11;                   // magic, version, type, method, flags
+// Nesting of metadata that the pre-check follows; the writer uses 1 level.
+constexpr int kMaxMetadataDepth = 32;
+
+// Bytes libdraco allocates per element while decoding (estimates, rounded
+// up from its data structures): per face, the face and the corner table
+// (corner -> vertex, opposite corners) plus traversal bookkeeping; per
+// attribute connectivity of edgebreaker, another corner table; per vertex of
+// the edgebreaker, its corner and hole flags; per point, a float position
+// with its quantized copy and prediction buffers.
+constexpr uint64_t kFaceBytes = 56;
+constexpr uint64_t kAttributeFaceBytes = 28;
+constexpr uint64_t kVertexBytes = 16;
+constexpr uint64_t kPointBytes = 48;
+
+uint16_t version_of(uint8_t major, uint8_t minor) { return static_cast<uint16_t>((major << 8) | minor); }
+
+// A bounds-checked little-endian reader over the file's bytes; every read
+// fails (returns false) instead of going past the end.
+class ByteCursor {
+ public:
+  ByteCursor(const uint8_t* data, size_t size) : data_(data), size_(size) {}
+  size_t pos() const { return pos_; }
+  size_t remaining() const { return size_ - pos_; }
+  // True once a read failed for want of bytes (not for a malformed value).
+  bool ended() const { return ended_; }
+  bool skip(uint64_t n) {
+    if (n > remaining()) return end();
+    pos_ += static_cast<size_t>(n);
+    return true;
+  }
+  bool u8(uint8_t* v) {
+    if (remaining() < 1) return end();
+    *v = data_[pos_++];
+    return true;
+  }
+  bool u32(uint32_t* v) {
+    if (remaining() < 4) return end();
+    *v = 0;
+    for (int k = 0; k < 4; ++k) *v |= static_cast<uint32_t>(data_[pos_ + k]) << (8 * k);
+    pos_ += 4;
+    return true;
+  }
+  bool u16(uint16_t* v) {
+    if (remaining() < 2) return end();
+    *v = static_cast<uint16_t>(data_[pos_] | (data_[pos_ + 1] << 8));
+    pos_ += 2;
+    return true;
+  }
+  // Draco's unsigned LEB128 varint of a 32-bit value: at most 5 bytes. A
+  // value over 32 bits is refused (libdraco would truncate it; no encoder
+  // writes one), as is a 6th byte.
+  bool varint32(uint32_t* v) {
+    uint64_t value = 0;
+    for (int k = 0; k < 5; ++k) {
+      uint8_t b;
+      if (!u8(&b)) return false;
+      value |= static_cast<uint64_t>(b & 0x7f) << (7 * k);
+      if ((b & 0x80) == 0) {
+        if (value > std::numeric_limits<uint32_t>::max()) return false;
+        *v = static_cast<uint32_t>(value);
+        return true;
+      }
+    }
+    return false;
+  }
+
+ private:
+  bool end() {
+    ended_ = true;
+    return false;
+  }
+  const uint8_t* data_;
+  size_t size_;
+  size_t pos_ = 0;
+  bool ended_ = false;
+};
+
+// Skips Draco metadata (attribute metadata, then geometry metadata) at `c`.
+// Each metadata is: varint entry count, entries (uint8 name length, name,
+// varint value size >= 1, value), varint sub-metadata count, then each
+// sub-metadata as a uint8-length name and a metadata, depth first.
+Status skip_metadata(ByteCursor& c) {
+  auto truncated = [&]() {
+    return c.ended() ? Status(ErrorCode::kTruncated, "Draco metadata ends early", c.pos())
+                     : Status(ErrorCode::kBadValue, "malformed varint in Draco metadata", c.pos());
+  };
+  // One metadata: its entries, then the count of its children.
+  auto body = [&](uint32_t* children) -> Status {
+    uint32_t entries;
+    if (!c.varint32(&entries)) return truncated();
+    // Every entry takes at least 3 bytes, so the count cannot exceed them.
+    if (entries > c.remaining() / 3)
+      return Status(ErrorCode::kBadValue, "Draco metadata declares " + std::to_string(entries) + " entries in " +
+                                              std::to_string(c.remaining()) + " bytes", c.pos());
+    for (uint32_t e = 0; e < entries; ++e) {
+      uint8_t name_len;
+      uint32_t value_size;
+      if (!c.u8(&name_len) || !c.skip(name_len) || !c.varint32(&value_size)) return truncated();
+      if (value_size == 0) return Status(ErrorCode::kBadValue, "Draco metadata entry without a value", c.pos());
+      if (!c.skip(value_size)) return truncated();
+    }
+    if (!c.varint32(children)) return truncated();
+    if (*children > c.remaining() / 3)
+      return Status(ErrorCode::kBadValue, "Draco metadata declares " + std::to_string(*children) +
+                                              " sub-metadata in " + std::to_string(c.remaining()) + " bytes", c.pos());
+    return Status();
+  };
+  // A whole metadata tree; `pending` holds, per level, the children still
+  // to read, so that a deep nesting costs no recursion.
+  auto tree = [&]() -> Status {
+    std::vector<uint32_t> pending(1);
+    PSQ_RETURN_IF_ERROR(body(&pending[0]));
+    while (!pending.empty()) {
+      if (pending.back() == 0) {
+        pending.pop_back();
+        continue;
+      }
+      --pending.back();
+      if (pending.size() >= kMaxMetadataDepth)
+        return Status(ErrorCode::kUnsupported, "Draco metadata nested deeper than " +
+                                                   std::to_string(kMaxMetadataDepth) + " levels", c.pos());
+      uint8_t name_len;
+      if (!c.u8(&name_len) || !c.skip(name_len)) return truncated();
+      uint32_t children;
+      PSQ_RETURN_IF_ERROR(body(&children));
+      pending.push_back(children);
+    }
+    return Status();
+  };
+  uint32_t attribute_metadata;
+  if (!c.varint32(&attribute_metadata)) return truncated();
+  if (attribute_metadata > c.remaining() / 3)
+    return Status(ErrorCode::kBadValue, "Draco metadata declares " + std::to_string(attribute_metadata) +
+                                            " attribute metadata in " + std::to_string(c.remaining()) + " bytes",
+                  c.pos());
+  for (uint32_t a = 0; a < attribute_metadata; ++a) {
+    uint32_t unique_id;
+    if (!c.varint32(&unique_id)) return truncated();
+    PSQ_RETURN_IF_ERROR(tree());
+  }
+  return tree();
+}
+
+}  // namespace
+
+Status check_draco_header(const uint8_t* data, size_t size, uint64_t memory_budget, DracoHeaderInfo* info) {
+  DracoHeaderInfo local;
+  DracoHeaderInfo& h = info != nullptr ? *info : local;
+  h = DracoHeaderInfo();
+  ByteCursor c(data, size);
+  if (!looks_like_draco(data, size)) return Status(ErrorCode::kUnknownFormat, "not a Draco file (no DRACO magic)", 0);
+  if (size < kHeaderSize)
+    return Status(ErrorCode::kTruncated, "Draco header ends after " + std::to_string(size) + " of " +
+                                             std::to_string(kHeaderSize) + " bytes", size);
+  c.skip(kMagicSize);
+  uint8_t type = 0, method = 0;
+  uint16_t flags = 0;
+  c.u8(&h.version_major), c.u8(&h.version_minor), c.u8(&type), c.u8(&method), c.u16(&flags);
+  if (type > 1) return Status(ErrorCode::kBadHeader, "unknown Draco geometry type " + std::to_string(type), 7);
+  h.mesh = type == 1;
+  const std::string what = h.mesh ? "mesh" : "point cloud";
+  const uint8_t max_major = h.mesh ? kMeshMajor : kCloudMajor;
+  const uint8_t max_minor = h.mesh ? kMeshMinor : kCloudMinor;
+  const uint16_t version = version_of(h.version_major, h.version_minor);
+  if (h.version_major < 1 || version > version_of(max_major, max_minor)) {
+    return Status(ErrorCode::kUnsupported, "Draco " + what + " bitstream version " + std::to_string(h.version_major) +
+                                               "." + std::to_string(h.version_minor) + " (libdraco reads 1.0 to " +
+                                               std::to_string(max_major) + "." + std::to_string(max_minor) + ")",
+                  5);
+  }
+  if (method > 1)
+    return Status(ErrorCode::kBadHeader, "unknown Draco " + what + " encoding method " + std::to_string(method), 8);
+  h.method = method;
+  if ((flags & ~kMetadataFlag) != 0)
+    return Status(ErrorCode::kBadHeader, "unknown Draco header flags 0x" + [&] {
+      char buf[8];
+      std::snprintf(buf, sizeof buf, "%04x", flags);
+      return std::string(buf);
+    }(), 9);
+  if ((flags & kMetadataFlag) && version >= version_of(1, 3)) PSQ_RETURN_IF_ERROR(skip_metadata(c));
+
+  size_t counts_at = c.pos();  // where the counts start, for the messages
+  auto truncated = [&]() {
+    return c.ended() ? Status(ErrorCode::kTruncated, "Draco " + what + " ends inside its element counts", c.pos())
+                     : Status(ErrorCode::kBadValue, "malformed varint in the Draco " + what + "'s counts", c.pos());
+  };
+  // A 32-bit count: a varint from `varint_from` on, a raw uint32 before.
+  auto count = [&](uint16_t varint_from, uint32_t* v) {
+    return version >= varint_from ? c.varint32(v) : c.u32(v);
+  };
+  uint64_t estimate = size;  // the file itself is held while decoding
+  if (!h.mesh) {
+    // Sequential and k-d tree point clouds alike: an int32 point count.
+    uint32_t points;
+    if (!c.u32(&points)) return truncated();
+    if (points > static_cast<uint32_t>(std::numeric_limits<int32_t>::max()))
+      return Status(ErrorCode::kBadValue, "Draco point cloud declares a negative number of points", counts_at);
+    h.points = points;
+    estimate += h.points * kPointBytes;
+  } else if (method == 0) {
+    // Sequential mesh: face and point counts, then how indices are stored.
+    uint32_t faces, points;
+    if (!count(version_of(2, 2), &faces) || !count(version_of(2, 2), &points)) return truncated();
+    uint8_t index_method;
+    if (!c.u8(&index_method)) return truncated();
+    h.faces = faces;
+    h.points = points;
+    if (h.faces > 0xffffffffu / 3)
+      return Status(ErrorCode::kBadValue, "Draco mesh declares " + std::to_string(faces) + " faces (at most " +
+                                              std::to_string(0xffffffffu / 3) + ")", counts_at);
+    if (index_method != 0) {
+      // Raw indices: 1, 2 or 4 bytes each by the point count, or a varint
+      // of at least one byte; all of them must be in the file.
+      uint64_t width = points < 256 ? 1 : points < (1u << 16) ? 2 : 4;
+      if (points >= (1u << 16) && points < (1u << 21) && version >= version_of(2, 2)) width = 1;
+      if (h.faces * 3 * width > c.remaining()) {
+        return Status(ErrorCode::kBadValue, "Draco mesh declares " + std::to_string(faces) +
+                                                " faces, but their indices need " +
+                                                std::to_string(h.faces * 3 * width) + " bytes and " +
+                                                std::to_string(c.remaining()) + " remain", counts_at);
+      }
+    }
+    // The faces, plus the entropy-decoded index buffer or the raw indices.
+    estimate += h.faces * (12 + 12) + h.points * kPointBytes;
+  } else {
+    // Edgebreaker: the traversal kind, then (older versions: new vertices)
+    // encoded vertices, faces, attribute connectivities, symbols, splits.
+    uint8_t traversal;
+    if (!c.u8(&traversal)) return truncated();
+    if (traversal > 2)
+      return Status(ErrorCode::kBadHeader, "unknown Draco edgebreaker traversal " + std::to_string(traversal),
+                    c.pos() - 1);
+    counts_at = c.pos();
+    uint32_t new_vertices = 0, vertices, faces, symbols, splits;
+    uint8_t attribute_data;
+    if (version < version_of(2, 2) && !count(version_of(2, 0), &new_vertices)) return truncated();
+    if (!count(version_of(2, 0), &vertices) || !count(version_of(2, 0), &faces)) return truncated();
+    if (!c.u8(&attribute_data) || !count(version_of(2, 0), &symbols) || !count(version_of(2, 0), &splits))
+      return truncated();
+    h.faces = faces;
+    // Every encoded vertex is a corner of some face (the edgebreaker keeps
+    // no isolated points), so the vertices are bounded by the corners; the
+    // split symbols add temporary vertices, merged again while decoding.
+    const uint64_t corners = h.faces * 3;
+    const uint64_t all_vertices = uint64_t{vertices} + new_vertices + splits;
+    if (h.faces > std::numeric_limits<uint32_t>::max() / 3)
+      return Status(ErrorCode::kBadValue, "Draco mesh declares " + std::to_string(faces) + " faces (at most " +
+                                              std::to_string(std::numeric_limits<uint32_t>::max() / 3) + ")",
+                    counts_at);
+    if (symbols > faces || splits > symbols || uint64_t{vertices} + new_vertices > corners) {
+      return Status(ErrorCode::kBadValue, "Draco mesh declares inconsistent counts: " + std::to_string(faces) +
+                                              " faces, " + std::to_string(all_vertices) + " vertices, " +
+                                              std::to_string(symbols) + " symbols, " + std::to_string(splits) +
+                                              " split symbols", counts_at);
+    }
+    // The standard traversal spends at least one bit per symbol.
+    if (traversal == 0 && symbols / 8 > c.remaining()) {
+      return Status(ErrorCode::kBadValue, "Draco mesh declares " + std::to_string(symbols) +
+                                              " edgebreaker symbols, more than the " + std::to_string(c.remaining()) +
+                                              " bytes left can hold", counts_at);
+    }
+    h.points = all_vertices;
+    estimate += h.faces * (kFaceBytes + kAttributeFaceBytes * attribute_data) + all_vertices * kVertexBytes +
+                all_vertices * kPointBytes;
+  }
+  h.estimated_bytes = estimate;
+  if (estimate > memory_budget) {
+    return Status(ErrorCode::kLimit, "Draco is read in memory: the declared " +
+                                         (h.mesh ? std::to_string(h.faces) + " faces and " : std::string()) +
+                                         std::to_string(h.points) + " points need about " + mib(estimate) +
+                                         ", over the memory budget of " + mib(memory_budget) + " (--memory)",
+                  counts_at);
+  }
+  return Status();
+}
+
+namespace {
+
 bool valid_property_name(const std::string& s) {
   if (s.empty() || s.size() > 64) return false;
   for (unsigned char c : s)
@@ -174,38 +467,42 @@ Status DracoReader::open(InputStream* in, uint64_t memory_budget) {
     bytes.insert(bytes.end(), in->cursor(), in->cursor() + avail);
     in->advance(avail);
   }
-  if (!looks_like_draco(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()))
-    return Status(ErrorCode::kUnknownFormat, "not a Draco file (no DRACO magic)", 0);
+  // libdraco allocates what the file's counts ask for before it reads the
+  // data they describe: the counts are checked first (see draco.h).
+  DracoHeaderInfo header;
+  PSQ_RETURN_IF_ERROR(check_draco_header(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size(),
+                                         memory_budget, &header));
 
   draco::DecoderBuffer buffer;
   buffer.Init(bytes.data(), bytes.size());
-  auto type = draco::Decoder::GetEncodedGeometryType(&buffer);
-  if (!type.ok()) return Status(ErrorCode::kBadValue, corrupt("corrupt Draco header", type.status()), 0);
-  buffer.Init(bytes.data(), bytes.size());
+  // Where libdraco stopped: its buffer always points into `bytes` (the
+  // edgebreaker re-initialises it further on, never elsewhere).
+  auto stopped_at = [&]() -> uint64_t {
+    const char* head = buffer.data_head();
+    if (head < bytes.data() || head > bytes.data() + bytes.size()) return 0;
+    return static_cast<uint64_t>(head - bytes.data());
+  };
   draco::Decoder decoder;
-  // libdraco allocates what the file's counts ask for; a corrupt count may
-  // ask for more than there is.
   try {
-    if (type.value() == draco::TRIANGULAR_MESH) {
+    if (header.mesh) {
       auto decoded = decoder.DecodeMeshFromBuffer(&buffer);
       if (!decoded.ok() || !decoded.value())
-        return Status(ErrorCode::kBadValue, corrupt("corrupt Draco mesh", decoded.status()));
+        return Status(ErrorCode::kBadValue, corrupt("corrupt Draco mesh", decoded.status()), stopped_at());
       std::unique_ptr<draco::Mesh> mesh = std::move(decoded).value();
       m.mesh = mesh.get();
       m.num_faces = mesh->num_faces();
       m.cloud = std::move(mesh);
-    } else if (type.value() == draco::POINT_CLOUD) {
+    } else {
       auto decoded = decoder.DecodePointCloudFromBuffer(&buffer);
       if (!decoded.ok() || !decoded.value())
-        return Status(ErrorCode::kBadValue, corrupt("corrupt Draco point cloud", decoded.status()));
+        return Status(ErrorCode::kBadValue, corrupt("corrupt Draco point cloud", decoded.status()), stopped_at());
       m.cloud = std::move(decoded).value();
-    } else {
-      return Status(ErrorCode::kBadValue, "unsupported Draco geometry type " + std::to_string(type.value()), 0);
     }
   } catch (const std::bad_alloc&) {
-    return Status(ErrorCode::kLimit, "out of memory decoding the Draco data (corrupt counts, or a mesh too large)");
+    return Status(ErrorCode::kLimit, "out of memory decoding the Draco data (corrupt counts, or a mesh too large)",
+                  stopped_at());
   } catch (const std::exception& e) {
-    return Status(ErrorCode::kBadValue, std::string("corrupt Draco data: ") + e.what());
+    return Status(ErrorCode::kBadValue, std::string("corrupt Draco data: ") + e.what(), stopped_at());
   }
   m.num_points = m.cloud->num_points();
 

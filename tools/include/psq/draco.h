@@ -32,16 +32,61 @@ namespace psq {
 // True when `data` starts with the Draco magic "DRACO".
 bool looks_like_draco(const uint8_t* data, size_t size);
 
+// What check_draco_header read from a .drc header.
+struct DracoHeaderInfo {
+  uint8_t version_major = 0;
+  uint8_t version_minor = 0;
+  bool mesh = false;  // a triangular mesh; else a point cloud
+  int method = 0;     // mesh: 0 sequential, 1 edgebreaker; point cloud: 0 sequential, 1 k-d tree
+  uint64_t faces = 0;
+  uint64_t points = 0;           // declared points (edgebreaker: vertices plus split vertices)
+  uint64_t estimated_bytes = 0;  // what decoding is estimated to allocate, the file included
+};
+
+// The hostile-input guard of DracoReader, run on the whole file before any
+// byte reaches libdraco, which sizes its allocations by the counts a file
+// declares. It reads, with its own bounds checks:
+//  - the header: magic "DRACO", a bitstream version libdraco 1.5.5 reads
+//    (1.0 to 2.2 for meshes, 2.3 for point clouds), geometry type, encoding
+//    method, flags (only the metadata flag is defined);
+//  - metadata, when flagged: every entry and sub-metadata must fit the
+//    bytes left, nesting at most 32 deep (libdraco itself recurses);
+//  - the element counts: point clouds, the int32 point count; sequential
+//    meshes, face and point counts, and with raw indices, that all 3 x faces
+//    indices are in the file; edgebreaker meshes, the traversal kind and
+//    that symbols <= faces, split symbols <= symbols, vertices <= 3 x faces,
+//    and for the standard traversal (one bit or more per symbol) that the
+//    symbols fit the bytes left.
+// What remains unbounded by the file's length (the valence traversal and
+// all attribute values are entropy coded, and a constant stream costs
+// almost no bytes) is bounded by memory instead: the counts give an
+// estimate of libdraco's allocations (per face, per vertex, and 48 bytes per
+// point, i.e. a float position with its decoding buffers), and an estimate
+// over `memory_budget` is refused. Not pre-checked: the attribute
+// declarations (they follow the entropy-coded connectivity), so a file whose
+// points carry many wide attributes (up to 255 components of 8 bytes) can
+// make libdraco allocate a multiple of the estimate before DracoReader
+// measures the decoded mesh against the budget.
+// Returns OK, or (the offset is the byte where the problem is):
+// kUnknownFormat (no magic), kTruncated (the header or counts end early),
+// kBadHeader (unknown type, method, traversal or flags), kUnsupported (a
+// newer bitstream version, too deep metadata), kBadValue (counts the bytes
+// cannot hold, or that contradict each other), kLimit (over the budget).
+// Files that libdraco would accept and that no Draco encoder writes (a
+// varint over 32 bits, unknown flags) are refused too.
+Status check_draco_header(const uint8_t* data, size_t size, uint64_t memory_budget,
+                          DracoHeaderInfo* info = nullptr);
+
 class DracoReader : public MeshSource {
  public:
   DracoReader();
   ~DracoReader() override;
 
-  // Reads all of `in` (which need not outlive the reader) and decodes it.
-  // Errors: kLimit (the file, or the decoded mesh, exceeds
-  // `memory_budget` bytes), kUnknownFormat (no Draco magic), kBadValue (a
-  // corrupt or unsupported .drc, a mesh without positions, a non-finite
-  // position), kIo.
+  // Reads all of `in` (which need not outlive the reader), checks it with
+  // check_draco_header and decodes it. Errors: those of check_draco_header,
+  // kLimit (the file, or the decoded mesh, exceeds `memory_budget` bytes),
+  // kBadValue (libdraco refused the data: the offset is where it stopped;
+  // a mesh without positions, a non-finite position), kIo.
   Status open(InputStream* in, uint64_t memory_budget);
 
   const MeshSchema& schema() const override;
