@@ -5,6 +5,8 @@
 #include "coding.h"
 #include "geometry.h"
 
+#include <algorithm>
+
 namespace psq {
 namespace codec {
 
@@ -196,6 +198,8 @@ bool Boundary::apply(BTriangle& t) {
       if (t.state[k] == EdgeState::kBorder) {
         t.eslot[k] = kNone;
         add_border(t.c[k], t.c[(k + 1) % 3]);
+        ++vertices_[t.c[k]].borders;
+        ++vertices_[t.c[(k + 1) % 3]].borders;
       }
       continue;
     }
@@ -241,18 +245,42 @@ bool Boundary::apply(BTriangle& t) {
   return true;
 }
 
+namespace {
+// The largest coordinate distance of two points (coding.h).
+uint64_t linf_distance(const int64_t* a, const int64_t* b) {
+  uint64_t m = 0;
+  for (int k = 0; k < 3; ++k) m = std::max(m, coord_distance(a[k], b[k]));
+  return m;
+}
+}  // namespace
+
+int third_shape_context(const Boundary& boundary, uint32_t gate) {
+  const BEdge& g = boundary.edge(gate);
+  const int64_t* p = boundary.vertex(g.org).pos;
+  const int64_t* q = boundary.vertex(g.dst).pos;
+  int64_t par[3];
+  for (int k = 0; k < 3; ++k) par[k] = wrap_sub(wrap_add(p[k], q[k]), g.opp[k]);
+  const uint64_t e = linf_distance(p, q);
+  const uint64_t none = ~uint64_t{0};
+  const uint64_t dl = g.prev != kNone ? linf_distance(par, boundary.vertex(boundary.edge(g.prev).org).pos) : none;
+  const uint64_t dr = g.next != kNone ? linf_distance(par, boundary.vertex(boundary.edge(g.next).dst).pos) : none;
+  const uint64_t d = std::min(dl, dr);
+  const int side = dl <= dr ? 0 : 1;
+  return d < (e >> 1) ? 1 + side : d < e ? 3 + side : 0;
+}
+
 Prediction predict_new_vertex(const Boundary& boundary, uint32_t gate, int i, const int64_t last[3],
                               const int64_t first[3], const int64_t second[3]) {
   Prediction p;
   p.kind = kPredOther;
-  p.scale = 0;
+  p.extent[0] = p.extent[1] = p.extent[2] = 0;
   if (gate != kNone) {
     const BEdge& g = boundary.edge(gate);
     const int64_t* a = boundary.vertex(g.org).pos;
     const int64_t* b = boundary.vertex(g.dst).pos;
     for (int k = 0; k < 3; ++k) p.pos[k] = wrap_sub(wrap_add(a[k], b[k]), g.opp[k]);
     p.kind = kPredParallelogram;
-    p.scale = gate_scale(a, b);
+    for (int k = 0; k < 3; ++k) p.extent[k] = triangle_extent(a, b, g.opp, k);
     return p;
   }
   for (int k = 0; k < 3; ++k)

@@ -1,10 +1,40 @@
-// codec/src/coding.cpp: the cost table of coding.h.
+// codec/src/coding.cpp: the models' initial state and the cost table of
+// coding.h.
 #include "coding.h"
 
+#include <vector>
+
 #include <cmath>
+#include <cstdlib>
 
 namespace psq {
 namespace codec {
+
+Models::Models() {
+  for (auto& m : gate) m = SymbolModel(kGateBits);
+  for (auto& shape : third)
+    for (auto& m : shape) m = SymbolModel(2);
+  for (auto& axis : residual[kPredParallelogram])
+    for (int c = 0; c < kLengthContexts; ++c) init_length_prior(axis[c].length, c);
+}
+
+void init_length_prior(SymbolModel& length, int c) {
+  const int bits = length.bits();  // 7: lengths 0..127, of which 0..64 occur
+  const int leaves = 1 << bits;
+  const int mu = 3 * c / 4;
+  // Subtree weights, heap-ordered like the tree: node i has children 2i
+  // and 2i + 1, leaf k is node leaves + k. At most 65 leaves of 2^24:
+  // below 2^31, and below 2^47 after the shift by 16.
+  std::vector<uint64_t> w(2 * leaves, 0);
+  for (int k = 0; k <= 64 && k < leaves; ++k) w[leaves + k] = uint64_t{1} << (24 - std::min(24, std::abs(k - mu)));
+  for (int i = leaves - 1; i >= 1; --i) w[i] = w[2 * i] + w[2 * i + 1];
+  BitModel* tree = length.tree();
+  for (int i = 1; i < leaves; ++i) {
+    uint64_t p0 = w[i] == 0 ? 32768 : (w[2 * i] << 16) / w[i];
+    tree[i].p0 = static_cast<uint16_t>(std::min<uint64_t>(std::max<uint64_t>(p0, 32), 65504));
+    tree[i].n = 2;
+  }
+}
 
 double bit_cost(uint32_t p12) {
   struct Table {

@@ -38,6 +38,8 @@ constexpr uint32_t kThirdRight = 2;  // the vertex after the gate
 constexpr uint32_t kThirdJoin = 3;   // an explicit open edge names it
 constexpr int kDegreeCap = 5;        // degrees 0..5+ as context
 constexpr int kThirdContexts = (kDegreeCap + 1) * (kDegreeCap + 1);
+// Shape contexts of the third-vertex symbol (spec 6.2.2, boundary.h).
+constexpr int kShapeContexts = 5;
 
 // Residual contexts (spec 7.4): prediction kind x axis.
 constexpr int kPredParallelogram = 0;
@@ -51,33 +53,39 @@ struct ResidualModel {
   BitModel second[65];
 };
 
-// Residual contexts (spec 7.4): the prediction kind, the axis, and for the
-// y and z axes the largest bit length of the vertex's earlier axes.
+// Residual contexts (spec 7.4): the prediction kind, the axis, and a length
+// context from the gate triangle's extent along the axis and, for the y and
+// z axes, the bit lengths of the vertex's earlier residuals.
 constexpr int kLengthContexts = 12;
-// For the x axis, `longest_so_far` is the bit length of the gate edge's
-// largest coordinate difference (0 without a gate): residuals scale with
-// the local edge length.
-inline int length_context(int axis, int longest_so_far) {
-  (void)axis;
-  return std::min(longest_so_far, kLengthContexts - 1);
+// `extent`: the bit length of the gate triangle's extent along this axis
+// (a parallelogram prediction; 0 otherwise); `longest_so_far`: the largest
+// bit length of the earlier axes' residuals. Residuals scale with the local
+// triangle size along the axis, and with the vertex's other residuals;
+// without a gate triangle only the latter is known.
+inline int length_context(int kind, int axis, int extent, int longest_so_far) {
+  const int c = axis == 0 ? extent
+                : kind == kPredParallelogram ? (extent + longest_so_far + 1) / 2
+                                             : longest_so_far;
+  return std::min(c, kLengthContexts - 1);
 }
 inline int bit_length64(uint64_t v) { return v == 0 ? 0 : 64 - __builtin_clzll(v); }
-// The bit length of the largest coordinate difference of a gate's endpoints
-// (differences taken modulo 2^64, magnitudes of their two's complement).
-inline int gate_scale(const int64_t* a, const int64_t* b) {
-  uint64_t m = 0;
-  for (int i = 0; i < 3; ++i) {
-    const uint64_t d = static_cast<uint64_t>(a[i]) - static_cast<uint64_t>(b[i]);
-    const uint64_t mag = static_cast<int64_t>(d) < 0 ? 0 - d : d;
-    m = std::max(m, mag);
-  }
-  return bit_length64(m);
+// |a - b| for coordinates, the difference taken modulo 2^64 and its two's
+// complement magnitude.
+inline uint64_t coord_distance(int64_t a, int64_t b) {
+  const uint64_t d = static_cast<uint64_t>(a) - static_cast<uint64_t>(b);
+  return static_cast<int64_t>(d) < 0 ? 0 - d : d;
+}
+// The bit length of a triangle's extent along `axis`: of the largest
+// coordinate distance between two of its corners a, b, c.
+inline int triangle_extent(const int64_t* a, const int64_t* b, const int64_t* c, int axis) {
+  return bit_length64(std::max(coord_distance(a[axis], b[axis]),
+                               std::max(coord_distance(a[axis], c[axis]), coord_distance(b[axis], c[axis]))));
 }
 
 struct Models {
   SymbolModel gate[kGateContexts];
-  SymbolModel third[kThirdContexts];
-  BitModel border[2][3];      // [start?][edge k]
+  SymbolModel third[kShapeContexts][kThirdContexts];  // [shape (6.2.2)][degrees]
+  BitModel border[2][3][3];   // [start?][edge k][endpoints that touch a border edge]
   BitModel cut[2];            // [start?]: a border edge is a non-manifold cut
   BitModel swap;              // start: corner 2 was introduced before corner 1
   BitModel join_side;         // join: the naming edge enters (1) or leaves (0) x
@@ -86,11 +94,18 @@ struct Models {
   SymbolModel rotation{2};    // 0..2, only with face properties
   ResidualModel residual[2][3][kLengthContexts];  // [prediction kind][axis][length context]
 
-  Models() {
-    for (auto& m : gate) m = SymbolModel(kGateBits);
-    for (auto& m : third) m = SymbolModel(2);
-  }
+  Models();
 };
+
+// Spec 7.4.1: the initial state of the bit-length tree of a parallelogram
+// residual model with length context `c`. Its leaves get the weights
+// 2^(24 - min(24, |k - mu|)) for lengths k <= 64 and 0 above, with
+// mu = floor(3c / 4); each node's p0 is the share of its 0-subtree in its
+// weight, and its count n starts at 2. The typical length grows with the
+// context (about 3c/4 on the shared meshes); starting there instead of at
+// one half saves the models' learning, which is most of a small mesh's
+// overhead (1 to 3% of it).
+void init_length_prior(SymbolModel& length, int c);
 
 // The context of the third-vertex symbol: the triangles already around the
 // gate's endpoints p and q (spec 6.2.2).

@@ -96,7 +96,7 @@ struct PsqDecoder::Impl {
   Status next_chunk();
   Status read_end();
   Status decode_record();
-  Status new_vertex(Decoder& dec, const int64_t pred[3], int kind, int scale, int64_t pos[3], SequenceEvent* ev);
+  Status new_vertex(Decoder& dec, const int64_t pred[3], int kind, const int extent[3], int64_t pos[3], SequenceEvent* ev);
   // The events of one record, in order (at most 3 vertices, a triangle and
   // 3 finalizations); the queue is empty before each record is decoded.
   SequenceEvent& push() { return queue[qcount++]; }
@@ -119,7 +119,7 @@ Status PsqDecoder::Impl::open(InputStream* stream) {
   uint32_t length = get.u32();
   if (header.version_major != kVersionMajor)
     return Status(ErrorCode::kUnsupported, "format version " + std::to_string(header.version_major) + "." +
-                                               std::to_string(header.version_minor) + "; this psq reads 1.x", 8);
+                                               std::to_string(header.version_minor) + "; this psq reads 2.x", 8);
   if (flags & ~kKnownFlags)
     return Status(ErrorCode::kUnsupported, "unknown header flags (value " + std::to_string(flags & ~kKnownFlags) + ")", 10);
   if (length > kMaxHeaderPayload)
@@ -233,7 +233,7 @@ Status PsqDecoder::Impl::read_end() {
 }
 
 // Spec 6.3 and 7: a new vertex's re-appearance and position.
-Status PsqDecoder::Impl::new_vertex(Decoder& dec, const int64_t pred[3], int kind, int scale, int64_t pos[3],
+Status PsqDecoder::Impl::new_vertex(Decoder& dec, const int64_t pred[3], int kind, const int extent[3], int64_t pos[3],
                                     SequenceEvent* ev) {
   if (seen_vertices >= chunk_vertices) return corrupt("more vertices than the chunk declares");
   if (next_out >= 0xffffffffull) return Status(ErrorCode::kLimit, "more than 4294967295 vertices", conn_offset);
@@ -253,8 +253,8 @@ Status PsqDecoder::Impl::new_vertex(Decoder& dec, const int64_t pred[3], int kin
   int lengths[3] = {0, 0, 0};
   for (int i = 0; i < 3; ++i) {
     int64_t r;
-    const int c = i == 0 ? scale : std::max(lengths[0], lengths[1]);
-    if (!dec.residual(models.residual[kind][i][length_context(i, c)], &r, &lengths[i], kCostGeometry))
+    const int c = length_context(kind, i, extent[i], std::max(lengths[0], lengths[1]));
+    if (!dec.residual(models.residual[kind][i][c], &r, &lengths[i], kCostGeometry))
       return corrupt("residual longer than 64 bits");
     pos[i] = wrap_add(pred[i], r);
   }
@@ -291,7 +291,8 @@ Status PsqDecoder::Impl::decode_record() {
     SequenceEvent& ev = push();
     int64_t pos[3];
     int64_t pred[3] = {last_pos[0], last_pos[1], last_pos[2]};
-    PSQ_RETURN_IF_ERROR(new_vertex(dec, pred, kPredOther, 0, pos, &ev));
+    const int no_extent[3] = {0, 0, 0};
+    PSQ_RETURN_IF_ERROR(new_vertex(dec, pred, kPredOther, no_extent, pos, &ev));
     SequenceEvent& fin = push();
     fin.kind = SequenceEvent::Kind::kFinalize;
     fin.finalized = ev.vertex.index;
@@ -324,7 +325,9 @@ Status PsqDecoder::Impl::decode_record() {
     const BEdge& g = boundary.edge(gate);
     const uint32_t p = g.org, q = g.dst;
     const uint32_t third =
-        dec.symbol(models.third[third_context(boundary.vertex(p).degree, boundary.vertex(q).degree)], kCostConnectivity);
+        dec.symbol(models.third[third_shape_context(boundary, gate)]
+                               [third_context(boundary.vertex(p).degree, boundary.vertex(q).degree)],
+                   kCostConnectivity);
     uint32_t x = kNone;
     if (third == kThirdLeft) {
       if (g.prev == kNone) return corrupt("no boundary edge before the gate");
@@ -361,7 +364,7 @@ Status PsqDecoder::Impl::decode_record() {
     int64_t pos[3];
     const Prediction pr = predict_new_vertex(boundary, nintro == 1 ? gate : kNone, i, last_pos, first, second);
     SequenceEvent& ev = push();
-    PSQ_RETURN_IF_ERROR(new_vertex(dec, pr.pos, pr.kind, pr.scale, pos, &ev));
+    PSQ_RETURN_IF_ERROR(new_vertex(dec, pr.pos, pr.kind, pr.extent, pos, &ev));
     for (int a = 0; a < 3; ++a) (i == 0 ? first : second)[a] = pos[a];
     uint32_t s = boundary.new_vertex(ev.vertex.index, 0, pos);
     if (s == kNone) return Status(ErrorCode::kLimit, "more active vertices than the header's boundary limit", conn_offset);
@@ -376,7 +379,7 @@ Status PsqDecoder::Impl::decode_record() {
       ++completed;
       continue;
     }
-    bt.border[k] = dec.bit(models.border[start][k], kCostConnectivity);
+    bt.border[k] = dec.bit(models.border[start][k][border_context(boundary, bt, k)], kCostConnectivity);
     bt.state[k] = bt.border[k] ? EdgeState::kBorder : EdgeState::kEnters;
   }
   uint8_t cut = 0;

@@ -83,7 +83,7 @@ struct PsqEncoder::Impl {
 
   Status begin(const MeshSchema& schema);
   Status coded_position(const double p[3], int64_t out[3]);
-  void code_new_vertex(Encoder& enc, const PendingVertex& v, const int64_t pred[3], int kind, int scale);
+  void code_new_vertex(Encoder& enc, const PendingVertex& v, const int64_t pred[3], int kind, const int extent[3]);
   Status introduce(const PendingVertex& v);
   Status triangle(const SequenceTriangle& t);
   Status isolated(size_t pending_at);
@@ -198,7 +198,7 @@ Status PsqEncoder::Impl::introduce(const PendingVertex& v) {
 // Spec 6.3 and 7.4: the re-appearance flag (and distance), then the
 // residuals of the position against `pred`.
 void PsqEncoder::Impl::code_new_vertex(Encoder& enc, const PendingVertex& v, const int64_t pred[3], int kind,
-                                        int scale) {
+                                        const int extent[3]) {
   const uint32_t out_index = out_index_of(v.in_index);
   enc.bit(models.reappears, v.reappears != kNoVertex, kCostConnectivity);
   // (triangle() and isolated() checked that the re-appeared vertex comes
@@ -208,8 +208,8 @@ void PsqEncoder::Impl::code_new_vertex(Encoder& enc, const PendingVertex& v, con
                        kCostConnectivity);
   int lengths[3] = {0, 0, 0};
   for (int i = 0; i < 3; ++i) {
-    const int c = i == 0 ? scale : std::max(lengths[0], lengths[1]);
-    lengths[i] = enc.residual(models.residual[kind][i][length_context(i, c)], wrap_sub(v.pos[i], pred[i]),
+    const int c = length_context(kind, i, extent[i], std::max(lengths[0], lengths[1]));
+    lengths[i] = enc.residual(models.residual[kind][i][c], wrap_sub(v.pos[i], pred[i]),
                               kCostGeometry);
   }
   for (int i = 0; i < 3; ++i) last_pos[i] = v.pos[i];
@@ -325,7 +325,8 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
     }
     const BVertex& vp = boundary.vertex(p);
     const BVertex& vq = boundary.vertex(q);
-    enc.symbol(models.third[third_context(vp.degree, vq.degree)], third, kCostConnectivity);
+    enc.symbol(models.third[third_shape_context(boundary, gate)][third_context(vp.degree, vq.degree)], third,
+               kCostConnectivity);
     if (third == kThirdJoin) {
       // Spec 6.2.2: an open edge at x names it and the gap the triangle
       // goes into: its first edge leaving x, else its first entering x.
@@ -353,7 +354,7 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
     const int64_t* first = i >= 1 ? pending[cp[intro[0]]].pos : nullptr;
     const int64_t* second = i >= 2 ? pending[cp[intro[1]]].pos : nullptr;
     const Prediction pr = predict_new_vertex(boundary, nnew == 1 ? gate : kNone, i, last_pos, first, second);
-    code_new_vertex(enc, v, pr.pos, pr.kind, pr.scale);
+    code_new_vertex(enc, v, pr.pos, pr.kind, pr.extent);
     uint32_t s = boundary.new_vertex(out_index_of(v.in_index), v.in_index, v.pos);
     if (s == kNone)
       return Status(ErrorCode::kLimit, "more than " + std::to_string(opt.boundary_limit) +
@@ -382,7 +383,7 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
         return bad_sequence("a border edge completes a boundary edge");
       continue;
     }
-    enc.bit(models.border[start][k], bt.border[k], kCostConnectivity);
+    enc.bit(models.border[start][k][border_context(boundary, bt, k)], bt.border[k], kCostConnectivity);
   }
   for (int k = 0; k < 3; ++k)
     if (bt.state[k] == EdgeState::kBorder)
@@ -425,7 +426,8 @@ Status PsqEncoder::Impl::isolated(size_t at) {
   PendingVertex v = std::move(pending[at]);
   pending.erase(pending.begin() + static_cast<std::ptrdiff_t>(at));
   PSQ_RETURN_IF_ERROR(introduce(v));
-  code_new_vertex(enc, v, last_pos, kPredOther, 0);
+  const int no_extent[3] = {0, 0, 0};
+  code_new_vertex(enc, v, last_pos, kPredOther, no_extent);
   return after_record();
 }
 

@@ -95,7 +95,7 @@ hlen=$(( $(od -An -t u4 -j 12 -N 4 "$src") ))
 # Not .psq at all.
 printf 'PLY\n' > bad_magic.psq; invalid bad_magic unknown_format 0
 # Version 2.0.
-{ head -c 8 "$src"; printf '\x02'; tail -c +10 "$src"; } > bad_version.psq; invalid bad_version unsupported 8
+{ head -c 8 "$src"; printf '\x03'; tail -c +10 "$src"; } > bad_version.psq; invalid bad_version unsupported 8
 # An unknown flag.
 { head -c 11 "$src"; printf '\x80'; tail -c +13 "$src"; } > bad_flags.psq; invalid bad_flags unsupported 10
 # A header payload of 2 GiB.
