@@ -319,6 +319,7 @@ TEST(Codec, CompressesASmoothSphereWell) {
   Events ev = sequence_of(test::make_sphere(100, 200));
   EncodeOptions o;
   o.bits = 12;
+  o.measure_costs = true;
   PsqStats stats;
   std::vector<uint8_t> bytes = encode(ev, o, &stats);
   const double bpv_conn = stats.connectivity_bits / stats.vertices;

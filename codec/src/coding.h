@@ -169,11 +169,14 @@ class Encoder {
   double* cost_;
 };
 
-class Decoder {
+// kMeasure: whether it adds up costs (psq info); a template parameter so
+// that plain decoding tests nothing per decision.
+template <bool kMeasure>
+class BasicDecoder {
  public:
-  Decoder(RangeDecoder* rc, double* cost) : rc_(rc), cost_(cost) {}
+  BasicDecoder(RangeDecoder* rc, double* cost) : rc_(rc), cost_(cost) {}
   int bit(BitModel& m, Cost c) {
-    if (!cost_) return rc_->decode_bit(m);
+    if (!kMeasure) return rc_->decode_bit(m);
     const uint16_t p0 = m.p0;
     const int b = rc_->decode_bit(m);
     cost_[c] += bit_cost((b ? 65536u - p0 : p0) >> 4);
@@ -187,7 +190,7 @@ class Decoder {
     return node - (1u << bits);
   }
   uint64_t raw(int bits, Cost c) {
-    if (cost_) cost_[c] += bits;
+    if (kMeasure) cost_[c] += bits;
     uint64_t v = 0;
     if (bits > 32) {
       v = static_cast<uint64_t>(rc_->decode_raw(bits - 32)) << 32;

@@ -95,8 +95,18 @@ struct PsqDecoder::Impl {
   Status open(InputStream* stream);
   Status next_chunk();
   Status read_end();
-  Status decode_record();
-  Status new_vertex(Decoder& dec, const int64_t pred[3], int kind, const int extent[3], int64_t pos[3], SequenceEvent* ev);
+  Status decode_record() {
+    if (measure) {
+      BasicDecoder<true> dec(rc.get(), cost);
+      return decode_record(dec);
+    }
+    BasicDecoder<false> dec(rc.get(), nullptr);
+    return decode_record(dec);
+  }
+  template <class Dec>
+  Status decode_record(Dec& dec);
+  template <class Dec>
+  Status new_vertex(Dec& dec, const int64_t pred[3], int kind, const int extent[3], int64_t pos[3], SequenceEvent* ev);
   // The events of one record, in order (at most 3 vertices, a triangle and
   // 3 finalizations); the queue is empty before each record is decoded.
   SequenceEvent& push() { return queue[qcount++]; }
@@ -233,7 +243,8 @@ Status PsqDecoder::Impl::read_end() {
 }
 
 // Spec 6.3 and 7: a new vertex's re-appearance and position.
-Status PsqDecoder::Impl::new_vertex(Decoder& dec, const int64_t pred[3], int kind, const int extent[3], int64_t pos[3],
+template <class Dec>
+Status PsqDecoder::Impl::new_vertex(Dec& dec, const int64_t pred[3], int kind, const int extent[3], int64_t pos[3],
                                     SequenceEvent* ev) {
   if (seen_vertices >= chunk_vertices) return corrupt("more vertices than the chunk declares");
   if (next_out >= 0xffffffffull) return Status(ErrorCode::kLimit, "more than 4294967295 vertices", conn_offset);
@@ -281,8 +292,8 @@ Status PsqDecoder::Impl::new_vertex(Decoder& dec, const int64_t pred[3], int kin
   return Status();
 }
 
-Status PsqDecoder::Impl::decode_record() {
-  Decoder dec(rc.get(), measure ? cost : nullptr);
+template <class Dec>
+Status PsqDecoder::Impl::decode_record(Dec& dec) {
   const uint32_t R = boundary.reference();
   const int ctx = gate_context(R, last_op, last_gate);
   const uint32_t g_sym = dec.symbol(models.gate[ctx], kCostConnectivity);

@@ -251,7 +251,7 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
                         " was introduced but the next triangle does not use it");
   if (nnew == 2) return bad_sequence("a triangle introduces exactly two vertices");
 
-  Encoder enc(rc.get(), cost);
+  Encoder enc(rc.get(), opt.measure_costs ? cost : nullptr);
   const int ctx = gate_context(boundary.reference(), last_op, last_gate);
   int rot = 0;  // canonical corner k is input corner (rot + k) % 3
   uint32_t gate_sym = kGateStart;
@@ -418,7 +418,7 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
 }
 
 Status PsqEncoder::Impl::isolated(size_t at) {
-  Encoder enc(rc.get(), cost);
+  Encoder enc(rc.get(), opt.measure_costs ? cost : nullptr);
   const int ctx = gate_context(boundary.reference(), last_op, last_gate);
   enc.symbol(models.gate[ctx], kGateIsolated, kCostConnectivity);
   last_gate = kGateIsolated;
