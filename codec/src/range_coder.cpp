@@ -38,24 +38,6 @@ void RangeEncoder::shift_low() {
   low_ = (low_ & 0x00ffffffu) << 8;
 }
 
-void RangeEncoder::encode_bit(BitModel& m, int bit) {
-  uint32_t bound = (range_ >> 16) * m.p0;
-  const int sh = adapt_shift(m.n);
-  m.n = static_cast<uint16_t>(m.n + (m.n < 30));
-  if (bit == 0) {
-    range_ = bound;
-    m.p0 = static_cast<uint16_t>(m.p0 + ((65536u - 32 - m.p0) >> sh));
-  } else {
-    low_ += bound;
-    range_ -= bound;
-    m.p0 = static_cast<uint16_t>(m.p0 - ((m.p0 - 32) >> sh));
-  }
-  while (range_ < kTop) {
-    range_ <<= 8;
-    shift_low();
-  }
-}
-
 void RangeEncoder::encode_symbol(SymbolModel& m, uint32_t symbol) {
   BitModel* tree = m.tree();
   uint32_t node = 1;

@@ -65,7 +65,24 @@ class RangeEncoder {
   // Appends the coded bytes to `out`, which must outlive the encoder.
   explicit RangeEncoder(std::vector<uint8_t>* out);
 
-  void encode_bit(BitModel& m, int bit);
+  // Inline: the encoder's innermost operation (spec 5.7).
+  void encode_bit(BitModel& m, int bit) {
+    const uint32_t bound = (range_ >> 16) * m.p0;
+    const int sh = adapt_shift(m.n);
+    m.n = static_cast<uint16_t>(m.n + (m.n < 30));
+    if (bit == 0) {
+      range_ = bound;
+      m.p0 = static_cast<uint16_t>(m.p0 + ((65536u - 32 - m.p0) >> sh));
+    } else {
+      low_ += bound;
+      range_ -= bound;
+      m.p0 = static_cast<uint16_t>(m.p0 - ((m.p0 - 32) >> sh));
+    }
+    while (range_ < (1u << 24)) {
+      range_ <<= 8;
+      shift_low();
+    }
+  }
   void encode_symbol(SymbolModel& m, uint32_t symbol);  // symbol < 2^bits
   void encode_raw(uint32_t value, int bits);           // bits 0..32
   // Codes `value` (any int32) as its bit length, sign and low bits.
