@@ -2,10 +2,9 @@
 // coding.h.
 #include "coding.h"
 
-#include <vector>
-
 #include <cmath>
 #include <cstdlib>
+#include <vector>
 
 namespace psq {
 namespace codec {
