@@ -443,13 +443,25 @@ TEST(CodecHostile, CraftedRecordsWithValidChecksums) {
   int failures = 0;
   for (int trial = 0; trial < 300; ++trial) {
     std::vector<uint8_t> b = bytes;
-    // The first chunk starts after the header; find it by its tag.
-    size_t header_len = 16 + (b[12] | b[13] << 8 | b[14] << 16 | static_cast<size_t>(b[15]) << 24) + 4;
-    size_t chunk = header_len;
-    uint32_t conn = b[chunk + 13] | b[chunk + 14] << 8 | b[chunk + 15] << 16 | static_cast<uint32_t>(b[chunk + 16]) << 24;
-    uint32_t prop = b[chunk + 17] | b[chunk + 18] << 8 | b[chunk + 19] << 16 | static_cast<uint32_t>(b[chunk + 20]) << 24;
+    // Spec 3.1: a varint at `at`, which moves past it.
+    auto varint = [&](size_t& at) {
+      uint64_t v = 0;
+      for (int shift = 0;; shift += 7) {
+        v |= static_cast<uint64_t>(b[at] & 0x7f) << shift;
+        if (!(b[at++] & 0x80)) return v;
+      }
+    };
+    // The first chunk starts after the header (spec 4.2, 4.3).
+    size_t at = 12;
+    const uint64_t payload = varint(at);
+    const size_t chunk = at + payload + 4;
     ASSERT_EQ(b[chunk], 0x43);
-    for (int k = 0; k < 3; ++k) b[chunk + 25 + rng() % conn] = static_cast<uint8_t>(rng());
+    at = chunk + 1;
+    uint64_t field[6];
+    for (uint64_t& f : field) f = varint(at);
+    const size_t conn_at = at;
+    const uint64_t conn = field[3], prop = field[4];
+    for (int k = 0; k < 3; ++k) b[conn_at + rng() % conn] = static_cast<uint8_t>(rng());
     // Re-sign the chunk (CRC-32C, bitwise).
     auto crc32c = [](const uint8_t* p, size_t n) {
       uint32_t c = 0xffffffffu;
@@ -459,7 +471,7 @@ TEST(CodecHostile, CraftedRecordsWithValidChecksums) {
       }
       return ~c;
     };
-    size_t end = chunk + 25 + conn + prop;
+    size_t end = conn_at + conn + prop;
     uint32_t c = crc32c(b.data() + chunk, end - chunk);
     for (int k = 0; k < 4; ++k) b[end + k] = static_cast<uint8_t>(c >> (8 * k));
     Status s = decode_all(b);
@@ -474,17 +486,30 @@ TEST(CodecHostile, BadHeaders) {
   b[0] = 'X';
   EXPECT_EQ(decode_all(b).code(), ErrorCode::kUnknownFormat);
   b = bytes;
-  b[8] = 3;  // a later major version
+  b[8] = 4;  // a later major version
   EXPECT_EQ(decode_all(b).code(), ErrorCode::kUnsupported);
   b = bytes;
   b[8] = 1;  // format 1.0, which coded with other models (spec 11)
   EXPECT_EQ(decode_all(b).code(), ErrorCode::kUnsupported);
   b = bytes;
+  b[8] = 2;  // format 2.0, with fixed-width fields and without priors (spec 11)
+  EXPECT_EQ(decode_all(b).code(), ErrorCode::kUnsupported);
+  b = bytes;
   b[10] |= 0x80;  // unknown flag
   EXPECT_EQ(decode_all(b).code(), ErrorCode::kUnsupported);
   b = bytes;
-  b[15] = 0x7f;  // absurd header length
+  b[12] = 0xff;  // absurd header length: 2^21 - 1
+  b[13] = 0xff;
+  b[14] = 0x7f;
   EXPECT_EQ(decode_all(b).code(), ErrorCode::kLimit);
+  b = bytes;
+  for (int i = 12; i < 23; ++i) b[i] = 0x80;  // a varint of more than 10 bytes
+  EXPECT_EQ(decode_all(b).code(), ErrorCode::kBadHeader);
+  b = bytes;
+  ASSERT_LT(b[12], 0x80);  // a one-byte payload length
+  b[12] |= 0x80;  // the same length in a longer form than needed
+  b.insert(b.begin() + 13, 0x00);
+  EXPECT_EQ(decode_all(b).code(), ErrorCode::kBadHeader);
   b = bytes;
   b[20] ^= 1;  // a payload byte: checksum
   EXPECT_EQ(decode_all(b).code(), ErrorCode::kChecksum);

@@ -220,6 +220,16 @@ bool Boundary::apply(BTriangle& t) {
     ++vd.open;
     fresh[k] = s;
     t.eslot[k] = s;
+    e.age = entered_++;
+    recent_.push_back(Recent{s, e.age});
+  }
+  // Keep the recency stack proportional to the boundary: drop every stale
+  // entry once they outnumber the open edges (amortized O(1) per edge).
+  if (recent_.size() > 2 * static_cast<size_t>(open_edges_) + 64) {
+    size_t w = 0;
+    for (const Recent& r : recent_)
+      if (edges_[r.slot].live && edges_[r.slot].age == r.age) recent_[w++] = r;
+    recent_.resize(w);
   }
   // Completed edges are freed after the entering ones took their slots, so
   // that no slot leaves and enters the boundary in one triangle (psq/sequence.h).
@@ -286,6 +296,39 @@ Prediction predict_new_vertex(const Boundary& boundary, uint32_t gate, int i, co
   for (int k = 0; k < 3; ++k)
     p.pos[k] = i == 0 ? last[k] : i == 1 ? first[k] : midpoint(first[k], second[k]);
   return p;
+}
+
+
+uint32_t Boundary::scan_recent(uint32_t want, uint32_t* out) {
+  // Entries above index i were scanned; live ones are kept (at most `want`),
+  // stale ones dropped for good.
+  size_t i = recent_.size();
+  uint32_t n = 0;
+  Recent kept[kRecentRanks];
+  while (i > 0 && n < want) {
+    const Recent& r = recent_[--i];
+    if (edges_[r.slot].live && edges_[r.slot].age == r.age) {
+      kept[n] = r;
+      out[n++] = r.slot;
+    }
+  }
+  recent_.resize(i);
+  for (uint32_t j = n; j-- > 0;) recent_.push_back(kept[j]);
+  return n;
+}
+
+uint32_t Boundary::recent_edge(uint32_t rank) {
+  uint32_t out[kRecentRanks];
+  if (rank >= kRecentRanks) return kNone;
+  return scan_recent(rank + 1, out) > rank ? out[rank] : kNone;
+}
+
+uint32_t Boundary::recent_rank(uint32_t slot, uint32_t limit) {
+  uint32_t out[kRecentRanks];
+  const uint32_t n = scan_recent(std::min<uint32_t>(limit, kRecentRanks), out);
+  for (uint32_t j = 0; j < n; ++j)
+    if (out[j] == slot) return j;
+  return kNone;
 }
 
 }  // namespace codec

@@ -29,6 +29,8 @@ namespace psq {
 namespace codec {
 
 constexpr uint32_t kNone = 0xffffffffu;
+// Far gates name an edge by its recency rank below this (spec 6.2.1).
+constexpr uint32_t kRecentRanks = 15;
 
 struct BVertex {
   uint32_t index = 0;        // dense index in the sequence
@@ -48,6 +50,7 @@ struct BEdge {
   uint32_t next_out = kNone;  // next open edge leaving `org`
   uint32_t next_in = kNone;   // next open edge entering `dst`
   int64_t opp[3] = {0, 0, 0};  // coordinates of the third vertex of its triangle
+  uint64_t age = 0;  // when it entered: the count of edges that entered before it (spec 6.2.1)
   bool live = false;
 };
 
@@ -125,12 +128,24 @@ class Boundary {
   uint32_t reference() const { return reference_; }
   void clear_reference() { reference_ = kNone; }
 
+  // Recency ranks (spec 6.2.1, far gates): the open edges ordered by when
+  // they entered the boundary, the newest first, have ranks 0, 1, 2, ...
+  // recent_edge() returns the open edge of rank `rank`, or kNone when fewer
+  // than rank + 1 edges are open; recent_rank() returns the rank of open
+  // edge `slot` when it is below `limit`, else kNone. Both cost O(limit)
+  // plus the number of stale entries they drop, which each entered once.
+  uint32_t recent_edge(uint32_t rank);
+  uint32_t recent_rank(uint32_t slot, uint32_t limit);
+
  private:
   uint32_t alloc_edge();
   bool is_border(uint32_t a, uint32_t b) const;
   void add_border(uint32_t a, uint32_t b);
   void free_edge(uint32_t slot);
   void link(uint32_t p, uint32_t q);
+  // Scans the recency stack from the top for up to `want` open edges,
+  // dropping stale entries on the way; fills `out` newest first.
+  uint32_t scan_recent(uint32_t want, uint32_t* out);
 
   uint32_t limit_;
   std::vector<BVertex> vertices_;
@@ -143,6 +158,14 @@ class Boundary {
   uint32_t active_vertices_ = 0;
   uint32_t open_edges_ = 0;
   uint32_t reference_ = kNone;
+  // Edges in the order they entered (the newest at the back), as (slot,
+  // age) pairs; an entry is stale once its slot is no longer that open edge.
+  struct Recent {
+    uint32_t slot;
+    uint64_t age;
+  };
+  std::vector<Recent> recent_;
+  uint64_t entered_ = 0;  // edges that ever entered
 };
 
 // The prediction of a record's i-th new vertex (spec 7.3) and its residual

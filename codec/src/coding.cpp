@@ -2,6 +2,8 @@
 // coding.h.
 #include "coding.h"
 
+#include "priors.h"
+
 #include <cmath>
 #include <cstdlib>
 #include <vector>
@@ -9,10 +11,18 @@
 namespace psq {
 namespace codec {
 
-Models::Models() {
+Models::Models(bool priors) {
   for (auto& m : gate) m = SymbolModel(kGateBits);
+  for (auto& m : far) m = SymbolModel(kFarBits);
   for (auto& shape : third)
     for (auto& m : shape) m = SymbolModel(2);
+  if (!priors) return;
+  // Spec 6.2.7: p0 = 256 v, n = 2 for each byte v of the table.
+  size_t i = 0;
+  for_each_prior_model(*this, [&](BitModel& b) {
+    b.p0 = static_cast<uint16_t>(256u * kConnectivityPrior[i++]);
+    b.n = 2;
+  });
   for (auto& axis : residual[kPredParallelogram])
     for (int c = 0; c < kLengthContexts; ++c) init_length_prior(axis[c].length, c);
 }

@@ -23,6 +23,10 @@ constexpr uint32_t kGateFar = 2 * kMaxOffset + 1;    // 13: an explicit edge slo
 constexpr uint32_t kGateStart = kGateFar + 1;        // 14: a start triangle
 constexpr uint32_t kGateIsolated = kGateFar + 2;     // 15: an isolated vertex
 constexpr int kGateBits = 4;
+// A far gate's recency rank (spec 6.2.1): ranks 0..14, or 15 followed by
+// the gate's raw edge slot. Two contexts: with and without a reference.
+constexpr uint32_t kFarEscape = 15;
+constexpr int kFarBits = 4;
 // Gate contexts: the previous triangle's op (0..4, or 5 when there is no
 // reference edge) times the previous gate symbol (0, 1, or anything else).
 constexpr int kGateContexts = 18;
@@ -84,6 +88,7 @@ inline int triangle_extent(const int64_t* a, const int64_t* b, const int64_t* c,
 
 struct Models {
   SymbolModel gate[kGateContexts];
+  SymbolModel far[2];         // [reference edge is NONE]: recency rank of a far gate
   SymbolModel third[kShapeContexts][kThirdContexts];  // [shape (6.2.2)][degrees]
   BitModel border[2][3][3];   // [start?][edge k][endpoints that touch a border edge]
   BitModel cut[2];            // [start?]: a border edge is a non-manifold cut
@@ -94,8 +99,31 @@ struct Models {
   SymbolModel rotation{2};    // 0..2, only with face properties
   ResidualModel residual[2][3][kLengthContexts];  // [prediction kind][axis][length context]
 
-  Models();
+  // With `priors` (always, except in the prior-training tool), the models
+  // of for_each_prior_model() start from the trained state of spec 6.2.7
+  // and the parallelogram length trees from the prior of 7.4.1; without,
+  // every model starts at p0 = 1/2, n = 0.
+  explicit Models(bool priors = true);
 };
+
+// Calls f(BitModel&) on each node of the connectivity models that have a
+// trained initial state (spec 6.2.7), in the order of its table: the gate
+// trees gate[0..17], the far-gate trees far[0..1], the third-vertex trees
+// third[0..4][0..35] (each tree's nodes 1, 2, 3, ... in heap order), then
+// the border bits border[0..1][0..2][0..2].
+template <class M, class F>
+void for_each_prior_model(M& m, F f) {
+  auto tree = [&](auto& s) {
+    for (int i = 1; i < (1 << s.bits()); ++i) f(s.tree()[i]);
+  };
+  for (auto& s : m.gate) tree(s);
+  for (auto& s : m.far) tree(s);
+  for (auto& shape : m.third)
+    for (auto& s : shape) tree(s);
+  for (auto& start : m.border)
+    for (auto& edge : start)
+      for (auto& b : edge) f(b);
+}
 
 // Spec 7.4.1: the initial state of the bit-length tree of a parallelogram
 // residual model with length context `c`. Its leaves get the weights

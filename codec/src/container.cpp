@@ -24,7 +24,7 @@ namespace codec {
 namespace {
 
 void put_properties(Put& put, const std::vector<Property>& props) {
-  put.u16(static_cast<uint16_t>(props.size()));
+  put.varint(props.size());
   for (const Property& p : props) {
     put.u8(static_cast<uint8_t>(p.name.size()));
     put.bytes(p.name.data(), p.name.size());
@@ -43,12 +43,13 @@ bool valid_name(const std::string& s) {
 
 Status get_properties(Get& get, uint64_t base, const char* element, std::vector<Property>* props) {
   uint64_t at = base + get.pos();
-  uint32_t n = get.u16();
+  const uint64_t n = get.varint();
+  if (get.malformed()) return Status(ErrorCode::kBadHeader, "malformed varint", at);
   if (n > kMaxProperties)
     return Status(ErrorCode::kLimit, std::to_string(n) + " " + element + " properties (limit " +
                                          std::to_string(kMaxProperties) + ")", at);
   std::set<std::string> names;
-  for (uint32_t i = 0; i < n; ++i) {
+  for (uint64_t i = 0; i < n; ++i) {
     at = base + get.pos();
     Property p;
     p.name = get.str(get.u8());
@@ -79,14 +80,15 @@ std::vector<uint8_t> write_header(const PsqHeader& h) {
   put.u8(static_cast<uint8_t>(h.lossless ? 0 : h.bits));
   for (int i = 0; i < 3; ++i) put.f64(h.lossless ? 0.0 : h.origin[i]);
   put.f64(h.lossless ? 0.0 : h.step);
-  put.u32(h.boundary_limit);
-  put.u64(static_cast<uint64_t>(h.schema.vertex_count));
-  put.u64(static_cast<uint64_t>(h.schema.triangle_count));
+  put.varint(h.boundary_limit);
+  // Spec 4.2: a count plus one, 0 for unknown (-1).
+  put.varint(static_cast<uint64_t>(h.schema.vertex_count) + 1);
+  put.varint(static_cast<uint64_t>(h.schema.triangle_count) + 1);
   put_properties(put, h.schema.vertex_properties);
   put_properties(put, h.schema.face_properties);
-  put.u16(static_cast<uint16_t>(h.schema.comments.size()));
+  put.varint(h.schema.comments.size());
   for (const std::string& c : h.schema.comments) {
-    put.u16(static_cast<uint16_t>(c.size()));
+    put.varint(c.size());
     put.bytes(c.data(), c.size());
   }
 
@@ -96,7 +98,7 @@ std::vector<uint8_t> write_header(const PsqHeader& h) {
   head.u8(kVersionMajor);
   head.u8(kVersionMinor);
   head.u16(static_cast<uint16_t>((h.lossless ? kFlagLossless : 0) | (h.rotation ? kFlagRotation : 0)));
-  head.u32(static_cast<uint32_t>(payload.size()));
+  head.varint(payload.size());
   head.bytes(payload.data(), payload.size());
   head.u32(crc32c_update(0, out.data(), out.size()));
   return out;
@@ -136,17 +138,24 @@ Status parse_header_payload(const uint8_t* p, size_t n, uint64_t base, PsqHeader
     }
   }
   size_t at = get.pos();
-  h->boundary_limit = get.u32();
+  const uint64_t limit = get.varint();
+  if (get.malformed()) return bad("malformed varint", at);
   if (get.short_read()) return bad("header payload too short", at);
-  if (h->boundary_limit < 1 || h->boundary_limit > kMaxBoundaryLimit)
-    return Status(ErrorCode::kLimit, "boundary limit " + std::to_string(h->boundary_limit) + " not in 1.." +
+  if (limit < 1 || limit > kMaxBoundaryLimit)
+    return Status(ErrorCode::kLimit, "boundary limit " + std::to_string(limit) + " not in 1.." +
                                          std::to_string(kMaxBoundaryLimit), base + at);
+  h->boundary_limit = static_cast<uint32_t>(limit);
   at = get.pos();
-  int64_t nv = static_cast<int64_t>(get.u64());
-  int64_t nt = static_cast<int64_t>(get.u64());
-  if (nv < -1 || nt < -1) return bad("negative vertex or triangle count", at);
-  h->schema.vertex_count = nv;
-  h->schema.triangle_count = nt;
+  const uint64_t nv = get.varint();
+  const size_t at_t = get.pos();
+  const uint64_t nt = get.varint();
+  if (get.malformed()) return bad("malformed varint", at);
+  if (get.short_read()) return bad("header payload too short", at);
+  // Spec 4.2: count + 1, 0 for unknown; at most 2^63 - 1 counted.
+  if (nv > uint64_t{INT64_MAX}) return bad("vertex count beyond 2^63 - 2", at);
+  if (nt > uint64_t{INT64_MAX}) return bad("triangle count beyond 2^63 - 2", at_t);
+  h->schema.vertex_count = static_cast<int64_t>(nv) - 1;
+  h->schema.triangle_count = static_cast<int64_t>(nt) - 1;
   PSQ_RETURN_IF_ERROR(get_properties(get, base, "vertex", &h->schema.vertex_properties));
   PSQ_RETURN_IF_ERROR(get_properties(get, base, "face", &h->schema.face_properties));
   if (h->rotation != !h->schema.face_properties.empty())
@@ -155,15 +164,20 @@ Status parse_header_payload(const uint8_t* p, size_t n, uint64_t base, PsqHeader
     if (pr.name == "x" || pr.name == "y" || pr.name == "z")
       return bad("vertex property named '" + pr.name + "' clashes with the position", 0);
   at = get.pos();
-  uint32_t nc = get.u16();
-  for (uint32_t i = 0; i < nc; ++i) {
+  const uint64_t nc = get.varint();
+  for (uint64_t i = 0; i < nc && !get.short_read() && !get.malformed(); ++i) {
     at = get.pos();
-    std::string c = get.str(get.u16());
-    if (get.short_read()) break;
+    const uint64_t len = get.varint();
+    if (get.short_read() || get.malformed() || len > get.left()) {
+      if (!get.malformed()) get.str(get.left() + 1);  // marks the short read
+      break;
+    }
+    std::string c = get.str(static_cast<size_t>(len));
     for (unsigned char ch : c)
       if (ch == '\n' || ch == '\r' || ch == 0) return bad("comment holds a line break or NUL", at);
     h->schema.comments.push_back(std::move(c));
   }
+  if (get.malformed()) return bad("malformed varint", at);
   if (get.short_read()) return bad("header payload too short", at);
   if (get.left() != 0) return bad(std::to_string(get.left()) + " unexpected bytes at the end of the header payload", get.pos());
   return Status();

@@ -15,21 +15,20 @@
 namespace psq {
 namespace codec {
 
-constexpr int kVersionMajor = 2;
+constexpr int kVersionMajor = 3;
 constexpr int kVersionMinor = 0;
 constexpr uint16_t kFlagLossless = 1u << 0;
 constexpr uint16_t kFlagRotation = 1u << 1;
 constexpr uint16_t kKnownFlags = kFlagLossless | kFlagRotation;
 
-constexpr size_t kFixedHeaderBytes = 16;    // magic, version, flags, payload length
+constexpr size_t kFixedHeaderBytes = 12;    // magic, version, flags (the payload length follows)
 constexpr uint32_t kMaxHeaderPayload = 1u << 20;
 constexpr uint32_t kMaxProperties = 1024;   // per element
 constexpr uint32_t kMaxBoundaryLimit = 1u << 28;
 
 constexpr uint8_t kChunkTag = 0x43;         // 'C'
 constexpr uint8_t kEndTag = 0x45;           // 'E'
-constexpr size_t kChunkFieldBytes = 25;     // tag + six u32
-constexpr size_t kEndFieldBytes = 33;       // tag + three u64 + two u32
+constexpr size_t kMaxVarintBytes = 10;      // a 64-bit value in 7-bit groups (spec 3.1)
 constexpr uint32_t kMaxChunkRecords = 1u << 24;
 constexpr uint32_t kMaxRecordBytes = 1u << 26;     // coded records of one chunk
 constexpr uint32_t kMaxPropertyBytes = 1u << 26;   // compressed properties of one chunk
@@ -44,6 +43,15 @@ class Put {
   void u16(uint16_t v) { for (int i = 0; i < 2; ++i) out_->push_back(static_cast<uint8_t>(v >> (8 * i))); }
   void u32(uint32_t v) { for (int i = 0; i < 4; ++i) out_->push_back(static_cast<uint8_t>(v >> (8 * i))); }
   void u64(uint64_t v) { for (int i = 0; i < 8; ++i) out_->push_back(static_cast<uint8_t>(v >> (8 * i))); }
+  // Spec 3.1: 7 bits per byte, least significant group first, the high bit
+  // set on every byte but the last.
+  void varint(uint64_t v) {
+    while (v >= 0x80) {
+      out_->push_back(static_cast<uint8_t>(v | 0x80));
+      v >>= 7;
+    }
+    out_->push_back(static_cast<uint8_t>(v));
+  }
   void f64(double d) {
     uint64_t v;
     std::memcpy(&v, &d, 8);
@@ -57,6 +65,25 @@ class Put {
  private:
   std::vector<uint8_t>* out_;
 };
+
+// Parses a varint (spec 3.1) from the n bytes at p. Returns the number of
+// bytes it takes, 0 when the n bytes end inside it, or -1 when it is
+// malformed: longer than 10 bytes, above 2^64 - 1, or not in its shortest
+// form (a last byte of 0 after another byte).
+inline int parse_varint(const uint8_t* p, size_t n, uint64_t* v) {
+  uint64_t x = 0;
+  for (size_t i = 0; i < n && i < kMaxVarintBytes; ++i) {
+    const uint64_t g = p[i] & 0x7f;
+    if (i == 9 && g > 1) return -1;
+    x |= g << (7 * i);
+    if (!(p[i] & 0x80)) {
+      if (i > 0 && p[i] == 0) return -1;
+      *v = x;
+      return static_cast<int>(i + 1);
+    }
+  }
+  return n >= kMaxVarintBytes ? -1 : 0;
+}
 
 // Reads little-endian fields from a byte span; reading past the end sets
 // `short_` and yields zeros.
@@ -78,6 +105,20 @@ class Get {
   uint16_t u16() { return static_cast<uint16_t>(uint(2)); }
   uint32_t u32() { return static_cast<uint32_t>(uint(4)); }
   uint64_t u64() { return uint(8); }
+  // A varint (spec 3.1); a malformed one sets `malformed_`, a cut one
+  // `short_`, and both yield 0.
+  uint64_t varint() {
+    uint64_t v = 0;
+    const int k = pos_ <= n_ ? parse_varint(p_ + pos_, n_ - pos_, &v) : 0;
+    if (k <= 0) {
+      if (k < 0) malformed_ = true;
+      else short_ = true;
+      pos_ = n_;
+      return 0;
+    }
+    pos_ += static_cast<size_t>(k);
+    return v;
+  }
   double f64() {
     uint64_t v = u64();
     double d;
@@ -97,12 +138,14 @@ class Get {
   size_t pos() const { return pos_; }
   size_t left() const { return n_ - pos_; }
   bool short_read() const { return short_; }
+  bool malformed() const { return malformed_; }
 
  private:
   const uint8_t* p_;
   size_t n_;
   size_t pos_ = 0;
   bool short_ = false;
+  bool malformed_ = false;
 };
 
 // The whole header (spec 4.2), magic to checksum.

@@ -87,6 +87,21 @@ struct PsqDecoder::Impl {
     }
     return Status();
   }
+  // Reads a varint field (spec 3.1) a byte at a time, appending its bytes
+  // to `bytes` when given. A malformed varint is *bad_header* at its start.
+  Status read_varint(uint64_t* v, std::vector<uint8_t>* bytes) {
+    const uint64_t at = in->offset();
+    uint8_t b[kMaxVarintBytes];
+    for (size_t i = 0; i < kMaxVarintBytes; ++i) {
+      PSQ_RETURN_IF_ERROR(read(&b[i], 1));
+      if (bytes) bytes->push_back(b[i]);
+      if (!(b[i] & 0x80)) {
+        if (parse_varint(b, i + 1, v) > 0) return Status();
+        break;
+      }
+    }
+    return Status(ErrorCode::kBadHeader, "malformed varint", at);
+  }
   Status corrupt(const std::string& what) {
     uint64_t at = conn_offset + (rc ? rc->consumed() : 0);
     return Status(ErrorCode::kBadValue, "record " + std::to_string(record_no) + ": " + what, at);
@@ -122,16 +137,18 @@ Status PsqDecoder::Impl::open(InputStream* stream) {
   if (avail < 8 || !is_psq(in->cursor(), avail))
     return Status(ErrorCode::kUnknownFormat, "not a .psq stream (no PSQ magic)", 0);
   PSQ_RETURN_IF_ERROR(read(fixed, kFixedHeaderBytes));
-  Get get(fixed + 8, 8);
+  Get get(fixed + 8, 4);
   header.version_major = get.u8();
   header.version_minor = get.u8();
   uint16_t flags = get.u16();
-  uint32_t length = get.u32();
   if (header.version_major != kVersionMajor)
     return Status(ErrorCode::kUnsupported, "format version " + std::to_string(header.version_major) + "." +
-                                               std::to_string(header.version_minor) + "; this psq reads 2.x", 8);
+                                               std::to_string(header.version_minor) + "; this psq reads 3.x", 8);
   if (flags & ~kKnownFlags)
     return Status(ErrorCode::kUnsupported, "unknown header flags (value " + std::to_string(flags & ~kKnownFlags) + ")", 10);
+  uint64_t length = 0;
+  PSQ_RETURN_IF_ERROR(read_varint(&length, nullptr));
+  const uint64_t payload_at = in->offset();
   if (length > kMaxHeaderPayload)
     return Status(ErrorCode::kLimit, "header payload of " + std::to_string(length) + " bytes (limit " +
                                          std::to_string(kMaxHeaderPayload) + ")", 12);
@@ -143,11 +160,11 @@ Status PsqDecoder::Impl::open(InputStream* stream) {
   uint8_t c[4];
   PSQ_RETURN_IF_ERROR(read(c, 4));
   if (!checksum_ok(Get(c, 4).u32(), expect))
-    return Status(ErrorCode::kChecksum, "header checksum mismatch", kFixedHeaderBytes + length);
+    return Status(ErrorCode::kChecksum, "header checksum mismatch", payload_at + length);
   in_header = false;
   chain_crc = crc32c_update(0, c, 4);
-  PSQ_RETURN_IF_ERROR(parse_header_payload(payload.data(), payload.size(), kFixedHeaderBytes, &header));
-  stats.header_bytes = kFixedHeaderBytes + length + 4;
+  PSQ_RETURN_IF_ERROR(parse_header_payload(payload.data(), payload.size(), payload_at, &header));
+  stats.header_bytes = payload_at + length + 4;
   boundary = Boundary(header.boundary_limit);
   props = std::make_unique<PropertyUnpacker>(header.schema.vertex_properties, header.schema.face_properties);
   if (!header.lossless) {
@@ -165,11 +182,11 @@ Status PsqDecoder::Impl::next_chunk() {
   if (tag == kEndTag) return read_end();
   if (tag != kChunkTag)
     return Status(ErrorCode::kBadHeader, "unknown chunk tag " + std::to_string(tag), chunk_offset);
-  uint8_t f[kChunkFieldBytes - 1];
-  PSQ_RETURN_IF_ERROR(read(f, sizeof f));
-  Get get(f, sizeof f);
-  uint32_t records = get.u32(), vertices = get.u32(), triangles = get.u32();
-  uint32_t conn_size = get.u32(), prop_size = get.u32(), prop_raw = get.u32();
+  // Spec 4.3: six varint fields.
+  std::vector<uint8_t> f;
+  uint64_t records, vertices, triangles, conn_size, prop_size, prop_raw;
+  for (uint64_t* field : {&records, &vertices, &triangles, &conn_size, &prop_size, &prop_raw})
+    PSQ_RETURN_IF_ERROR(read_varint(field, &f));
   auto bad = [&](const std::string& what) { return Status(ErrorCode::kBadHeader, "chunk: " + what, chunk_offset); };
   if (records == 0 || records > kMaxChunkRecords) return bad("record count " + std::to_string(records) + " not in 1..2^24");
   if (triangles > records || vertices > 3ull * records) return bad("more vertices or triangles than its records hold");
@@ -179,7 +196,7 @@ Status PsqDecoder::Impl::next_chunk() {
   if (!has_props && (prop_size != 0 || prop_raw != 0)) return bad("property section without properties");
   if (has_props && prop_size == 0) return bad("no property section");
   uint32_t crc = crc32c_update(0, &tag, 1);
-  crc = crc32c_update(crc, f, sizeof f);
+  crc = crc32c_update(crc, f.data(), f.size());
   conn_offset = in->offset();
   PSQ_RETURN_IF_ERROR(read_block(conn_size, &conn));
   crc = crc32c_update(crc, conn.data(), conn.size());
@@ -199,25 +216,25 @@ Status PsqDecoder::Impl::next_chunk() {
                     conn_offset + conn_size);
   }
   rc = std::make_unique<RangeDecoder>(conn.data(), conn.size());
-  records_left = records;
-  chunk_vertices = vertices;
-  chunk_triangles = triangles;
+  records_left = static_cast<uint32_t>(records);
+  chunk_vertices = static_cast<uint32_t>(vertices);
+  chunk_triangles = static_cast<uint32_t>(triangles);
   seen_vertices = seen_triangles = 0;
   ++stats.chunks;
   stats.record_bytes += conn_size;
   stats.property_bytes += prop_size;
-  stats.chunk_overhead_bytes += kChunkFieldBytes + 4;
+  stats.chunk_overhead_bytes += 1 + f.size() + 4;
   return Status();
 }
 
 Status PsqDecoder::Impl::read_end() {
-  uint8_t f[kEndFieldBytes - 1];
-  PSQ_RETURN_IF_ERROR(read(f, sizeof f));
+  // Spec 4.5: five varint fields.
+  std::vector<uint8_t> f;
+  uint64_t vertices, triangles, chunks, max_active, max_open;
+  for (uint64_t* field : {&vertices, &triangles, &chunks, &max_active, &max_open})
+    PSQ_RETURN_IF_ERROR(read_varint(field, &f));
   const uint8_t tag = kEndTag;
-  const uint32_t expect = crc32c_update(crc32c_update(chain_crc, &tag, 1), f, sizeof f);
-  Get get(f, sizeof f);
-  uint64_t vertices = get.u64(), triangles = get.u64(), chunks = get.u64();
-  uint32_t max_active = get.u32(), max_open = get.u32();
+  const uint32_t expect = crc32c_update(crc32c_update(chain_crc, &tag, 1), f.data(), f.size());
   uint8_t c[4];
   uint64_t crc_at = in->offset();
   PSQ_RETURN_IF_ERROR(read(c, 4));
@@ -234,7 +251,7 @@ Status PsqDecoder::Impl::read_end() {
   bool at_end = false;
   PSQ_RETURN_IF_ERROR(in->at_end(&at_end));
   if (!at_end) return Status(ErrorCode::kBadHeader, "data after the end record", in->offset());
-  stats.chunk_overhead_bytes += kEndFieldBytes + 4;
+  stats.chunk_overhead_bytes += 1 + f.size() + 4;
   stats.total_bytes = in->offset();
   stats.connectivity_bits = cost[kCostConnectivity];
   stats.geometry_bits = cost[kCostGeometry];
@@ -330,8 +347,14 @@ Status PsqDecoder::Impl::decode_record(Dec& dec) {
         gate = g_sym % 2 == 1 ? boundary.edge(gate).next : boundary.edge(gate).prev;
       if (gate == kNone) return corrupt("gate offset leaves the boundary");
     } else {
-      gate = static_cast<uint32_t>(dec.raw(slot_bits(boundary.edge_capacity()), kCostConnectivity));
-      if (!boundary.edge_live(gate)) return corrupt("gate is not an open edge");
+      const uint32_t rank = dec.symbol(models.far[R == kNone], kCostConnectivity);
+      if (rank != kFarEscape) {
+        gate = boundary.recent_edge(rank);
+        if (gate == kNone) return corrupt("far gate rank beyond the open edges");
+      } else {
+        gate = static_cast<uint32_t>(dec.raw(slot_bits(boundary.edge_capacity()), kCostConnectivity));
+        if (!boundary.edge_live(gate)) return corrupt("gate is not an open edge");
+      }
     }
     const BEdge& g = boundary.edge(gate);
     const uint32_t p = g.org, q = g.dst;

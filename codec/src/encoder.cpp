@@ -6,6 +6,7 @@
 
 #include "boundary.h"
 #include "coding.h"
+#include "training.h"
 #include "container.h"
 #include "crc32c.h"
 #include "geometry.h"
@@ -142,12 +143,14 @@ Status PsqEncoder::Impl::begin(const MeshSchema& schema) {
   std::vector<uint8_t> h = write_header(header);
   // The encoder writes only what its decoder accepts: the header is checked
   // by the decoder's own parser (names, limits, the float grid's range).
-  if (h.size() - kFixedHeaderBytes - 4 > kMaxHeaderPayload)
+  uint64_t payload_size = 0;
+  const int length_bytes = parse_varint(h.data() + kFixedHeaderBytes, h.size() - kFixedHeaderBytes, &payload_size);
+  if (length_bytes <= 0 || payload_size > kMaxHeaderPayload)
     return Status(ErrorCode::kLimit, "header larger than " + std::to_string(kMaxHeaderPayload) + " bytes");
   PsqHeader check;
   check.lossless = header.lossless;
   check.rotation = header.rotation;
-  Status hs = parse_header_payload(h.data() + kFixedHeaderBytes, h.size() - kFixedHeaderBytes - 4, 0, &check);
+  Status hs = parse_header_payload(h.data() + kFixedHeaderBytes + length_bytes, payload_size, 0, &check);
   if (!hs.ok()) return Status(hs.code() == ErrorCode::kLimit ? ErrorCode::kLimit : ErrorCode::kBadValue,
                               "cannot encode this mesh: " + hs.message());
   stats.header_bytes = h.size();
@@ -313,7 +316,12 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
     intro[2] = swap ? 1 : 2;
     nintro = 3;
   } else {
-    if (gate_sym == kGateFar) enc.raw(gate, slot_bits(boundary.edge_capacity()), kCostConnectivity);
+    if (gate_sym == kGateFar) {
+      // Spec 6.2.1: the recency rank, or the escape and the raw slot.
+      const uint32_t rank = boundary.recent_rank(gate, kRecentRanks);
+      enc.symbol(models.far[boundary.reference() == kNone], rank == kNone ? kFarEscape : rank, kCostConnectivity);
+      if (rank == kNone) enc.raw(gate, slot_bits(boundary.edge_capacity()), kCostConnectivity);
+    }
     const BEdge& g = boundary.edge(gate);
     const uint32_t p = g.org, q = g.dst;
     uint32_t third = kThirdNew;
@@ -452,18 +460,19 @@ Status PsqEncoder::Impl::close_chunk() {
   std::vector<uint8_t> chunk;
   Put put(&chunk);
   put.u8(kChunkTag);
-  put.u32(chunk_records);
-  put.u32(chunk_vertices);
-  put.u32(chunk_triangles);
-  put.u32(static_cast<uint32_t>(records.size()));
-  put.u32(static_cast<uint32_t>(packed.size()));
-  put.u32(static_cast<uint32_t>(raw.size()));
+  put.varint(chunk_records);
+  put.varint(chunk_vertices);
+  put.varint(chunk_triangles);
+  put.varint(records.size());
+  put.varint(packed.size());
+  put.varint(raw.size());
+  const size_t fields = chunk.size();
   put.bytes(records.data(), records.size());
   put.bytes(packed.data(), packed.size());
   put.u32(crc32c_update(0, chunk.data(), chunk.size()));
   stats.record_bytes += records.size();
   stats.property_bytes += packed.size();
-  stats.chunk_overhead_bytes += kChunkFieldBytes + 4;
+  stats.chunk_overhead_bytes += fields + 4;
   ++stats.chunks;
   records.clear();
   rc = std::make_unique<RangeEncoder>(&records);
@@ -483,11 +492,11 @@ Status PsqEncoder::Impl::finish() {
   std::vector<uint8_t> end;
   Put put(&end);
   put.u8(kEndTag);
-  put.u64(stats.vertices);
-  put.u64(stats.triangles);
-  put.u64(stats.chunks);
-  put.u32(stats.max_active_vertices);
-  put.u32(stats.max_open_edges);
+  put.varint(stats.vertices);
+  put.varint(stats.triangles);
+  put.varint(stats.chunks);
+  put.varint(stats.max_active_vertices);
+  put.varint(stats.max_open_edges);
   put.u32(crc32c_update(chain_crc, end.data(), end.size()));
   stats.chunk_overhead_bytes += end.size();
   stats.connectivity_bits = cost[kCostConnectivity];
@@ -503,6 +512,11 @@ PsqEncoder::PsqEncoder(ByteWriter* out, const EncodeOptions& options) : impl_(st
 }
 
 PsqEncoder::~PsqEncoder() = default;
+
+namespace codec {
+void TrainingAccess::use_flat_models(PsqEncoder& e) { e.impl_->models = Models(false); }
+const Models& TrainingAccess::models(const PsqEncoder& e) { return e.impl_->models; }
+}  // namespace codec
 
 Status PsqEncoder::begin(const MeshSchema& schema) {
   if (!impl_->error.ok()) return impl_->error;

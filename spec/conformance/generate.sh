@@ -91,31 +91,52 @@ invalid() {  # NAME CODE OFFSET (the file is already written)
 }
 src=cube_11bit.psq
 size=$(stat -c %s "$src")
-hlen=$(( $(od -An -t u4 -j 12 -N 4 "$src") ))
+# Spec 3.1: the varint at byte offset $2 of file $1, as "VALUE LENGTH".
+varint() {
+  python3 -c 'import sys
+b = open(sys.argv[1], "rb").read(); at = int(sys.argv[2]); v = 0; n = 0
+while True:
+    v |= (b[at + n] & 0x7f) << (7 * n); n += 1
+    if not b[at + n - 1] & 0x80: break
+print(v, n)' "$1" "$2"
+}
+read -r hlen hvar < <(varint "$src" 12)
+payload=$((12 + hvar))     # where the header payload starts
+chunk=$((payload + hlen + 4))  # the first chunk's tag
 # Not .psq at all.
 printf 'PLY\n' > bad_magic.psq; invalid bad_magic unknown_format 0
-# Version 2.0.
-{ head -c 8 "$src"; printf '\x03'; tail -c +10 "$src"; } > bad_version.psq; invalid bad_version unsupported 8
+# Version 4.0.
+{ head -c 8 "$src"; printf '\x04'; tail -c +10 "$src"; } > bad_version.psq; invalid bad_version unsupported 8
 # An unknown flag.
 { head -c 11 "$src"; printf '\x80'; tail -c +13 "$src"; } > bad_flags.psq; invalid bad_flags unsupported 10
-# A header payload of 2 GiB.
-{ head -c 12 "$src"; printf '\x00\x00\x00\x80'; tail -c +17 "$src"; } > bad_header_length.psq
+# A header payload of 2^28 bytes (a five-byte varint).
+{ head -c 12 "$src"; printf '\x80\x80\x80\x80\x01'; tail -c +$((payload + 1)) "$src"; } > bad_header_length.psq
 invalid bad_header_length limit 12
+# The payload length in a longer form than needed (its last byte gets the
+# continuation bit and a 0x00 byte follows): a malformed varint.
+python3 -c 'import sys
+b = open(sys.argv[1], "rb").read(); n = int(sys.argv[2])
+v = bytearray(b[12:12 + n]); v[-1] |= 0x80
+open(sys.argv[3], "wb").write(b[:12] + bytes(v) + b"\x00" + b[12 + n:])' "$src" "$hvar" bad_varint.psq
+invalid bad_varint bad_header 12
 # A flipped bit in the header payload: its checksum fails.
 { head -c 20 "$src"; printf '\x01'; tail -c +22 "$src"; } > bad_header_checksum.psq
-invalid bad_header_checksum checksum $((16 + hlen))
+invalid bad_header_checksum checksum $((payload + hlen))
 # Cut inside the first chunk.
-head -c $((16 + hlen + 4 + 30)) "$src" > truncated_chunk.psq
-invalid truncated_chunk truncated $((16 + hlen + 4 + 30))
+head -c $((chunk + 30)) "$src" > truncated_chunk.psq
+invalid truncated_chunk truncated $((chunk + 30))
 # Cut inside the end record's checksum (the error names where the input ends).
 head -c $((size - 2)) "$src" > truncated_end.psq
 invalid truncated_end truncated $((size - 2))
 # A flipped bit in the first chunk's records: its checksum fails.
-chunk=$((16 + hlen + 4))
-conn=$(( $(od -An -t u4 -j $((chunk + 13)) -N 4 "$src") ))
-prop=$(( $(od -An -t u4 -j $((chunk + 17)) -N 4 "$src") ))
-crc_at=$((chunk + 25 + conn + prop))
-{ head -c $((chunk + 26)) "$src"; printf '\xff'; tail -c +$((chunk + 28)) "$src"; } > bad_chunk_checksum.psq
+at=$((chunk + 1))
+for field in records vertices triangles conn prop raw; do
+  read -r value len < <(varint "$src" $at)
+  declare "$field=$value"
+  at=$((at + len))
+done
+crc_at=$((at + conn + prop))
+{ head -c $((at + 1)) "$src"; printf '\xff'; tail -c +$((at + 3)) "$src"; } > bad_chunk_checksum.psq
 invalid bad_chunk_checksum checksum $crc_at
 # An unknown chunk tag.
 { head -c $chunk "$src"; printf 'Z'; tail -c +$((chunk + 2)) "$src"; } > bad_chunk_tag.psq
