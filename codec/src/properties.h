@@ -45,8 +45,16 @@ class PropertyUnpacker {
   // its size or a list count does not match (a corrupt stream).
   bool load(std::vector<uint8_t>&& raw, uint64_t nv, uint64_t nf);
   // The next vertex's or face's values, in order.
-  void next_vertex(PropertyValues* out) { next(vcols_, nv_, &vi_, out); }
-  void next_face(PropertyValues* out) { next(fcols_, nf_, &fi_, out); }
+  // Without columns (no properties) nothing is read: the common case costs
+  // no call.
+  void next_vertex(PropertyValues* out) {
+    if (vcols_.empty()) return out->clear();
+    next(vcols_, nv_, &vi_, out);
+  }
+  void next_face(PropertyValues* out) {
+    if (fcols_.empty()) return out->clear();
+    next(fcols_, nf_, &fi_, out);
+  }
 
  private:
   struct Column {
