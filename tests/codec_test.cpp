@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <map>
 #include <cmath>
 #include <cstring>
 #include <random>
@@ -315,6 +316,79 @@ TEST(Codec, EncoderIsDeterministicAndChunkingIsTransparent) {
   expect_same(ev, back, half_step(ev, 16));
 }
 
+// Far gates named in all three ways of spec 6.2.1 (recency rank,
+// departure point and offset, raw slot): the sequences of 40 spheres,
+// interleaved a few records at a time in a random order, as a converter
+// hopping between the regions of an iso-surface's sweep would emit them.
+// Each record keeps its vertex and finalize events; indices are renumbered
+// in order of introduction and the slot hints dropped.
+TEST(Codec, FarGatesOfEveryKindRoundTrip) {
+  const int kSpheres = 40;
+  std::vector<std::vector<std::vector<SequenceEvent>>> records(kSpheres);  // [sphere][record]
+  Events ev;
+  for (int s = 0; s < kSpheres; ++s) {
+    test::Mesh m = test::make_sphere(6, 8);
+    for (auto& p : m.positions) p = {p[0] + 3.0 * (s % 8), p[1] + 3.0 * (s / 8), p[2]};
+    Events one = sequence_of(m);
+    if (s == 0) ev.schema = one.schema;
+    // A record: the vertex events of a triangle, the triangle, and the
+    // finalize events after it.
+    std::vector<SequenceEvent> record;
+    bool has_triangle = false;
+    for (const SequenceEvent& e : one.events) {
+      if (e.kind != SequenceEvent::Kind::kFinalize && has_triangle) {
+        records[s].push_back(std::move(record));
+        record.clear();
+        has_triangle = false;
+      }
+      record.push_back(e);
+      has_triangle = has_triangle || e.kind == SequenceEvent::Kind::kTriangle;
+    }
+    if (!record.empty()) records[s].push_back(std::move(record));
+  }
+  ev.schema.vertex_count = ev.schema.triangle_count = -1;
+  ev.schema.bounds_max[0] += 3.0 * 7;
+  ev.schema.bounds_max[1] += 3.0 * 4;
+  std::mt19937 rng(5);
+  std::vector<size_t> next(kSpheres, 0);
+  std::map<std::pair<int, uint32_t>, uint32_t> index;  // (sphere, its index) -> new index
+  for (;;) {
+    std::vector<int> open;
+    for (int s = 0; s < kSpheres; ++s)
+      if (next[s] < records[s].size()) open.push_back(s);
+    if (open.empty()) break;
+    const int s = open[rng() % open.size()];
+    for (int run = 1 + static_cast<int>(rng() % 6); run > 0 && next[s] < records[s].size(); --run) {
+      for (SequenceEvent e : records[s][next[s]++]) {
+        if (e.kind == SequenceEvent::Kind::kVertex) {
+          const uint32_t n = static_cast<uint32_t>(index.size());
+          index[{s, e.vertex.index}] = n;
+          e.vertex.index = n;
+          e.vertex.slot = kNoSlot;
+        } else if (e.kind == SequenceEvent::Kind::kTriangle) {
+          for (int k = 0; k < 3; ++k) {
+            e.triangle.v[k] = index.at({s, e.triangle.v[k]});
+            e.triangle.vslot[k] = e.triangle.eslot[k] = kNoSlot;
+          }
+        } else {
+          e.finalized = index.at({s, e.finalized});
+        }
+        ev.events.push_back(e);
+      }
+    }
+  }
+  SequenceChecker checker;
+  ASSERT_TRUE(replay(ev, checker).ok());
+  EncodeOptions o;
+  o.bits = 14;
+  PsqStats stats;
+  Events back = round_trip(ev, o, &stats);
+  EXPECT_GT(stats.far_gates[0], 0u) << "recency ranks";
+  EXPECT_GT(stats.far_gates[1], 0u) << "departure points";
+  EXPECT_GT(stats.far_gates[2], 0u) << "raw slots";
+  expect_same(ev, back, half_step(ev, 14));
+}
+
 TEST(Codec, CompressesASmoothSphereWell) {
   Events ev = sequence_of(test::make_sphere(100, 200));
   EncodeOptions o;
@@ -486,13 +560,16 @@ TEST(CodecHostile, BadHeaders) {
   b[0] = 'X';
   EXPECT_EQ(decode_all(b).code(), ErrorCode::kUnknownFormat);
   b = bytes;
-  b[8] = 4;  // a later major version
+  b[8] = 5;  // a later major version
   EXPECT_EQ(decode_all(b).code(), ErrorCode::kUnsupported);
   b = bytes;
   b[8] = 1;  // format 1.0, which coded with other models (spec 11)
   EXPECT_EQ(decode_all(b).code(), ErrorCode::kUnsupported);
   b = bytes;
   b[8] = 2;  // format 2.0, with fixed-width fields and without priors (spec 11)
+  EXPECT_EQ(decode_all(b).code(), ErrorCode::kUnsupported);
+  b = bytes;
+  b[8] = 3;  // format 3.0, without departure points (spec 11)
   EXPECT_EQ(decode_all(b).code(), ErrorCode::kUnsupported);
   b = bytes;
   b[10] |= 0x80;  // unknown flag

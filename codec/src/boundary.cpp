@@ -317,19 +317,26 @@ uint32_t Boundary::scan_recent(uint32_t want, uint32_t* out) {
   return n;
 }
 
+void Boundary::depart(uint32_t edge) {
+  const Recent r{edge, edges_[edge].age};
+  size_t w = 0;
+  for (const Recent& d : departures_)
+    if (current(d)) departures_[w++] = d;  // never `edge` itself: it entered after them
+  departures_.resize(w);
+  departures_.insert(departures_.begin(), r);
+  if (departures_.size() > kDepartures) departures_.resize(kDepartures);
+}
+
+uint32_t Boundary::departure(uint32_t j) const {
+  return j < departures_.size() && current(departures_[j]) ? departures_[j].slot : kNone;
+}
+
 uint32_t Boundary::recent_edge(uint32_t rank) {
   uint32_t out[kRecentRanks];
   if (rank >= kRecentRanks) return kNone;
   return scan_recent(rank + 1, out) > rank ? out[rank] : kNone;
 }
 
-uint32_t Boundary::recent_rank(uint32_t slot, uint32_t limit) {
-  uint32_t out[kRecentRanks];
-  const uint32_t n = scan_recent(std::min<uint32_t>(limit, kRecentRanks), out);
-  for (uint32_t j = 0; j < n; ++j)
-    if (out[j] == slot) return j;
-  return kNone;
-}
 
 }  // namespace codec
 }  // namespace psq

@@ -30,7 +30,11 @@ namespace codec {
 
 constexpr uint32_t kNone = 0xffffffffu;
 // Far gates name an edge by its recency rank below this (spec 6.2.1).
-constexpr uint32_t kRecentRanks = 15;
+constexpr uint32_t kRecentRanks = 14;
+// Far gates name an edge near one of this many departure points (6.2.1).
+constexpr uint32_t kDepartures = 16;
+// ... at most this many steps along the loop away from it.
+constexpr int kMaxResumeOffset = 15;
 
 struct BVertex {
   uint32_t index = 0;        // dense index in the sequence
@@ -131,11 +135,22 @@ class Boundary {
   // Recency ranks (spec 6.2.1, far gates): the open edges ordered by when
   // they entered the boundary, the newest first, have ranks 0, 1, 2, ...
   // recent_edge() returns the open edge of rank `rank`, or kNone when fewer
-  // than rank + 1 edges are open; recent_rank() returns the rank of open
-  // edge `slot` when it is below `limit`, else kNone. Both cost O(limit)
-  // plus the number of stale entries they drop, which each entered once.
+  // than rank + 1 edges are open; recent_edges() fills `out` with the open
+  // edges of ranks 0 to want - 1 (want <= kRecentRanks) and returns how
+  // many there are. Both cost O(rank or want) plus the number of stale
+  // entries they drop, which each entered once.
   uint32_t recent_edge(uint32_t rank);
-  uint32_t recent_rank(uint32_t slot, uint32_t limit);
+  uint32_t recent_edges(uint32_t* out, uint32_t want) { return scan_recent(want, out); }
+
+  // Departure points (spec 6.2.1): where the traversal left a region, most
+  // recent first. depart() records the reference edge R before a far gate
+  // or a start (when R is an open edge): entries that are no longer open
+  // edges are dropped, R goes to the front, and the list keeps at most
+  // kDepartures entries. departure(j) is entry j's edge slot, or kNone when
+  // there is no entry j or it is no longer the open edge it was.
+  void depart(uint32_t edge);
+  uint32_t departure(uint32_t j) const;
+  uint32_t departures() const { return static_cast<uint32_t>(departures_.size()); }
 
  private:
   uint32_t alloc_edge();
@@ -166,6 +181,8 @@ class Boundary {
   };
   std::vector<Recent> recent_;
   uint64_t entered_ = 0;  // edges that ever entered
+  std::vector<Recent> departures_;  // most recent first, at most kDepartures
+  bool current(const Recent& r) const { return edges_[r.slot].live && edges_[r.slot].age == r.age; }
 };
 
 // The prediction of a record's i-th new vertex (spec 7.3) and its residual

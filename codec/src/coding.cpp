@@ -14,6 +14,8 @@ namespace codec {
 Models::Models(bool priors) {
   for (auto& m : gate) m = SymbolModel(kGateBits);
   for (auto& m : far) m = SymbolModel(kFarBits);
+  resume_index = SymbolModel(kResumeIndexBits);
+  resume_offset = SymbolModel(kResumeOffsetBits);
   for (auto& shape : third)
     for (auto& m : shape) m = SymbolModel(2);
   if (!priors) return;

@@ -23,10 +23,14 @@ constexpr uint32_t kGateFar = 2 * kMaxOffset + 1;    // 13: an explicit edge slo
 constexpr uint32_t kGateStart = kGateFar + 1;        // 14: a start triangle
 constexpr uint32_t kGateIsolated = kGateFar + 2;     // 15: an isolated vertex
 constexpr int kGateBits = 4;
-// A far gate's recency rank (spec 6.2.1): ranks 0..14, or 15 followed by
-// the gate's raw edge slot. Two contexts: with and without a reference.
+// A far gate (spec 6.2.1): its recency rank 0..13; 14, a departure point
+// and an offset from it; or 15 followed by the gate's raw edge slot. Two
+// contexts: with and without a reference.
+constexpr uint32_t kFarResume = 14;
 constexpr uint32_t kFarEscape = 15;
 constexpr int kFarBits = 4;
+constexpr int kResumeIndexBits = 4;   // departure 0..15
+constexpr int kResumeOffsetBits = 5;  // offsets 0, +1, -1, ..., +15, -15 (31 is invalid)
 // Gate contexts: the previous triangle's op (0..4, or 5 when there is no
 // reference edge) times the previous gate symbol (0, 1, or anything else).
 constexpr int kGateContexts = 18;
@@ -88,7 +92,9 @@ inline int triangle_extent(const int64_t* a, const int64_t* b, const int64_t* c,
 
 struct Models {
   SymbolModel gate[kGateContexts];
-  SymbolModel far[2];         // [reference edge is NONE]: recency rank of a far gate
+  SymbolModel far[2];         // [reference edge is NONE]: how a far gate is named
+  SymbolModel resume_index;   // a far gate's departure point
+  SymbolModel resume_offset;  // its offset from that point
   SymbolModel third[kShapeContexts][kThirdContexts];  // [shape (6.2.2)][degrees]
   BitModel border[2][3][3];   // [start?][edge k][endpoints that touch a border edge]
   BitModel cut[2];            // [start?]: a border edge is a non-manifold cut
@@ -108,7 +114,8 @@ struct Models {
 
 // Calls f(BitModel&) on each node of the connectivity models that have a
 // trained initial state (spec 6.2.7), in the order of its table: the gate
-// trees gate[0..17], the far-gate trees far[0..1], the third-vertex trees
+// trees gate[0..17], the far-gate trees far[0..1], resume_index and
+// resume_offset, the third-vertex trees
 // third[0..4][0..35] (each tree's nodes 1, 2, 3, ... in heap order), then
 // the border bits border[0..1][0..2][0..2].
 template <class M, class F>
@@ -118,6 +125,8 @@ void for_each_prior_model(M& m, F f) {
   };
   for (auto& s : m.gate) tree(s);
   for (auto& s : m.far) tree(s);
+  tree(m.resume_index);
+  tree(m.resume_offset);
   for (auto& shape : m.third)
     for (auto& s : shape) tree(s);
   for (auto& start : m.border)

@@ -143,7 +143,7 @@ Status PsqDecoder::Impl::open(InputStream* stream) {
   uint16_t flags = get.u16();
   if (header.version_major != kVersionMajor)
     return Status(ErrorCode::kUnsupported, "format version " + std::to_string(header.version_major) + "." +
-                                               std::to_string(header.version_minor) + "; this psq reads 3.x", 8);
+                                               std::to_string(header.version_minor) + "; this psq reads 4.x", 8);
   if (flags & ~kKnownFlags)
     return Status(ErrorCode::kUnsupported, "unknown header flags (value " + std::to_string(flags & ~kKnownFlags) + ")", 10);
   uint64_t length = 0;
@@ -331,6 +331,8 @@ Status PsqDecoder::Impl::decode_record(Dec& dec) {
   uint32_t intro[3];
   int nintro = 0;
   uint32_t gate = kNone;
+  // Spec 6.2.1: a far gate or a start leaves the region at R.
+  if (R != kNone && g_sym >= kGateFar) boundary.depart(R);
   if (g_sym == kGateStart) {
     const bool swap = dec.bit(models.swap, kCostConnectivity);
     intro[0] = 0;
@@ -347,10 +349,19 @@ Status PsqDecoder::Impl::decode_record(Dec& dec) {
         gate = g_sym % 2 == 1 ? boundary.edge(gate).next : boundary.edge(gate).prev;
       if (gate == kNone) return corrupt("gate offset leaves the boundary");
     } else {
-      const uint32_t rank = dec.symbol(models.far[R == kNone], kCostConnectivity);
-      if (rank != kFarEscape) {
-        gate = boundary.recent_edge(rank);
+      const uint32_t far = dec.symbol(models.far[R == kNone], kCostConnectivity);
+      if (far < kFarResume) {
+        gate = boundary.recent_edge(far);
         if (gate == kNone) return corrupt("far gate rank beyond the open edges");
+      } else if (far == kFarResume) {
+        const uint32_t j = dec.symbol(models.resume_index, kCostConnectivity);
+        const uint32_t s = dec.symbol(models.resume_offset, kCostConnectivity);
+        gate = boundary.departure(j);
+        if (gate == kNone) return corrupt("far gate names a departure point that is not an open edge");
+        if (s > 2 * static_cast<uint32_t>(kMaxResumeOffset)) return corrupt("far gate offset symbol 31");
+        for (uint32_t i = 0; i < (s + 1) / 2 && gate != kNone; ++i)
+          gate = s % 2 == 1 ? boundary.edge(gate).next : boundary.edge(gate).prev;
+        if (gate == kNone) return corrupt("far gate offset leaves the boundary");
       } else {
         gate = static_cast<uint32_t>(dec.raw(slot_bits(boundary.edge_capacity()), kCostConnectivity));
         if (!boundary.edge_live(gate)) return corrupt("gate is not an open edge");

@@ -32,6 +32,17 @@ struct PendingVertex {
 
 }  // namespace
 
+namespace {
+
+// How a far gate names its edge (spec 6.2.1): the far symbol (a recency
+// rank 0..13, kFarResume or kFarEscape) and, for a resume, the departure
+// point and the offset symbol.
+struct FarName {
+  uint32_t far = codec::kFarEscape, index = 0, offset = 0;
+};
+
+}  // namespace
+
 struct PsqEncoder::Impl {
   ByteWriter* out;
   EncodeOptions opt;
@@ -84,6 +95,12 @@ struct PsqEncoder::Impl {
 
   Status begin(const MeshSchema& schema);
   Status coded_position(const double p[3], int64_t out[3]);
+  // Spec 6.2.1, the reference encoder's choice of a far gate among the
+  // candidates (kNone where none): the one with the lowest recency rank,
+  // else the first that a departure point and offset reach, else the first
+  // candidate by its raw slot. Sets *name and returns the candidate's index.
+  int name_far_gate(const uint32_t cand[3], FarName* name);
+  std::vector<uint8_t> dep_mark;  // per edge slot: 1 + its departure index, or 0 (name_far_gate)
   void code_new_vertex(Encoder& enc, const PendingVertex& v, const int64_t pred[3], int kind, const int extent[3]);
   Status introduce(const PendingVertex& v);
   Status triangle(const SequenceTriangle& t);
@@ -200,6 +217,65 @@ Status PsqEncoder::Impl::introduce(const PendingVertex& v) {
 
 // Spec 6.3 and 7.4: the re-appearance flag (and distance), then the
 // residuals of the position against `pred`.
+int PsqEncoder::Impl::name_far_gate(const uint32_t cand[3], FarName* name) {
+  // The lowest recency rank of a candidate.
+  uint32_t recent[kRecentRanks];
+  const uint32_t n = boundary.recent_edges(recent, kRecentRanks);
+  for (uint32_t r = 0; r < n; ++r)
+    for (int k = 0; k < 3; ++k)
+      if (cand[k] != kNone && cand[k] == recent[r]) {
+        name->far = r;
+        return k;
+      }
+  // The first departure point (most recent first) and then the first
+  // offset symbol (0, +1, -1, +2, -2, ...) that reach a candidate. Found
+  // backwards, from the candidates: their edges within 15 links, checked
+  // against the departure points marked in dep_mark (links are symmetric:
+  // next(e) = f exactly when prev(f) = e), which costs 93 steps instead of
+  // 16 x 31 walks from the departures.
+  if (dep_mark.size() < boundary.edge_capacity()) dep_mark.resize(boundary.edge_capacity(), 0);
+  uint32_t marked[kDepartures];
+  uint32_t nmarked = 0;
+  for (uint32_t j = 0; j < boundary.departures(); ++j) {
+    const uint32_t d = boundary.departure(j);
+    if (d != kNone) {
+      dep_mark[d] = static_cast<uint8_t>(j + 1);
+      marked[nmarked++] = d;
+    }
+  }
+  uint32_t best_j = kDepartures, best_s = 0;
+  int best_k = -1;
+  auto consider = [&](uint32_t e, uint32_t s, int k) {
+    if (e == kNone || dep_mark[e] == 0) return;
+    const uint32_t j = dep_mark[e] - 1u;
+    if (j < best_j || (j == best_j && s < best_s)) {
+      best_j = j;
+      best_s = s;
+      best_k = k;
+    }
+  };
+  for (int k = 0; k < 3 && nmarked > 0; ++k) {
+    if (cand[k] == kNone) continue;
+    consider(cand[k], 0, k);
+    uint32_t fwd = cand[k], back = cand[k];
+    for (uint32_t t = 1; t <= static_cast<uint32_t>(kMaxResumeOffset); ++t) {
+      // d = next^t(candidate): the candidate is t links before d, offset -t.
+      if (fwd != kNone) consider(fwd = boundary.edge(fwd).next, 2 * t, k);
+      // d = prev^t(candidate): offset +t.
+      if (back != kNone) consider(back = boundary.edge(back).prev, 2 * t - 1, k);
+    }
+  }
+  for (uint32_t i = 0; i < nmarked; ++i) dep_mark[marked[i]] = 0;
+  if (best_k >= 0) {
+    name->far = kFarResume;
+    name->index = best_j;
+    name->offset = best_s;
+    return best_k;
+  }
+  name->far = kFarEscape;
+  return cand[0] != kNone ? 0 : cand[1] != kNone ? 1 : 2;
+}
+
 void PsqEncoder::Impl::code_new_vertex(Encoder& enc, const PendingVertex& v, const int64_t pred[3], int kind,
                                         const int extent[3]) {
   const uint32_t out_index = out_index_of(v.in_index);
@@ -259,9 +335,12 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
   int rot = 0;  // canonical corner k is input corner (rot + k) % 3
   uint32_t gate_sym = kGateStart;
   uint32_t gate = kNone;
+  FarName far_name;  // how a far gate is coded (spec 6.2.1)
+  const bool far_reference_none = boundary.reference() == kNone;
   if (nnew == 3) {
     // Spec 6.2.4: corner 0 is the vertex introduced first.
     rot = pend[0] == 0 ? 0 : pend[1] == 0 ? 1 : 2;
+    if (!far_reference_none) boundary.depart(boundary.reference());  // spec 6.2.1: a start leaves R
   } else {
     // Candidate gates: the triangle's edges that complete an open edge.
     uint32_t cand[3];
@@ -289,7 +368,14 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
           rot = k;
         }
     }
-    if (gate_sym == kGateFar) rot = cand[0] != kNone ? 0 : cand[1] != kNone ? 1 : 2;
+    if (gate_sym == kGateFar) {
+      // Spec 6.2.1: a far gate leaves the region at R; then the candidate
+      // named most cheaply: the lowest recency rank, else the first
+      // departure point (most recent first) and offset that reach it, else
+      // the first candidate in the input's corner order, by its slot.
+      if (R != kNone) boundary.depart(R);
+      rot = name_far_gate(cand, &far_name);
+    }
     gate = cand[rot];
   }
   BTriangle bt;
@@ -306,6 +392,7 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
   enc.symbol(models.gate[ctx], gate_sym, kCostConnectivity);
   last_gate = gate_sym;
   stats.gates[gate_sym == 0 ? 0 : gate_sym < kGateFar ? 1 : gate_sym == kGateFar ? 2 : 3]++;
+
   uint32_t intro[3];  // canonical corners in the order their vertices are introduced
   int nintro = 0;
   if (nnew == 3) {
@@ -317,10 +404,14 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
     nintro = 3;
   } else {
     if (gate_sym == kGateFar) {
-      // Spec 6.2.1: the recency rank, or the escape and the raw slot.
-      const uint32_t rank = boundary.recent_rank(gate, kRecentRanks);
-      enc.symbol(models.far[boundary.reference() == kNone], rank == kNone ? kFarEscape : rank, kCostConnectivity);
-      if (rank == kNone) enc.raw(gate, slot_bits(boundary.edge_capacity()), kCostConnectivity);
+      enc.symbol(models.far[far_reference_none], far_name.far, kCostConnectivity);
+      stats.far_gates[far_name.far < kFarResume ? 0 : far_name.far == kFarResume ? 1 : 2]++;
+      if (far_name.far == kFarResume) {
+        enc.symbol(models.resume_index, far_name.index, kCostConnectivity);
+        enc.symbol(models.resume_offset, far_name.offset, kCostConnectivity);
+      } else if (far_name.far == kFarEscape) {
+        enc.raw(gate, slot_bits(boundary.edge_capacity()), kCostConnectivity);
+      }
     }
     const BEdge& g = boundary.edge(gate);
     const uint32_t p = g.org, q = g.dst;

@@ -80,8 +80,8 @@ int main(int argc, char** argv) {
   }
   cpp << "};\n\n}  // namespace codec\n}  // namespace psq\n";
 
-  // The spec's table: one row per tree (gate, far, third) and one per
-  // border edge, hex bytes.
+  // The spec's table: one row per tree (gate, far, resume, third) and one
+  // per border edge, hex bytes.
   std::ofstream md(md_path);
   md << "```\n";
   size_t at = 0;
@@ -96,6 +96,8 @@ int main(int argc, char** argv) {
   };
   for (int c = 0; c < codec::kGateContexts; ++c) row("gate[" + std::to_string(c) + "]", 15);
   for (int c = 0; c < 2; ++c) row("far[" + std::to_string(c) + "]", 15);
+  row("resume_index", 15);
+  row("resume_offset", 31);
   for (int sh = 0; sh < codec::kShapeContexts; ++sh)
     for (int d = 0; d < codec::kThirdContexts; ++d)
       row("third[" + std::to_string(sh) + "][" + std::to_string(d) + "]", 3);
