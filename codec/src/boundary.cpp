@@ -228,7 +228,7 @@ bool Boundary::apply(BTriangle& t) {
   if (recent_.size() > 2 * static_cast<size_t>(open_edges_) + 64) {
     size_t w = 0;
     for (const Recent& r : recent_)
-      if (edges_[r.slot].live && edges_[r.slot].age == r.age) recent_[w++] = r;
+      if (current(r)) recent_[w++] = r;
     recent_.resize(w);
   }
   // Completed edges are freed after the entering ones took their slots, so
@@ -298,16 +298,16 @@ Prediction predict_new_vertex(const Boundary& boundary, uint32_t gate, int i, co
   return p;
 }
 
-
 uint32_t Boundary::scan_recent(uint32_t want, uint32_t* out) {
-  // Entries above index i were scanned; live ones are kept (at most `want`),
-  // stale ones dropped for good.
+  // Entries above index i were scanned; current ones are kept (at most
+  // `want`), stale ones dropped for good.
+  want = std::min(want, kRecentRanks);
   size_t i = recent_.size();
   uint32_t n = 0;
   Recent kept[kRecentRanks];
   while (i > 0 && n < want) {
     const Recent& r = recent_[--i];
-    if (edges_[r.slot].live && edges_[r.slot].age == r.age) {
+    if (current(r)) {
       kept[n] = r;
       out[n++] = r.slot;
     }
@@ -336,7 +336,6 @@ uint32_t Boundary::recent_edge(uint32_t rank) {
   if (rank >= kRecentRanks) return kNone;
   return scan_recent(rank + 1, out) > rank ? out[rank] : kNone;
 }
-
 
 }  // namespace codec
 }  // namespace psq

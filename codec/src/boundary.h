@@ -136,7 +136,7 @@ class Boundary {
   // they entered the boundary, the newest first, have ranks 0, 1, 2, ...
   // recent_edge() returns the open edge of rank `rank`, or kNone when fewer
   // than rank + 1 edges are open; recent_edges() fills `out` with the open
-  // edges of ranks 0 to want - 1 (want <= kRecentRanks) and returns how
+  // edges of ranks 0 to want - 1 (want at most kRecentRanks) and returns how
   // many there are. Both cost O(rank or want) plus the number of stale
   // entries they drop, which each entered once.
   uint32_t recent_edge(uint32_t rank);
