@@ -167,12 +167,8 @@ Status parse_header_payload(const uint8_t* p, size_t n, uint64_t base, PsqHeader
   const uint64_t nc = get.varint();
   for (uint64_t i = 0; i < nc && !get.short_read() && !get.malformed(); ++i) {
     at = get.pos();
-    const uint64_t len = get.varint();
-    if (get.short_read() || get.malformed() || len > get.left()) {
-      if (!get.malformed()) get.str(get.left() + 1);  // marks the short read
-      break;
-    }
-    std::string c = get.str(static_cast<size_t>(len));
+    std::string c = get.str(static_cast<size_t>(get.varint()));  // a length past the end: a short read
+    if (get.short_read() || get.malformed()) break;
     for (unsigned char ch : c)
       if (ch == '\n' || ch == '\r' || ch == 0) return bad("comment holds a line break or NUL", at);
     h->schema.comments.push_back(std::move(c));

@@ -30,10 +30,6 @@ struct PendingVertex {
   bool coded = false;  // already coded in the current record
 };
 
-}  // namespace
-
-namespace {
-
 // How a far gate names its edge (spec 6.2.1): the far symbol (a recency
 // rank 0..13, kFarResume or kFarEscape) and, for a resume, the departure
 // point and the offset symbol.
@@ -121,9 +117,6 @@ Status PsqEncoder::Impl::begin(const MeshSchema& schema) {
     for (const Property& p : *list)
       if (p.name.empty() || p.name.size() > 255)
         return Status(ErrorCode::kLimit, "property name empty or longer than 255 bytes");
-  if (schema.comments.size() > 65535) return Status(ErrorCode::kLimit, "more than 65535 comments");
-  for (const std::string& c : schema.comments)
-    if (c.size() > 65535) return Status(ErrorCode::kLimit, "a comment longer than 65535 bytes");
   if (opt.boundary_limit < 1 || opt.boundary_limit > kMaxBoundaryLimit)
     return Status(ErrorCode::kUsage, "boundary limit must be 1.." + std::to_string(kMaxBoundaryLimit));
   if (opt.zstd_level < 1 || opt.zstd_level > 22) return Status(ErrorCode::kUsage, "zstd level must be 1..22");
@@ -215,8 +208,6 @@ Status PsqEncoder::Impl::introduce(const PendingVertex& v) {
   return Status();
 }
 
-// Spec 6.3 and 7.4: the re-appearance flag (and distance), then the
-// residuals of the position against `pred`.
 int PsqEncoder::Impl::name_far_gate(const uint32_t cand[3], FarName* name) {
   // The lowest recency rank of a candidate.
   uint32_t recent[kRecentRanks];
@@ -276,6 +267,8 @@ int PsqEncoder::Impl::name_far_gate(const uint32_t cand[3], FarName* name) {
   return cand[0] != kNone ? 0 : cand[1] != kNone ? 1 : 2;
 }
 
+// Spec 6.3 and 7.4: the re-appearance flag (and distance), then the
+// residuals of the position against `pred`.
 void PsqEncoder::Impl::code_new_vertex(Encoder& enc, const PendingVertex& v, const int64_t pred[3], int kind,
                                         const int extent[3]) {
   const uint32_t out_index = out_index_of(v.in_index);
@@ -392,7 +385,6 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
   enc.symbol(models.gate[ctx], gate_sym, kCostConnectivity);
   last_gate = gate_sym;
   stats.gates[gate_sym == 0 ? 0 : gate_sym < kGateFar ? 1 : gate_sym == kGateFar ? 2 : 3]++;
-
   uint32_t intro[3];  // canonical corners in the order their vertices are introduced
   int nintro = 0;
   if (nnew == 3) {
