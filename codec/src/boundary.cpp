@@ -91,8 +91,10 @@ uint32_t Boundary::alloc_edge() {
     slot = static_cast<uint32_t>(edges_.size());
     edges_.emplace_back();
   }
-  edges_[slot] = BEdge();
-  edges_[slot].live = true;
+  // apply() sets every other field.
+  BEdge& e = edges_[slot];
+  e.next = e.prev = kNone;
+  e.live = true;
   ++open_edges_;
   return slot;
 }
@@ -104,7 +106,17 @@ uint32_t Boundary::find_edge(uint32_t a, uint32_t b) const {
 }
 
 bool Boundary::find_completions(BTriangle& t) const {
-  for (int k = 0; k < 3; ++k) {
+  int k0 = 0;
+  if (t.gate != kNone) {
+    // Edge 0 (q->p) completes the gate p->q. The lookups below could not
+    // find otherwise: an open p->q has no open twin q->p (that would have
+    // completed it) and {p, q} is no dead edge (p->q could not have entered
+    // over one, and nothing made it dead while p->q stayed open).
+    t.completes[0] = t.gate;
+    t.state[0] = EdgeState::kCompletes;
+    k0 = 1;
+  }
+  for (int k = k0; k < 3; ++k) {
     const uint32_t u = t.c[k], w = t.c[(k + 1) % 3];
     t.completes[k] = kNone;
     if (t.is_new[k] || t.is_new[(k + 1) % 3]) {

@@ -80,6 +80,9 @@ struct BTriangle {
   // Input to apply() for a join: the open edge that names the gap at the
   // third vertex into which the triangle goes (spec 6.1.2), else kNone.
   uint32_t join_edge = kNone;
+  // Input to find_completions(): the open gate edge p->q that edge 0
+  // (q->p) completes, or kNone for a start.
+  uint32_t gate = kNone;
   // Output of find_completions() and apply():
   uint32_t completes[3] = {kNone, kNone, kNone};  // the open edge each edge completes
   EdgeState state[3] = {EdgeState::kEnters, EdgeState::kEnters, EdgeState::kEnters};

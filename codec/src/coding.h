@@ -81,7 +81,8 @@ inline int bit_length64(uint64_t v) { return v == 0 ? 0 : 64 - __builtin_clzll(v
 // complement magnitude.
 inline uint64_t coord_distance(int64_t a, int64_t b) {
   const uint64_t d = static_cast<uint64_t>(a) - static_cast<uint64_t>(b);
-  return static_cast<int64_t>(d) < 0 ? 0 - d : d;
+  const uint64_t sign = 0 - (d >> 63);  // all ones when d reads negative; branch-free
+  return (d ^ sign) - sign;
 }
 // The bit length of a triangle's extent along `axis`: of the largest
 // coordinate distance between two of its corners a, b, c.
@@ -163,17 +164,36 @@ enum Cost { kCostConnectivity = 0, kCostGeometry = 1, kCostCount = 2 };
 // the models' 16-bit probabilities by 4).
 double bit_cost(uint32_t p12);
 
+// Forces the inlining of the coders' per-decision helpers, which GCC
+// otherwise leaves as calls in the encoder's large functions.
+#if defined(__GNUC__)
+#define PSQ_INLINE inline __attribute__((always_inline))
+#else
+#define PSQ_INLINE inline
+#endif
+
 class Encoder {
  public:
   Encoder(RangeEncoder* rc, double* cost) : rc_(rc), cost_(cost) {}
-  void bit(BitModel& m, int b, Cost c) {
-    if (cost_) cost_[c] += bit_cost((b ? 65536u - m.p0 : m.p0) >> 4);
+  PSQ_INLINE void bit(BitModel& m, int b, Cost c) {
+    if (cost_) add_cost(m, b, c);
     rc_->encode_bit(m, b);
   }
   void symbol(SymbolModel& m, uint32_t s, Cost c) {
     BitModel* tree = m.tree();
     uint32_t node = 1;
     for (int i = m.bits() - 1; i >= 0; --i) {
+      int b = static_cast<int>((s >> i) & 1u);
+      bit(tree[node], b, c);
+      node = (node << 1) | static_cast<uint32_t>(b);
+    }
+  }
+  // symbol() for a model of kBits bits, unrolled.
+  template <int kBits>
+  PSQ_INLINE void symbol(SymbolModel& m, uint32_t s, Cost c) {
+    BitModel* tree = m.tree();
+    uint32_t node = 1;
+    for (int i = kBits - 1; i >= 0; --i) {
       int b = static_cast<int>((s >> i) & 1u);
       bit(tree[node], b, c);
       node = (node << 1) | static_cast<uint32_t>(b);
@@ -191,7 +211,7 @@ class Encoder {
   int residual(ResidualModel& m, int64_t r, Cost c) {
     uint64_t mag = r < 0 ? 0 - static_cast<uint64_t>(r) : static_cast<uint64_t>(r);
     int k = mag == 0 ? 0 : 64 - __builtin_clzll(mag);
-    symbol(m.length, static_cast<uint32_t>(k), c);
+    symbol<7>(m.length, static_cast<uint32_t>(k), c);
     if (k == 0) return 0;
     bit(m.sign, r < 0 ? 1 : 0, c);
     if (k >= 2) {
@@ -202,6 +222,9 @@ class Encoder {
   }
 
  private:
+  // Out of line: only `psq info` and the tests measure costs.
+  void add_cost(const BitModel& m, int b, Cost c) { cost_[c] += bit_cost((b ? 65536u - m.p0 : m.p0) >> 4); }
+
   RangeEncoder* rc_;
   double* cost_;
 };
@@ -226,6 +249,14 @@ class BasicDecoder {
     for (int i = 0; i < bits; ++i) node = (node << 1) | static_cast<uint32_t>(bit(tree[node], c));
     return node - (1u << bits);
   }
+  // symbol() for a model of kBits bits (checked by the caller's type), unrolled.
+  template <int kBits>
+  uint32_t symbol(SymbolModel& m, Cost c) {
+    BitModel* tree = m.tree();
+    uint32_t node = 1;
+    for (int i = 0; i < kBits; ++i) node = (node << 1) | static_cast<uint32_t>(bit(tree[node], c));
+    return node - (1u << kBits);
+  }
   uint64_t raw(int bits, Cost c) {
     if (kMeasure) cost_[c] += bits;
     uint64_t v = 0;
@@ -237,7 +268,7 @@ class BasicDecoder {
   }
   // Returns false on a length above 64 (a corrupt stream); sets *length.
   bool residual(ResidualModel& m, int64_t* r, int* length, Cost c) {
-    uint32_t k = symbol(m.length, c);
+    uint32_t k = symbol<7>(m.length, c);
     *length = static_cast<int>(k);
     if (k == 0) {
       *r = 0;

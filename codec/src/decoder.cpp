@@ -313,7 +313,7 @@ template <class Dec>
 Status PsqDecoder::Impl::decode_record(Dec& dec) {
   const uint32_t R = boundary.reference();
   const int ctx = gate_context(R, last_op, last_gate);
-  const uint32_t g_sym = dec.symbol(models.gate[ctx], kCostConnectivity);
+  const uint32_t g_sym = dec.template symbol<kGateBits>(models.gate[ctx], kCostConnectivity);
   last_gate = g_sym;
   if (g_sym == kGateIsolated) {
     SequenceEvent& ev = push();
@@ -349,13 +349,13 @@ Status PsqDecoder::Impl::decode_record(Dec& dec) {
         gate = g_sym % 2 == 1 ? boundary.edge(gate).next : boundary.edge(gate).prev;
       if (gate == kNone) return corrupt("gate offset leaves the boundary");
     } else {
-      const uint32_t far = dec.symbol(models.far[R == kNone], kCostConnectivity);
+      const uint32_t far = dec.template symbol<kFarBits>(models.far[R == kNone], kCostConnectivity);
       if (far < kFarResume) {
         gate = boundary.recent_edge(far);
         if (gate == kNone) return corrupt("far gate rank beyond the open edges");
       } else if (far == kFarResume) {
-        const uint32_t j = dec.symbol(models.resume_index, kCostConnectivity);
-        const uint32_t s = dec.symbol(models.resume_offset, kCostConnectivity);
+        const uint32_t j = dec.template symbol<kResumeIndexBits>(models.resume_index, kCostConnectivity);
+        const uint32_t s = dec.template symbol<kResumeOffsetBits>(models.resume_offset, kCostConnectivity);
         gate = boundary.departure(j);
         if (gate == kNone) return corrupt("far gate names a departure point that is not an open edge");
         if (s > 2 * static_cast<uint32_t>(kMaxResumeOffset)) return corrupt("far gate offset symbol 31");
@@ -367,10 +367,11 @@ Status PsqDecoder::Impl::decode_record(Dec& dec) {
         if (!boundary.edge_live(gate)) return corrupt("gate is not an open edge");
       }
     }
+    bt.gate = gate;
     const BEdge& g = boundary.edge(gate);
     const uint32_t p = g.org, q = g.dst;
     const uint32_t third =
-        dec.symbol(models.third[third_shape_context(boundary, gate)]
+        dec.template symbol<2>(models.third[third_shape_context(boundary, gate)]
                                [third_context(boundary.vertex(p).degree, boundary.vertex(q).degree)],
                    kCostConnectivity);
     uint32_t x = kNone;
@@ -399,7 +400,7 @@ Status PsqDecoder::Impl::decode_record(Dec& dec) {
   }
   uint32_t r = 0;
   if (header.rotation) {
-    r = dec.symbol(models.rotation, kCostConnectivity);
+    r = dec.template symbol<2>(models.rotation, kCostConnectivity);
     if (r > 2) return corrupt("rotation above 2");
   }
   // New vertices in the order of introduction (spec 6.3).

@@ -380,9 +380,10 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
     cp[k] = pend[ik];
     bt.border[k] = (t.border_mask >> ik) & 1;
   }
+  bt.gate = gate;
   const int r = (3 - rot) % 3;  // spec 6.2.3: output corner j is canonical corner (j + r) % 3
 
-  enc.symbol(models.gate[ctx], gate_sym, kCostConnectivity);
+  enc.symbol<kGateBits>(models.gate[ctx], gate_sym, kCostConnectivity);
   last_gate = gate_sym;
   stats.gates[gate_sym == 0 ? 0 : gate_sym < kGateFar ? 1 : gate_sym == kGateFar ? 2 : 3]++;
   uint32_t intro[3];  // canonical corners in the order their vertices are introduced
@@ -396,11 +397,11 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
     nintro = 3;
   } else {
     if (gate_sym == kGateFar) {
-      enc.symbol(models.far[far_reference_none], far_name.far, kCostConnectivity);
+      enc.symbol<kFarBits>(models.far[far_reference_none], far_name.far, kCostConnectivity);
       stats.far_gates[far_name.far < kFarResume ? 0 : far_name.far == kFarResume ? 1 : 2]++;
       if (far_name.far == kFarResume) {
-        enc.symbol(models.resume_index, far_name.index, kCostConnectivity);
-        enc.symbol(models.resume_offset, far_name.offset, kCostConnectivity);
+        enc.symbol<kResumeIndexBits>(models.resume_index, far_name.index, kCostConnectivity);
+        enc.symbol<kResumeOffsetBits>(models.resume_offset, far_name.offset, kCostConnectivity);
       } else if (far_name.far == kFarEscape) {
         enc.raw(gate, slot_bits(boundary.edge_capacity()), kCostConnectivity);
       }
@@ -416,7 +417,7 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
     }
     const BVertex& vp = boundary.vertex(p);
     const BVertex& vq = boundary.vertex(q);
-    enc.symbol(models.third[third_shape_context(boundary, gate)][third_context(vp.degree, vq.degree)], third,
+    enc.symbol<2>(models.third[third_shape_context(boundary, gate)][third_context(vp.degree, vq.degree)], third,
                kCostConnectivity);
     if (third == kThirdJoin) {
       // Spec 6.2.2: an open edge at x names it and the gap the triangle
@@ -434,7 +435,7 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
       nintro = 1;
     }
   }
-  if (header.rotation) enc.symbol(models.rotation, static_cast<uint32_t>(r), kCostConnectivity);
+  if (header.rotation) enc.symbol<2>(models.rotation, static_cast<uint32_t>(r), kCostConnectivity);
 
   // New vertices in the order of introduction, with their predictions.
   for (int i = 0; i < nintro; ++i) {
@@ -511,7 +512,7 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
 Status PsqEncoder::Impl::isolated(size_t at) {
   Encoder enc(rc.get(), opt.measure_costs ? cost : nullptr);
   const int ctx = gate_context(boundary.reference(), last_op, last_gate);
-  enc.symbol(models.gate[ctx], kGateIsolated, kCostConnectivity);
+  enc.symbol<kGateBits>(models.gate[ctx], kGateIsolated, kCostConnectivity);
   last_gate = kGateIsolated;
   stats.gates[3]++;
   PendingVertex v = std::move(pending[at]);
@@ -629,7 +630,7 @@ Status PsqEncoder::vertex(const SequenceVertex& v) {
   p.in_index = v.index;
   p.in_slot = v.slot;
   p.reappears = v.reappears;
-  p.values = v.values;
+  if (!v.values.empty()) p.values = v.values;
   Status s = m.coded_position(v.position, p.pos);
   if (!s.ok()) return m.fail(s);
   ++m.next_in;

@@ -20,8 +20,14 @@ class PropertyPacker {
   bool empty() const { return vprops_.empty() && fprops_.empty(); }
   // Adds one element's values. Returns false when a value does not fit its
   // declared type or the flattening does not match the schema.
-  bool add_vertex(const PropertyValues& v) { return add(vprops_, vcols_, v, &nv_); }
-  bool add_face(const PropertyValues& v) { return add(fprops_, fcols_, v, &nf_); }
+  bool add_vertex(const PropertyValues& v) {
+    if (vprops_.empty() && v.empty()) return ++nv_, true;  // the common case, inline
+    return add(vprops_, vcols_, v, &nv_);
+  }
+  bool add_face(const PropertyValues& v) {
+    if (fprops_.empty() && v.empty()) return ++nf_, true;
+    return add(fprops_, fcols_, v, &nf_);
+  }
   size_t raw_size() const { return raw_size_; }
   // Appends the section's raw bytes (spec 8.1) and starts a new chunk.
   void take(std::vector<uint8_t>* raw);
