@@ -87,6 +87,22 @@ TEST(Conformance, InvalidVectorsFailWithTheirErrors) {
   }
 }
 
+// far_gates exercises every way of naming a far gate (spec 6.2.1).
+TEST(Conformance, FarGatesVectorNamesFarGatesEveryWay) {
+  InputStream in;
+  ASSERT_TRUE(in.open(kDir + "far_gates.psq").ok());
+  PsqDecoder dec;
+  ASSERT_TRUE(dec.open(&in).ok());
+  SequenceEvent e;
+  Status s;
+  do s = dec.next(&e);
+  while (s.ok() && e.kind != SequenceEvent::Kind::kEnd);
+  ASSERT_TRUE(s.ok()) << s.to_string();
+  EXPECT_GT(dec.stats().far_gates[0], 0u) << "recency ranks";
+  EXPECT_GT(dec.stats().far_gates[1], 0u) << "departure points";
+  EXPECT_GT(dec.stats().far_gates[2], 0u) << "raw slots";
+}
+
 // The encoder still writes the vectors made from tests/data byte for byte.
 TEST(Conformance, EncoderReproducesTheVectors) {
   test::TempDir tmp;

@@ -315,6 +315,7 @@ Status PsqDecoder::Impl::decode_record(Dec& dec) {
   const int ctx = gate_context(R, last_op, last_gate);
   const uint32_t g_sym = dec.template symbol<kGateBits>(models.gate[ctx], kCostConnectivity);
   last_gate = g_sym;
+  ++stats.gates[g_sym == 0 ? 0 : g_sym < kGateFar ? 1 : g_sym == kGateFar ? 2 : 3];
   if (g_sym == kGateIsolated) {
     SequenceEvent& ev = push();
     int64_t pos[3];
@@ -350,6 +351,7 @@ Status PsqDecoder::Impl::decode_record(Dec& dec) {
       if (gate == kNone) return corrupt("gate offset leaves the boundary");
     } else {
       const uint32_t far = dec.template symbol<kFarBits>(models.far[R == kNone], kCostConnectivity);
+      ++stats.far_gates[far < kFarResume ? 0 : far == kFarResume ? 1 : 2];
       if (far < kFarResume) {
         gate = boundary.recent_edge(far);
         if (gate == kNone) return corrupt("far gate rank beyond the open edges");

@@ -65,6 +65,28 @@ PLY
   done; done
 } > "$tmp/grid.ply"
 
+# A UV sphere of 4 rings and 8 segments (48 triangles), for far_gates below.
+python3 - > "$tmp/sphere.ply" <<'PY'
+import math
+rings, seg = 4, 8
+v = [(0.0, 0.0, 1.0)]
+for r in range(1, rings):
+    t = math.pi * r / rings
+    v += [(math.sin(t) * math.cos(2 * math.pi * k / seg), math.sin(t) * math.sin(2 * math.pi * k / seg), math.cos(t))
+          for k in range(seg)]
+v.append((0.0, 0.0, -1.0))
+ring = lambda r, k: 1 + (r - 1) * seg + k % seg
+f = [(0, ring(1, k), ring(1, k + 1)) for k in range(seg)]
+for r in range(1, rings - 1):
+    for k in range(seg):
+        f += [(ring(r, k), ring(r + 1, k), ring(r + 1, k + 1)), (ring(r, k), ring(r + 1, k + 1), ring(r, k + 1))]
+f += [(len(v) - 1, ring(rings - 1, k + 1), ring(rings - 1, k)) for k in range(seg)]
+print("ply\nformat ascii 1.0\nelement vertex %d\nproperty float x\nproperty float y\nproperty float z" % len(v))
+print("element face %d\nproperty list uchar int vertex_indices\nend_header" % len(f))
+for p in v: print("%.6f %.6f %.6f" % p)
+for t in f: print("3 %d %d %d" % t)
+PY
+
 valid() {  # NAME INPUT [convert options...]
   local name="$1" input="$2"
   shift 2
@@ -85,6 +107,15 @@ valid properties_1bit "$tmp/props.ply" --bits 1
 "$psq" convert - - --to psq --bits 10 < "$data/spider.ply" > spider_pipe.psq
 "$psq" dump spider_pipe.psq -o spider_pipe.dump
 echo "valid spider_pipe.psq $(sha256sum < spider_pipe.dump | cut -d' ' -f1)" >> MANIFEST
+
+# Far gates of every kind (spec 6.2.1): the converter grows one region at a
+# time, so psq_interleave (codec/tools/interleave.cpp) interleaves the
+# records of 20 copies of the sphere instead; the stream names far gates by
+# recency rank, by departure point and offset, and by raw slot.
+"$psq" convert "$tmp/sphere.ply" "$tmp/sphere.psq" -q --lossless
+"$(dirname "$psq")/psq_interleave" "$tmp/sphere.psq" far_gates.psq --copies 20 --seed 5 --bits 12 > /dev/null
+"$psq" dump far_gates.psq -o far_gates.dump
+echo "valid far_gates.psq $(sha256sum < far_gates.dump | cut -d' ' -f1)" >> MANIFEST
 
 invalid() {  # NAME CODE OFFSET (the file is already written)
   echo "invalid $1.psq $2 $3" >> MANIFEST

@@ -159,7 +159,11 @@ int cmd_info(int argc, char** argv) {
            ", \"connectivity_bits_per_vertex\": " + json_number(p.connectivity_bits / nv) +
            ", \"geometry_bits_per_vertex\": " + json_number(p.geometry_bits / nv) +
            ", \"property_bits_per_vertex\": " + json_number(8.0 * p.property_bytes / nv) +
-           ", \"overhead_bits_per_vertex\": " + json_number(8.0 * (p.header_bytes + p.chunk_overhead_bytes) / nv) + "},\n";
+           ", \"overhead_bits_per_vertex\": " + json_number(8.0 * (p.header_bytes + p.chunk_overhead_bytes) / nv) +
+           ", \"gates\": {\"offset_0\": " + std::to_string(p.gates[0]) + ", \"offset\": " + std::to_string(p.gates[1]) +
+           ", \"far_rank\": " + std::to_string(p.far_gates[0]) + ", \"far_resume\": " + std::to_string(p.far_gates[1]) +
+           ", \"far_raw\": " + std::to_string(p.far_gates[2]) + ", \"start_or_isolated\": " + std::to_string(p.gates[3]) +
+           "}},\n";
     }
     o += "  \"notes\": [";
     for (size_t i = 0; i < rep.notes.size(); ++i) o += (i ? ", \"" : "\"") + json_escape(rep.notes[i]) + "\"";
@@ -213,6 +217,11 @@ int cmd_info(int argc, char** argv) {
       std::printf("  geometry             %.3f bits/vertex\n", p.geometry_bits / nv);
       std::printf("  properties           %.3f bits/vertex\n", 8.0 * p.property_bytes / nv);
       std::printf("  framing              %.3f bits/vertex\n", 8.0 * (p.header_bytes + p.chunk_overhead_bytes) / nv);
+      auto u = [](uint64_t v) { return static_cast<unsigned long long>(v); };
+      std::printf("gates                  offset 0 %llu, offset %llu, far %llu (rank %llu, resume %llu, raw %llu), "
+                  "start or isolated %llu\n",
+                  u(p.gates[0]), u(p.gates[1]), u(p.gates[2]), u(p.far_gates[0]), u(p.far_gates[1]), u(p.far_gates[2]),
+                  u(p.gates[3]));
     }
     for (const std::string& n : rep.notes) std::printf("note                   %s\n", n.c_str());
   }

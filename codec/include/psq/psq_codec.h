@@ -104,9 +104,9 @@ struct PsqStats {
   double geometry_bits = 0;
   uint32_t max_active_vertices = 0;
   uint32_t max_open_edges = 0;
-  // Gate symbols by kind: offset 0, other offsets, far, start (diagnostics,
-  // encoder only); far gates by how they are named: recency rank,
-  // departure point and offset, raw slot (spec 6.2.1).
+  // Records by gate symbol (spec 6.2.1): offset 0, other offsets, far, and
+  // start or isolated vertex; far gates by how they are named: recency
+  // rank, departure point and offset, raw slot (diagnostics: `psq info`).
   uint64_t gates[4] = {0, 0, 0, 0};
   uint64_t far_gates[3] = {0, 0, 0};
 };
