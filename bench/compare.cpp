@@ -951,6 +951,34 @@ std::string json_mesh(const BenchMesh& mesh, const std::vector<Result>& results)
   return s + "     ]}";
 }
 
+// --once PHASE: one encode or one decode per codec and mesh, in this
+// process, untimed, for an instruction counter (bench/instructions.sh runs
+// callgrind collecting inside once_operation only). Encode starts where
+// the timed runs start (after `prepare`); decode gets the bytes of an
+// encode done before. Not inlined, so that its name marks the operation.
+__attribute__((noinline)) Status once_operation(const std::function<Status()>& op) { return op(); }
+
+int run_once(const std::string& phase, const Codec& codec, const BenchMesh& mesh) {
+  std::function<Status(Bytes*)> encode = [&](Bytes* o) { return codec.encode(mesh, o); };
+  Status s;
+  if (codec.prepare) s = codec.prepare(mesh, &encode);
+  Bytes bytes;
+  DecodedCounts counts;
+  if (s.ok() && phase == "encode") s = once_operation([&] { return encode(&bytes); });
+  if (s.ok() && phase == "decode") {
+    s = encode(&bytes);
+    if (s.ok()) s = once_operation([&] { return codec.decode(bytes, &counts); });
+    if (s.ok() && counts.triangles != mesh.triangles()) s = Status(ErrorCode::kInternal, "decoded triangle count differs");
+  }
+  if (!s.ok()) {
+    std::fprintf(stderr, "psq_bench_compare: %s: %s: %s\n", mesh.name.c_str(), codec.name.c_str(), s.to_string().c_str());
+    return 1;
+  }
+  std::printf("once %s %s %s triangles %llu bytes %zu\n", phase.c_str(), mesh.name.c_str(), codec.name.c_str(),
+              static_cast<unsigned long long>(mesh.triangles()), bytes.size());
+  return 0;
+}
+
 // ---------------------------------------------------------------- the tool
 
 const char kUsage[] =
@@ -962,6 +990,8 @@ const char kUsage[] =
     "  --codecs A,B     only the codecs whose name contains one of these strings\n"
     "  --ref CODEC      add a column: bytes relative to CODEC\n"
     "  --list           print the codec names and exit\n"
+    "  --once PHASE     encode or decode once per codec and mesh, in process and untimed\n"
+    "                   (for instruction counts: bench/instructions.sh)\n"
     "  -q               no progress on stderr\n";
 
 bool has_mesh_extension(const std::string& name) {
@@ -1000,7 +1030,7 @@ std::string base_name(const std::string& path) {
 
 int main(int argc, char** argv) {
   int runs = 5;
-  std::string json_path, ref, filter;
+  std::string json_path, ref, filter, once;
   bool list = false, quiet = false;
   std::vector<std::string> args;
   for (int i = 1; i < argc; ++i) {
@@ -1024,6 +1054,12 @@ int main(int argc, char** argv) {
       filter = value("--codecs");
     } else if (a == "--ref") {
       ref = value("--ref");
+    } else if (a == "--once") {
+      once = value("--once");
+      if (once != "encode" && once != "decode") {
+        std::fprintf(stderr, "psq_bench_compare: --once takes encode or decode\n");
+        return 2;
+      }
     } else if (a == "--list") {
       list = true;
     } else if (a == "-q") {
@@ -1088,6 +1124,21 @@ int main(int argc, char** argv) {
   }
 
   meshopt_encodeIndexVersion(1);
+  if (!once.empty()) {
+    int failures = 0;
+    for (const std::string& path : inputs) {
+      BenchMesh mesh;
+      mesh.name = base_name(path);
+      const Status s = load_mesh(path, &mesh);
+      if (!s.ok()) {
+        std::fprintf(stderr, "psq_bench_compare: %s: %s\n", path.c_str(), s.to_string().c_str());
+        ++failures;
+        continue;
+      }
+      for (const Codec& codec : codecs) failures += run_once(once, codec, mesh);
+    }
+    return failures ? 1 : 0;
+  }
   std::printf("Draco %s, zstd %s, meshoptimizer %d.%d. Medians of %d runs; peak memory is the\n"
               "child's ru_maxrss minus its RSS at fork (what the codec added to the mesh in memory).\n\n",
               draco::kDracoVersion, ZSTD_versionString(), MESHOPTIMIZER_VERSION / 1000,
