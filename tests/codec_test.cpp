@@ -560,7 +560,10 @@ TEST(CodecHostile, BadHeaders) {
   b[0] = 'X';
   EXPECT_EQ(decode_all(b).code(), ErrorCode::kUnknownFormat);
   b = bytes;
-  b[8] = 5;  // a later major version
+  b[8] = 6;  // a later major version
+  EXPECT_EQ(decode_all(b).code(), ErrorCode::kUnsupported);
+  b = bytes;
+  b[8] = 4;  // format 4.0, which coded with other binarizations (spec 11)
   EXPECT_EQ(decode_all(b).code(), ErrorCode::kUnsupported);
   b = bytes;
   b[8] = 1;  // format 1.0, which coded with other models (spec 11)

@@ -16,8 +16,6 @@ Models::Models(bool priors) {
   for (auto& m : far) m = SymbolModel(kFarBits);
   resume_index = SymbolModel(kResumeIndexBits);
   resume_offset = SymbolModel(kResumeOffsetBits);
-  for (auto& shape : third)
-    for (auto& m : shape) m = SymbolModel(2);
   if (!priors) return;
   // Spec 6.2.7: p0 = 256 v, n = 2 for each byte v of the table.
   size_t i = 0;
@@ -26,25 +24,41 @@ Models::Models(bool priors) {
     b.n = 2;
   });
   for (auto& axis : residual[kPredParallelogram])
-    for (int c = 0; c < kLengthContexts; ++c) init_length_prior(axis[c].length, c);
+    for (int c = 0; c < kLengthContexts; ++c) init_length_prior(axis[c], c);
 }
 
-void init_length_prior(SymbolModel& length, int c) {
-  const int bits = length.bits();  // 7: lengths 0..127, of which 0..64 occur
-  const int leaves = 1 << bits;
-  const int mu = 3 * c / 4;
+namespace {
+// Sets the nodes of `tree` from the weights of its leaves (spec 7.4.1).
+void init_tree(SymbolModel& tree, const std::vector<uint64_t>& leaf) {
+  const int leaves = 1 << tree.bits();
   // Subtree weights, heap-ordered like the tree: node i has children 2i
-  // and 2i + 1, leaf k is node leaves + k. At most 65 leaves of 2^24:
-  // below 2^31, and below 2^47 after the shift by 16.
+  // and 2i + 1, leaf j is node leaves + j. At most 65 lengths of at most
+  // 2^24: below 2^31, and below 2^47 after the shift by 16.
   std::vector<uint64_t> w(2 * leaves, 0);
-  for (int k = 0; k <= 64 && k < leaves; ++k) w[leaves + k] = uint64_t{1} << (24 - std::min(24, std::abs(k - mu)));
+  for (int j = 0; j < leaves; ++j) w[leaves + j] = leaf[j];
   for (int i = leaves - 1; i >= 1; --i) w[i] = w[2 * i] + w[2 * i + 1];
-  BitModel* tree = length.tree();
+  BitModel* node = tree.tree();
   for (int i = 1; i < leaves; ++i) {
     uint64_t p0 = w[i] == 0 ? 32768 : (w[2 * i] << 16) / w[i];
-    tree[i].p0 = static_cast<uint16_t>(std::min<uint64_t>(std::max<uint64_t>(p0, 32), 65504));
-    tree[i].n = 2;
+    node[i].p0 = static_cast<uint16_t>(std::min<uint64_t>(std::max<uint64_t>(p0, 32), 65504));
+    node[i].n = 2;
   }
+}
+}  // namespace
+
+void init_length_prior(ResidualModel& m, int c) {
+  const int mu = 3 * c / 4;
+  auto weight = [mu](int k) { return uint64_t{1} << (24 - std::min(24, std::abs(k - mu))); };
+  std::vector<uint64_t> length(16, 0), escape(64, 0);
+  for (int k = 0; k <= 64; ++k) {
+    if (k < static_cast<int>(kLengthEscape)) length[k] = weight(k);
+    else {
+      length[kLengthEscape] += weight(k);
+      escape[k - kLengthEscape] = weight(k);
+    }
+  }
+  init_tree(m.length, length);
+  init_tree(m.escape, escape);
 }
 
 double bit_cost(uint32_t p12) {

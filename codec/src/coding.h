@@ -22,6 +22,10 @@ constexpr int kMaxOffset = 6;                        // offsets -6..+6
 constexpr uint32_t kGateFar = 2 * kMaxOffset + 1;    // 13: an explicit edge slot
 constexpr uint32_t kGateStart = kGateFar + 1;        // 14: a start triangle
 constexpr uint32_t kGateIsolated = kGateFar + 2;     // 15: an isolated vertex
+// Binarization (spec 6.2.1): a decision "not 0" with gate_zero, then
+// "not 1" with gate_one, then the symbol minus 2 (0..13; 14 and 15 are
+// invalid) as a 4-bit tree with gate: the usual offset 0 costs one
+// decision instead of four.
 constexpr int kGateBits = 4;
 // A far gate (spec 6.2.1): its recency rank 0..13; 14, a departure point
 // and an offset from it; or 15 followed by the gate's raw edge slot. Two
@@ -53,11 +57,15 @@ constexpr int kShapeContexts = 5;
 constexpr int kPredParallelogram = 0;
 constexpr int kPredOther = 1;
 
-// Signed 64-bit residual (spec 7.4): bit length 0..64, sign, the bit below
-// the leading one (adaptive, by length), then the rest raw.
+// Signed 64-bit residual (spec 5.6): the bit length 0..64 as min(k, 15) in
+// a 4-bit tree and, from 15 on, k - 15 in a 6-bit escape tree; the bit
+// below the leading one (adaptive, by length); then the sign and the bits
+// below as one raw value (the sign of a prediction's error is a fair coin:
+// an adaptive model of it only added its learning cost).
+constexpr uint32_t kLengthEscape = 15;
 struct ResidualModel {
-  SymbolModel length{7};
-  BitModel sign;
+  SymbolModel length{4};
+  SymbolModel escape{6};
   BitModel second[65];
 };
 
@@ -92,11 +100,15 @@ inline int triangle_extent(const int64_t* a, const int64_t* b, const int64_t* c,
 }
 
 struct Models {
-  SymbolModel gate[kGateContexts];
+  BitModel gate_zero[kGateContexts];  // gate symbol is not 0 (spec 6.2.1)
+  BitModel gate_one[kGateContexts];   // ... nor 1
+  SymbolModel gate[kGateContexts];    // the symbol minus 2
   SymbolModel far[2];         // [reference edge is NONE]: how a far gate is named
   SymbolModel resume_index;   // a far gate's departure point
   SymbolModel resume_offset;  // its offset from that point
-  SymbolModel third[kShapeContexts][kThirdContexts];  // [shape (6.2.2)][degrees]
+  // [shape (6.2.2)][degrees][node]: node 0 "not new", node 1 "not left",
+  // node 2 "join, not right" (spec 6.2.2).
+  BitModel third[kShapeContexts][kThirdContexts][3];
   BitModel border[2][3][3];   // [start?][edge k][endpoints that touch a border edge]
   BitModel cut[2];            // [start?]: a border edge is a non-manifold cut
   BitModel swap;              // start: corner 2 was introduced before corner 1
@@ -108,42 +120,48 @@ struct Models {
 
   // With `priors` (always, except in the prior-training tool), the models
   // of for_each_prior_model() start from the trained state of spec 6.2.7
-  // and the parallelogram length trees from the prior of 7.4.1; without,
+  // and the parallelogram length and escape trees from the prior of 7.4.1; without,
   // every model starts at p0 = 1/2, n = 0.
   explicit Models(bool priors = true);
 };
 
 // Calls f(BitModel&) on each node of the connectivity models that have a
-// trained initial state (spec 6.2.7), in the order of its table: the gate
-// trees gate[0..17], the far-gate trees far[0..1], resume_index and
-// resume_offset, the third-vertex trees
-// third[0..4][0..35] (each tree's nodes 1, 2, 3, ... in heap order), then
-// the border bits border[0..1][0..2][0..2].
+// trained initial state (spec 6.2.7), in the order of its table: for each
+// gate context 0..17, gate_zero, gate_one and the nodes of the gate tree;
+// the far-gate trees far[0..1], resume_index and resume_offset (each
+// tree's nodes 1, 2, 3, ... in heap order); the third-vertex nodes
+// third[0..4][0..35][0..2]; then the border bits border[0..1][0..2][0..2].
 template <class M, class F>
 void for_each_prior_model(M& m, F f) {
   auto tree = [&](auto& s) {
     for (int i = 1; i < (1 << s.bits()); ++i) f(s.tree()[i]);
   };
-  for (auto& s : m.gate) tree(s);
+  for (int c = 0; c < kGateContexts; ++c) {
+    f(m.gate_zero[c]);
+    f(m.gate_one[c]);
+    tree(m.gate[c]);
+  }
   for (auto& s : m.far) tree(s);
   tree(m.resume_index);
   tree(m.resume_offset);
   for (auto& shape : m.third)
-    for (auto& s : shape) tree(s);
+    for (auto& d : shape)
+      for (auto& b : d) f(b);
   for (auto& start : m.border)
     for (auto& edge : start)
       for (auto& b : edge) f(b);
 }
 
-// Spec 7.4.1: the initial state of the bit-length tree of a parallelogram
-// residual model with length context `c`. Its leaves get the weights
-// 2^(24 - min(24, |k - mu|)) for lengths k <= 64 and 0 above, with
-// mu = floor(3c / 4); each node's p0 is the share of its 0-subtree in its
-// weight, and its count n starts at 2. The typical length grows with the
-// context (about 3c/4 on the shared meshes); starting there instead of at
-// one half saves the models' learning, which is most of a small mesh's
-// overhead (1 to 3% of it).
-void init_length_prior(SymbolModel& length, int c);
+// Spec 7.4.1: the initial state of the length and escape trees of a
+// parallelogram residual model with length context `c`. Each length k
+// <= 64 gets the weight 2^(24 - min(24, |k - mu|)), with mu = floor(3c / 4);
+// leaf 15 of the length tree weighs all lengths from 15 on, leaf e of the
+// escape tree the length 15 + e (0 above 64); each node's p0 is the share
+// of its 0-subtree in its weight, and its count n starts at 2. The typical
+// length grows with the context (about 3c/4 on the shared meshes);
+// starting there instead of at one half saves the models' learning, which
+// is most of a small mesh's overhead (1 to 3% of it).
+void init_length_prior(ResidualModel& m, int c);
 
 // The context of the third-vertex symbol: the triangles already around the
 // gate's endpoints p and q (spec 6.2.2).
@@ -199,6 +217,22 @@ class Encoder {
       node = (node << 1) | static_cast<uint32_t>(b);
     }
   }
+  // The gate symbol g (0..15) in context ctx (spec 6.2.1).
+  void gate(Models& m, int ctx, uint32_t g) {
+    bit(m.gate_zero[ctx], g != 0, kCostConnectivity);
+    if (g == 0) return;
+    bit(m.gate_one[ctx], g != 1, kCostConnectivity);
+    if (g == 1) return;
+    symbol<kGateBits>(m.gate[ctx], g - 2, kCostConnectivity);
+  }
+  // The third-vertex symbol with the nodes of its context (spec 6.2.2).
+  void third(BitModel* node, uint32_t t) {
+    bit(node[0], t != kThirdNew, kCostConnectivity);
+    if (t == kThirdNew) return;
+    bit(node[1], t != kThirdLeft, kCostConnectivity);
+    if (t == kThirdLeft) return;
+    bit(node[2], t == kThirdJoin, kCostConnectivity);
+  }
   void raw(uint64_t v, int bits, Cost c) {
     if (cost_) cost_[c] += bits;
     if (bits > 32) {
@@ -211,13 +245,19 @@ class Encoder {
   int residual(ResidualModel& m, int64_t r, Cost c) {
     uint64_t mag = r < 0 ? 0 - static_cast<uint64_t>(r) : static_cast<uint64_t>(r);
     int k = mag == 0 ? 0 : 64 - __builtin_clzll(mag);
-    symbol<7>(m.length, static_cast<uint32_t>(k), c);
-    if (k == 0) return 0;
-    bit(m.sign, r < 0 ? 1 : 0, c);
-    if (k >= 2) {
-      bit(m.second[k], static_cast<int>((mag >> (k - 2)) & 1), c);
-      raw(mag & ((uint64_t{1} << (k - 2)) - 1), k - 2, c);
+    if (k < static_cast<int>(kLengthEscape)) {
+      symbol<4>(m.length, static_cast<uint32_t>(k), c);
+    } else {
+      symbol<4>(m.length, kLengthEscape, c);
+      symbol<6>(m.escape, static_cast<uint32_t>(k) - kLengthEscape, c);
     }
+    if (k == 0) return 0;
+    if (k >= 2) bit(m.second[k], static_cast<int>((mag >> (k - 2)) & 1), c);
+    // One raw value: the sign above the k - 2 bits below the second bit
+    // (none for k = 1).
+    const int low_bits = k >= 2 ? k - 2 : 0;
+    const uint64_t low = mag & ((uint64_t{1} << low_bits) - 1);
+    raw((static_cast<uint64_t>(r < 0) << low_bits) | low, low_bits + 1, c);
     return k;
   }
 
@@ -257,6 +297,19 @@ class BasicDecoder {
     for (int i = 0; i < kBits; ++i) node = (node << 1) | static_cast<uint32_t>(bit(tree[node], c));
     return node - (1u << kBits);
   }
+  // The gate symbol in context ctx (spec 6.2.1): 0..15, or 16 and 17 for
+  // the tree's two invalid symbols (a corrupt stream).
+  uint32_t gate(Models& m, int ctx) {
+    if (!bit(m.gate_zero[ctx], kCostConnectivity)) return 0;
+    if (!bit(m.gate_one[ctx], kCostConnectivity)) return 1;
+    return symbol<kGateBits>(m.gate[ctx], kCostConnectivity) + 2;
+  }
+  // The third-vertex symbol with the nodes of its context (spec 6.2.2).
+  uint32_t third(BitModel* node) {
+    if (!bit(node[0], kCostConnectivity)) return kThirdNew;
+    if (!bit(node[1], kCostConnectivity)) return kThirdLeft;
+    return bit(node[2], kCostConnectivity) ? kThirdJoin : kThirdRight;
+  }
   uint64_t raw(int bits, Cost c) {
     if (kMeasure) cost_[c] += bits;
     uint64_t v = 0;
@@ -268,19 +321,20 @@ class BasicDecoder {
   }
   // Returns false on a length above 64 (a corrupt stream); sets *length.
   bool residual(ResidualModel& m, int64_t* r, int* length, Cost c) {
-    uint32_t k = symbol<7>(m.length, c);
+    uint32_t k = symbol<4>(m.length, c);
+    if (k == kLengthEscape) k += symbol<6>(m.escape, c);
     *length = static_cast<int>(k);
     if (k == 0) {
       *r = 0;
       return true;
     }
     if (k > 64) return false;
-    int negative = bit(m.sign, c);
     uint64_t mag = uint64_t{1} << (k - 1);
-    if (k >= 2) {
-      mag |= static_cast<uint64_t>(bit(m.second[k], c)) << (k - 2);
-      mag |= raw(static_cast<int>(k - 2), c);
-    }
+    if (k >= 2) mag |= static_cast<uint64_t>(bit(m.second[k], c)) << (k - 2);
+    const int low_bits = k >= 2 ? static_cast<int>(k) - 2 : 0;
+    const uint64_t v = raw(low_bits + 1, c);
+    const int negative = static_cast<int>(v >> low_bits);
+    mag |= v & ((uint64_t{1} << low_bits) - 1);
     *r = negative ? static_cast<int64_t>(0 - mag) : static_cast<int64_t>(mag);
     if (!negative && static_cast<int64_t>(mag) < 0) return false;  // 2^63 is not a positive int64
     return true;

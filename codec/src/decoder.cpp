@@ -143,7 +143,7 @@ Status PsqDecoder::Impl::open(InputStream* stream) {
   uint16_t flags = get.u16();
   if (header.version_major != kVersionMajor)
     return Status(ErrorCode::kUnsupported, "format version " + std::to_string(header.version_major) + "." +
-                                               std::to_string(header.version_minor) + "; this psq reads 4.x", 8);
+                                               std::to_string(header.version_minor) + "; this psq reads 5.x", 8);
   if (flags & ~kKnownFlags)
     return Status(ErrorCode::kUnsupported, "unknown header flags (value " + std::to_string(flags & ~kKnownFlags) + ")", 10);
   uint64_t length = 0;
@@ -313,7 +313,8 @@ template <class Dec>
 Status PsqDecoder::Impl::decode_record(Dec& dec) {
   const uint32_t R = boundary.reference();
   const int ctx = gate_context(R, last_op, last_gate);
-  const uint32_t g_sym = dec.template symbol<kGateBits>(models.gate[ctx], kCostConnectivity);
+  const uint32_t g_sym = dec.gate(models, ctx);
+  if (g_sym > kGateIsolated) return corrupt("gate symbol " + std::to_string(g_sym));
   last_gate = g_sym;
   ++stats.gates[g_sym == 0 ? 0 : g_sym < kGateFar ? 1 : g_sym == kGateFar ? 2 : 3];
   if (g_sym == kGateIsolated) {
@@ -373,9 +374,8 @@ Status PsqDecoder::Impl::decode_record(Dec& dec) {
     const BEdge& g = boundary.edge(gate);
     const uint32_t p = g.org, q = g.dst;
     const uint32_t third =
-        dec.template symbol<2>(models.third[third_shape_context(boundary, gate)]
-                               [third_context(boundary.vertex(p).degree, boundary.vertex(q).degree)],
-                   kCostConnectivity);
+        dec.third(models.third[third_shape_context(boundary, gate)]
+                              [third_context(boundary.vertex(p).degree, boundary.vertex(q).degree)]);
     uint32_t x = kNone;
     if (third == kThirdLeft) {
       if (g.prev == kNone) return corrupt("no boundary edge before the gate");

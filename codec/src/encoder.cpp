@@ -383,7 +383,7 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
   bt.gate = gate;
   const int r = (3 - rot) % 3;  // spec 6.2.3: output corner j is canonical corner (j + r) % 3
 
-  enc.symbol<kGateBits>(models.gate[ctx], gate_sym, kCostConnectivity);
+  enc.gate(models, ctx, gate_sym);
   last_gate = gate_sym;
   stats.gates[gate_sym == 0 ? 0 : gate_sym < kGateFar ? 1 : gate_sym == kGateFar ? 2 : 3]++;
   uint32_t intro[3];  // canonical corners in the order their vertices are introduced
@@ -417,8 +417,7 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
     }
     const BVertex& vp = boundary.vertex(p);
     const BVertex& vq = boundary.vertex(q);
-    enc.symbol<2>(models.third[third_shape_context(boundary, gate)][third_context(vp.degree, vq.degree)], third,
-               kCostConnectivity);
+    enc.third(models.third[third_shape_context(boundary, gate)][third_context(vp.degree, vq.degree)], third);
     if (third == kThirdJoin) {
       // Spec 6.2.2: an open edge at x names it and the gap the triangle
       // goes into: its first edge leaving x, else its first entering x.
@@ -512,7 +511,7 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
 Status PsqEncoder::Impl::isolated(size_t at) {
   Encoder enc(rc.get(), opt.measure_costs ? cost : nullptr);
   const int ctx = gate_context(boundary.reference(), last_op, last_gate);
-  enc.symbol<kGateBits>(models.gate[ctx], kGateIsolated, kCostConnectivity);
+  enc.gate(models, ctx, kGateIsolated);
   last_gate = kGateIsolated;
   stats.gates[3]++;
   PendingVertex v = std::move(pending[at]);

@@ -94,7 +94,7 @@ int main(int argc, char** argv) {
     }
     md << "\n";
   };
-  for (int c = 0; c < codec::kGateContexts; ++c) row("gate[" + std::to_string(c) + "]", 15);
+  for (int c = 0; c < codec::kGateContexts; ++c) row("gate[" + std::to_string(c) + "]", 17);
   for (int c = 0; c < 2; ++c) row("far[" + std::to_string(c) + "]", 15);
   row("resume_index", 15);
   row("resume_offset", 31);
