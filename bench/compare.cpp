@@ -1124,25 +1124,11 @@ int main(int argc, char** argv) {
   }
 
   meshopt_encodeIndexVersion(1);
-  if (!once.empty()) {
-    int failures = 0;
-    for (const std::string& path : inputs) {
-      BenchMesh mesh;
-      mesh.name = base_name(path);
-      const Status s = load_mesh(path, &mesh);
-      if (!s.ok()) {
-        std::fprintf(stderr, "psq_bench_compare: %s: %s\n", path.c_str(), s.to_string().c_str());
-        ++failures;
-        continue;
-      }
-      for (const Codec& codec : codecs) failures += run_once(once, codec, mesh);
-    }
-    return failures ? 1 : 0;
-  }
-  std::printf("Draco %s, zstd %s, meshoptimizer %d.%d. Medians of %d runs; peak memory is the\n"
-              "child's ru_maxrss minus its RSS at fork (what the codec added to the mesh in memory).\n\n",
-              draco::kDracoVersion, ZSTD_versionString(), MESHOPTIMIZER_VERSION / 1000,
-              MESHOPTIMIZER_VERSION / 10 % 100, runs);
+  if (once.empty())
+    std::printf("Draco %s, zstd %s, meshoptimizer %d.%d. Medians of %d runs; peak memory is the\n"
+                "child's ru_maxrss minus its RSS at fork (what the codec added to the mesh in memory).\n\n",
+                draco::kDracoVersion, ZSTD_versionString(), MESHOPTIMIZER_VERSION / 1000,
+                MESHOPTIMIZER_VERSION / 10 % 100, runs);
 
   int failures = 0;
   std::vector<std::string> json_meshes;
@@ -1153,6 +1139,10 @@ int main(int argc, char** argv) {
     if (!s.ok()) {
       std::fprintf(stderr, "psq_bench_compare: %s: %s\n", path.c_str(), s.to_string().c_str());
       ++failures;
+      continue;
+    }
+    if (!once.empty()) {
+      for (const Codec& codec : codecs) failures += run_once(once, codec, mesh);
       continue;
     }
     std::vector<Result> results;
@@ -1168,6 +1158,7 @@ int main(int argc, char** argv) {
     print_table(mesh, results, ref);
     if (!json_path.empty()) json_meshes.push_back(json_mesh(mesh, results));
   }
+  if (!once.empty()) return failures ? 1 : 0;
 
   if (!json_path.empty()) {
     std::FILE* f = std::fopen(json_path.c_str(), "w");
