@@ -43,6 +43,12 @@ inline int gate_context(uint32_t reference, int last_op, uint32_t last_gate) {
   return op * 3 + (last_gate < 2 ? static_cast<int>(last_gate) : 2);
 }
 
+// PsqStats::gates and far_gates (diagnostics): the kind of a gate symbol
+// (offset 0, other offset, far, start or isolated) and of a far symbol
+// (recency rank, departure point, raw slot).
+inline int gate_kind(uint32_t gate) { return gate == 0 ? 0 : gate < kGateFar ? 1 : gate == kGateFar ? 2 : 3; }
+inline int far_kind(uint32_t far) { return far < kFarResume ? 0 : far == kFarResume ? 1 : 2; }
+
 // Third-vertex symbols (spec 6.2.2).
 constexpr uint32_t kThirdNew = 0;    // add
 constexpr uint32_t kThirdLeft = 1;   // the vertex before the gate
@@ -197,16 +203,8 @@ class Encoder {
     if (cost_) add_cost(m, b, c);
     rc_->encode_bit(m, b);
   }
-  void symbol(SymbolModel& m, uint32_t s, Cost c) {
-    BitModel* tree = m.tree();
-    uint32_t node = 1;
-    for (int i = m.bits() - 1; i >= 0; --i) {
-      int b = static_cast<int>((s >> i) & 1u);
-      bit(tree[node], b, c);
-      node = (node << 1) | static_cast<uint32_t>(b);
-    }
-  }
-  // symbol() for a model of kBits bits, unrolled.
+  // A symbol of a model of kBits bits (kBits must be m.bits(); a template
+  // parameter, so that the tree's walk unrolls; spec 5.5).
   template <int kBits>
   PSQ_INLINE void symbol(SymbolModel& m, uint32_t s, Cost c) {
     BitModel* tree = m.tree();
@@ -282,14 +280,8 @@ class BasicDecoder {
     cost_[c] += bit_cost((b ? 65536u - p0 : p0) >> 4);
     return b;
   }
-  uint32_t symbol(SymbolModel& m, Cost c) {
-    BitModel* tree = m.tree();
-    const int bits = m.bits();  // local: bit() writes models, which would force reloads
-    uint32_t node = 1;
-    for (int i = 0; i < bits; ++i) node = (node << 1) | static_cast<uint32_t>(bit(tree[node], c));
-    return node - (1u << bits);
-  }
-  // symbol() for a model of kBits bits (checked by the caller's type), unrolled.
+  // A symbol of a model of kBits bits (kBits must be m.bits(); a template
+  // parameter, so that the tree's walk unrolls; spec 5.5).
   template <int kBits>
   uint32_t symbol(SymbolModel& m, Cost c) {
     BitModel* tree = m.tree();

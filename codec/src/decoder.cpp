@@ -316,7 +316,7 @@ Status PsqDecoder::Impl::decode_record(Dec& dec) {
   const uint32_t g_sym = dec.gate(models, ctx);
   if (g_sym > kGateIsolated) return corrupt("gate symbol " + std::to_string(g_sym));
   last_gate = g_sym;
-  ++stats.gates[g_sym == 0 ? 0 : g_sym < kGateFar ? 1 : g_sym == kGateFar ? 2 : 3];
+  ++stats.gates[gate_kind(g_sym)];
   if (g_sym == kGateIsolated) {
     SequenceEvent& ev = push();
     int64_t pos[3];
@@ -352,7 +352,7 @@ Status PsqDecoder::Impl::decode_record(Dec& dec) {
       if (gate == kNone) return corrupt("gate offset leaves the boundary");
     } else {
       const uint32_t far = dec.template symbol<kFarBits>(models.far[R == kNone], kCostConnectivity);
-      ++stats.far_gates[far < kFarResume ? 0 : far == kFarResume ? 1 : 2];
+      ++stats.far_gates[far_kind(far)];
       if (far < kFarResume) {
         gate = boundary.recent_edge(far);
         if (gate == kNone) return corrupt("far gate rank beyond the open edges");

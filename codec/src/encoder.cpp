@@ -385,7 +385,7 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
 
   enc.gate(models, ctx, gate_sym);
   last_gate = gate_sym;
-  stats.gates[gate_sym == 0 ? 0 : gate_sym < kGateFar ? 1 : gate_sym == kGateFar ? 2 : 3]++;
+  ++stats.gates[gate_kind(gate_sym)];
   uint32_t intro[3];  // canonical corners in the order their vertices are introduced
   int nintro = 0;
   if (nnew == 3) {
@@ -398,7 +398,7 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
   } else {
     if (gate_sym == kGateFar) {
       enc.symbol<kFarBits>(models.far[far_reference_none], far_name.far, kCostConnectivity);
-      stats.far_gates[far_name.far < kFarResume ? 0 : far_name.far == kFarResume ? 1 : 2]++;
+      ++stats.far_gates[far_kind(far_name.far)];
       if (far_name.far == kFarResume) {
         enc.symbol<kResumeIndexBits>(models.resume_index, far_name.index, kCostConnectivity);
         enc.symbol<kResumeOffsetBits>(models.resume_offset, far_name.offset, kCostConnectivity);
@@ -513,7 +513,7 @@ Status PsqEncoder::Impl::isolated(size_t at) {
   const int ctx = gate_context(boundary.reference(), last_op, last_gate);
   enc.gate(models, ctx, kGateIsolated);
   last_gate = kGateIsolated;
-  stats.gates[3]++;
+  ++stats.gates[gate_kind(kGateIsolated)];
   PendingVertex v = std::move(pending[at]);
   pending.erase(pending.begin() + static_cast<std::ptrdiff_t>(at));
   PSQ_RETURN_IF_ERROR(introduce(v));

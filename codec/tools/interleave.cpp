@@ -40,10 +40,16 @@ struct Records : psq::SequenceSink {
     schema = s;
     return psq::Status();
   }
-  void add(const psq::SequenceEvent& e) {
-    if (e.kind != psq::SequenceEvent::Kind::kFinalize && has_triangle) close();
-    open.push_back(e);
-    has_triangle = has_triangle || e.kind == psq::SequenceEvent::Kind::kTriangle;
+  using Kind = psq::SequenceEvent::Kind;
+  // Appends an event of `kind` to the open record and returns it to be
+  // filled in; a vertex or a triangle after the record's triangle starts
+  // the next record.
+  psq::SequenceEvent& add(Kind kind) {
+    if (kind != Kind::kFinalize && has_triangle) close();
+    has_triangle = has_triangle || kind == Kind::kTriangle;
+    open.emplace_back();
+    open.back().kind = kind;
+    return open.back();
   }
   void close() {
     records.push_back(std::move(open));
@@ -51,24 +57,15 @@ struct Records : psq::SequenceSink {
     has_triangle = false;
   }
   psq::Status vertex(const psq::SequenceVertex& v) override {
-    psq::SequenceEvent e;
-    e.kind = psq::SequenceEvent::Kind::kVertex;
-    e.vertex = v;
-    add(e);
+    add(Kind::kVertex).vertex = v;
     return psq::Status();
   }
   psq::Status triangle(const psq::SequenceTriangle& t) override {
-    psq::SequenceEvent e;
-    e.kind = psq::SequenceEvent::Kind::kTriangle;
-    e.triangle = t;
-    add(e);
+    add(Kind::kTriangle).triangle = t;
     return psq::Status();
   }
   psq::Status finalize(uint32_t index) override {
-    psq::SequenceEvent e;
-    e.kind = psq::SequenceEvent::Kind::kFinalize;
-    e.finalized = index;
-    add(e);
+    add(Kind::kFinalize).finalized = index;
     return psq::Status();
   }
   psq::Status finish() override {
