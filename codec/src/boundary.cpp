@@ -22,9 +22,11 @@ uint32_t Boundary::new_vertex(uint32_t index, uint32_t key, const int64_t pos[3]
     vlive_.push_back(0);
   }
   BVertex& v = vertices_[slot];
-  v = BVertex();
+  // Every field but the unused inline dead entries.
   v.index = index;
   v.key = key;
+  v.first_out = v.first_in = v.first_border = kNone;
+  v.open = v.degree = v.borders = v.ndead = 0;
   for (int i = 0; i < 3; ++i) v.pos[i] = pos[i];
   vlive_[slot] = 1;
   ++active_vertices_;
@@ -32,6 +34,9 @@ uint32_t Boundary::new_vertex(uint32_t index, uint32_t key, const int64_t pos[3]
 }
 
 bool Boundary::is_border(uint32_t a, uint32_t b) const {
+  const BVertex& va = vertices_[a];
+  for (uint32_t i = 0; i < va.ndead; ++i)
+    if (va.dead[i] == b) return true;
   for (uint32_t r = vertices_[a].first_border; r != kNone;) {
     const BBorder& e = borders_[r];
     const int side = e.v[0] == a ? 0 : 1;
@@ -42,6 +47,13 @@ bool Boundary::is_border(uint32_t a, uint32_t b) const {
 }
 
 void Boundary::add_border(uint32_t a, uint32_t b) {
+  BVertex& va = vertices_[a];
+  BVertex& vb = vertices_[b];
+  if (va.ndead < kInlineDead && vb.ndead < kInlineDead) {
+    va.dead[va.ndead++] = b;
+    vb.dead[vb.ndead++] = a;
+    return;
+  }
   uint32_t r;
   if (!free_borders_.empty()) {
     r = free_borders_.back();
@@ -60,6 +72,16 @@ void Boundary::add_border(uint32_t a, uint32_t b) {
 }
 
 void Boundary::free_vertex(uint32_t slot) {
+  // Forget its inline dead edges: remove it from each other endpoint's
+  // inline list (order within a list does not matter).
+  BVertex& v = vertices_[slot];
+  for (uint32_t i = 0; i < v.ndead; ++i) {
+    BVertex& o = vertices_[v.dead[i]];
+    uint32_t j = 0;
+    while (o.dead[j] != slot) ++j;
+    o.dead[j] = o.dead[--o.ndead];
+  }
+  v.ndead = 0;
   // Forget its border edges: unlink each from the other endpoint's list.
   for (uint32_t r = vertices_[slot].first_border; r != kNone;) {
     BBorder& e = borders_[r];
@@ -169,27 +191,63 @@ void Boundary::free_edge(uint32_t slot) {
 }
 
 bool Boundary::apply(BTriangle& t) {
-  // References to edges entering with this triangle, before they have slots.
-  constexpr uint32_t kNewBase = 0xfffffff0u;
+  // Entering edges take their slots first (a completed edge's slot is freed
+  // after them, so that no slot leaves and enters the boundary in one
+  // triangle, psq/sequence.h). Taking a free slot changes no open edge's
+  // links (next and prev are mutual, and freeing an edge clears its
+  // neighbours' links to it), so the links below still read the old ones.
+  uint32_t fresh[3] = {kNone, kNone, kNone};
+  for (int k = 0; k < 3; ++k) {
+    if (t.state[k] != EdgeState::kEnters) continue;
+    const uint32_t s = alloc_edge();
+    if (s == kNone) return false;
+    const uint32_t org = t.c[k], dst = t.c[k == 2 ? 0 : k + 1], opp = t.c[k == 0 ? 2 : k - 1];
+    BEdge& e = edges_[s];
+    e.org = org;
+    e.dst = dst;
+    const BVertex& o = vertices_[opp];
+    e.opp[0] = o.pos[0];
+    e.opp[1] = o.pos[1];
+    e.opp[2] = o.pos[2];
+    BVertex& vo = vertices_[org];
+    e.next_out = vo.first_out;
+    vo.first_out = s;
+    ++vo.open;
+    BVertex& vd = vertices_[dst];
+    e.next_in = vd.first_in;
+    vd.first_in = s;
+    ++vd.open;
+    fresh[k] = s;
+    t.eslot[k] = s;
+    e.age = entered_++;
+    recent_.push_back(Recent{s, e.age});
+  }
+  // Spec 6.1.2: the links at each corner k, between what precedes it (from
+  // its entering edge (k + 2) % 3) and what follows it (from its leaving
+  // edge k), computed from the old links; an edge this triangle completes
+  // links to nothing.
   auto is_completed = [&](uint32_t e) {
-    return e != kNone && e < kNewBase &&
-           (e == t.completes[0] || e == t.completes[1] || e == t.completes[2]);
+    return e != kNone && (e == t.completes[0] || e == t.completes[1] || e == t.completes[2]);
   };
-  // Spec 6.1.2: the links at each corner, computed from the old links.
+  auto before = [&](int a) {  // what precedes corner (a + 1) % 3 along its edge a
+    if (t.state[a] == EdgeState::kEnters) return fresh[a];
+    if (t.state[a] == EdgeState::kBorder) return kNone;
+    const uint32_t e = edges_[t.completes[a]].prev;
+    return is_completed(e) ? kNone : e;
+  };
+  auto after = [&](int b) {  // what follows corner b along its edge b
+    if (t.state[b] == EdgeState::kEnters) return fresh[b];
+    if (t.state[b] == EdgeState::kBorder) return kNone;
+    const uint32_t e = edges_[t.completes[b]].next;
+    return is_completed(e) ? kNone : e;
+  };
   uint32_t lp[4], lq[4];
   int nlinks = 0;
   for (int k = 0; k < 3; ++k) {
-    const int a = (k + 2) % 3;  // the triangle's edge entering corner k
-    const int b = k;            // the triangle's edge leaving corner k
-    uint32_t P = kNone, Q = kNone;
-    if (t.state[a] == EdgeState::kCompletes) P = edges_[t.completes[a]].prev;
-    else if (t.state[a] == EdgeState::kEnters) P = kNewBase + a;
-    if (t.state[b] == EdgeState::kCompletes) Q = edges_[t.completes[b]].next;
-    else if (t.state[b] == EdgeState::kEnters) Q = kNewBase + b;
-    if (is_completed(P)) P = kNone;
-    if (is_completed(Q)) Q = kNone;
-    if (t.state[a] != EdgeState::kCompletes && t.state[b] != EdgeState::kCompletes &&
-        !t.is_new[k] && t.join_edge != kNone) {
+    const int a = k == 0 ? 2 : k - 1;
+    const uint32_t P = before(a), Q = after(k);
+    if (t.join_edge != kNone && t.state[a] != EdgeState::kCompletes && t.state[k] != EdgeState::kCompletes &&
+        !t.is_new[k]) {
       // The triangle goes into the gap (gi, go) at an old vertex.
       const BEdge& j = edges_[t.join_edge];
       uint32_t gi, go;
@@ -203,38 +261,6 @@ bool Boundary::apply(BTriangle& t) {
       lp[nlinks] = P; lq[nlinks] = Q; ++nlinks;
     }
   }
-  uint32_t fresh[3] = {kNone, kNone, kNone};
-  reference_ = kNone;
-  for (int k = 0; k < 3; ++k) {
-    if (t.state[k] != EdgeState::kEnters) {
-      if (t.state[k] == EdgeState::kBorder) {
-        t.eslot[k] = kNone;
-        add_border(t.c[k], t.c[(k + 1) % 3]);
-        ++vertices_[t.c[k]].borders;
-        ++vertices_[t.c[(k + 1) % 3]].borders;
-      }
-      continue;
-    }
-    uint32_t s = alloc_edge();
-    if (s == kNone) return false;
-    BEdge& e = edges_[s];
-    e.org = t.c[k];
-    e.dst = t.c[(k + 1) % 3];
-    const BVertex& o = vertices_[t.c[(k + 2) % 3]];
-    for (int i = 0; i < 3; ++i) e.opp[i] = o.pos[i];
-    BVertex& vo = vertices_[e.org];
-    e.next_out = vo.first_out;
-    vo.first_out = s;
-    ++vo.open;
-    BVertex& vd = vertices_[e.dst];
-    e.next_in = vd.first_in;
-    vd.first_in = s;
-    ++vd.open;
-    fresh[k] = s;
-    t.eslot[k] = s;
-    e.age = entered_++;
-    recent_.push_back(Recent{s, e.age});
-  }
   // Keep the recency stack proportional to the boundary: drop every stale
   // entry once they outnumber the open edges (amortized O(1) per edge).
   if (recent_.size() > 2 * static_cast<size_t>(open_edges_) + 64) {
@@ -243,22 +269,22 @@ bool Boundary::apply(BTriangle& t) {
       if (current(r)) recent_[w++] = r;
     recent_.resize(w);
   }
-  // Completed edges are freed after the entering ones took their slots, so
-  // that no slot leaves and enters the boundary in one triangle (psq/sequence.h).
-  for (int k = 0; k < 3; ++k)
+  for (int k = 0; k < 3; ++k) {
+    const uint32_t u = t.c[k], w = t.c[k == 2 ? 0 : k + 1];
     if (t.state[k] == EdgeState::kCompletes) {
       t.eslot[k] = t.completes[k];
       free_edge(t.completes[k]);
-      add_border(t.c[k], t.c[(k + 1) % 3]);  // now used by two triangles: dead
+      add_border(u, w);  // now used by two triangles: dead
+    } else if (t.state[k] == EdgeState::kBorder) {
+      t.eslot[k] = kNone;
+      add_border(u, w);
+      ++vertices_[u].borders;
+      ++vertices_[w].borders;
     }
-  for (int i = 0; i < nlinks; ++i) {
-    uint32_t P = lp[i] >= kNewBase && lp[i] != kNone ? fresh[lp[i] - kNewBase] : lp[i];
-    uint32_t Q = lq[i] >= kNewBase && lq[i] != kNone ? fresh[lq[i] - kNewBase] : lq[i];
-    link(P, Q);
   }
-  static const int kOrder[3] = {1, 2, 0};
-  for (int k : kOrder)
-    if (fresh[k] != kNone) { reference_ = fresh[k]; break; }
+  for (int i = 0; i < nlinks; ++i) link(lp[i], lq[i]);
+  // The gate reference (spec 6.2.1): the first entering edge in edge order 1, 2, 0.
+  reference_ = fresh[1] != kNone ? fresh[1] : fresh[2] != kNone ? fresh[2] : fresh[0];
   for (int k = 0; k < 3; ++k) {
     BVertex& v = vertices_[t.c[k]];
     ++v.degree;

@@ -36,16 +36,24 @@ constexpr uint32_t kDepartures = 16;
 // ... at most this many steps along the loop away from it.
 constexpr int kMaxResumeOffset = 15;
 
+// Dead edges a vertex keeps inline before it links BBorder records.
+constexpr uint32_t kInlineDead = 5;
+
 struct BVertex {
   uint32_t index = 0;        // dense index in the sequence
   uint32_t key = 0;          // the encoder's input index (for its map)
   uint32_t first_out = kNone;  // open edges leaving it (through BEdge::next_out)
   uint32_t first_in = kNone;   // open edges entering it (through BEdge::next_in)
-  uint32_t first_border = kNone;  // dead edges touching it (through BBorder)
+  uint32_t first_border = kNone;  // dead edges touching it that did not fit inline (through BBorder)
   uint32_t open = 0;         // open edges touching it
   uint32_t degree = 0;       // triangles that used it so far
   uint32_t borders = 0;      // border edges touching it (context of spec 6.2.5)
   int64_t pos[3] = {0, 0, 0};  // coded coordinates (spec 7.1)
+  // Dead edges touching it, as the other endpoint's slot: the first few
+  // inline (an edge is inline at both endpoints or in BBorder records at
+  // both), since most active vertices have none to three.
+  uint32_t ndead = 0;
+  uint32_t dead[kInlineDead];
 };
 
 struct BEdge {
