@@ -37,7 +37,7 @@ bool Boundary::is_border(uint32_t a, uint32_t b) const {
   const BVertex& va = vertices_[a];
   for (uint32_t i = 0; i < va.ndead; ++i)
     if (va.dead[i] == b) return true;
-  for (uint32_t r = vertices_[a].first_border; r != kNone;) {
+  for (uint32_t r = va.first_border; r != kNone;) {
     const BBorder& e = borders_[r];
     const int side = e.v[0] == a ? 0 : 1;
     if (e.v[1 - side] == b) return true;

@@ -32,8 +32,9 @@ constexpr uint32_t kNone = 0xffffffffu;
 // a sweep-ordered input, and needless starts (each costs a join later) wait
 // until the triangles that continue the current regions had their chance.
 // Measured at 14 bits (with the arrival queues below): foam 1M 1,830,612 ->
-// 1,622,391 bytes, iso_ball_200k 396,158 -> 356,029, for 1 MB more memory;
-// 16384 gave 1,767,664 and 359,804. As a start delay alone (the
+// 1,622,391 bytes, iso_ball_200k 396,158 -> 356,029; peak memory of psq
+// convert 28.6 -> 29.7 MB on foam 1M, 64.4 -> 80.2 MiB on foam 50M (a
+// longer boundary too). 16384 gave 1,767,664 and 359,804. As a start delay alone (the
 // converter's rule until then), 256 gave 3992 starts on
 // iso_ball_200k_shuffled and 65536 gave 36, its component count.
 constexpr uint64_t kLookahead = 65536;
