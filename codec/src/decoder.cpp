@@ -443,24 +443,35 @@ Status PsqDecoder::Impl::decode_record(Dec& dec) {
   last_op = static_cast<int>(op);
 
   // The triangle in output order: output corner j is canonical (j + r) % 3.
+  static constexpr uint8_t kCorner[3][3] = {{0, 1, 2}, {1, 2, 0}, {2, 0, 1}};
+  const uint8_t* corner = kCorner[r];
   SequenceEvent& ev = push();
   ev.kind = SequenceEvent::Kind::kTriangle;
   SequenceTriangle& t = ev.triangle;
   t.op = op;
-  t.new_mask = t.final_mask = t.border_mask = t.nonmanifold_mask = t.leaving_mask = t.entering_mask = 0;
+  // The masks without a jump per corner (which corners are new, final or
+  // on a border varies from one triangle to the next).
+  uint32_t new_mask = 0, final_mask = 0, border_mask = 0, cut_mask = 0, leaving_mask = 0, entering_mask = 0;
   for (int j = 0; j < 3; ++j) {
-    const int k = static_cast<int>((j + r) % 3);
-    const BVertex& v = boundary.vertex(bt.c[k]);
-    t.v[j] = v.index;
-    t.vslot[j] = bt.c[k];
-    t.eslot[j] = bt.state[k] == EdgeState::kBorder ? kNoSlot : bt.eslot[k];
-    if (bt.is_new[k]) t.new_mask |= 1u << j;
-    if (bt.final[k]) t.final_mask |= 1u << j;
-    if (bt.state[k] == EdgeState::kBorder) t.border_mask |= 1u << j;
-    if (cut & (1u << k)) t.nonmanifold_mask |= 1u << j;
-    if (bt.state[k] == EdgeState::kCompletes) t.leaving_mask |= 1u << j;
-    if (bt.state[k] == EdgeState::kEnters) t.entering_mask |= 1u << j;
+    const int k = corner[j];
+    const uint32_t slot = bt.c[k];
+    const EdgeState state = bt.state[k];
+    t.v[j] = boundary.vertex(slot).index;
+    t.vslot[j] = slot;
+    t.eslot[j] = bt.eslot[k];  // kNone (kNoSlot) for a border: apply() sets it
+    new_mask |= static_cast<uint32_t>(bt.is_new[k]) << j;
+    final_mask |= static_cast<uint32_t>(bt.final[k]) << j;
+    border_mask |= static_cast<uint32_t>(state == EdgeState::kBorder) << j;
+    cut_mask |= ((cut >> k) & 1u) << j;
+    leaving_mask |= static_cast<uint32_t>(state == EdgeState::kCompletes) << j;
+    entering_mask |= static_cast<uint32_t>(state == EdgeState::kEnters) << j;
   }
+  t.new_mask = static_cast<uint8_t>(new_mask);
+  t.final_mask = static_cast<uint8_t>(final_mask);
+  t.border_mask = static_cast<uint8_t>(border_mask);
+  t.nonmanifold_mask = static_cast<uint8_t>(cut_mask);
+  t.leaving_mask = static_cast<uint8_t>(leaving_mask);
+  t.entering_mask = static_cast<uint8_t>(entering_mask);
   props->next_face(&t.values);
   ++seen_triangles;
   ++stats.triangles;
