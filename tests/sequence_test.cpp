@@ -152,6 +152,26 @@ TEST(Sequence, GridHasOneBorderLoop) {
   EXPECT_EQ(st.border_edges, 120u);
 }
 
+// A window of most of the mesh is no coherent order, even when it fits the
+// memory budget: the sort path's sweep keeps the boundary near a
+// cross-section where file order would hold the whole mesh.
+TEST(Sequence, AWindowOfMostOfTheMeshTakesTheSortPath) {
+  Mesh m = test::make_sphere(60, 80);
+  add_ids(&m);
+  for (bool shuffle : {false, true}) {
+    Mesh input = shuffle ? shuffled(m, 5) : m;
+    test::MemorySource src(input);
+    Recorder rec;
+    BuildOptions o;  // the default budget holds this mesh many times over
+    BuildReport report;
+    ASSERT_TRUE(build_sequence(src, rec, o, &report).ok());
+    EXPECT_EQ(report.sorted, shuffle);
+    if (shuffle) EXPECT_GT(2 * report.window, report.vertices);
+    else EXPECT_LE(2 * report.window, report.vertices);
+    EXPECT_LT(rec.checker.stats().max_boundary_vertices, m.positions.size() / 4);
+  }
+}
+
 TEST(Sequence, ShuffledInputTakesTheSortPathAndStaysValid) {
   Mesh m = test::make_sphere(60, 80);
   add_ids(&m);

@@ -264,9 +264,18 @@ Status build_sequence(MeshSource& source, SequenceSink& sink, const BuildOptions
   PSQ_RETURN_IF_ERROR(conv.begin(schema));
   // Coherent enough when the vertices the window keeps waiting fit a small
   // share of the budget (a waiting vertex and its triangles take about
-  // 400 bytes).
+  // 400 bytes) and are less than half of the mesh. A window of most of the
+  // mesh means the file order is not spatially coherent: one pass would hold
+  // the whole mesh, and its triangles would become ready in scattered places,
+  // so that the grown regions are riddled with holes around the vertices
+  // still waiting. The sweep of the sort path avoids both (psq convert
+  // --bits 14 of the shared meshes: bunny_closed_loop1, window 150,137 of
+  // 150,818 vertices, at most 20,747 active vertices and 2.6 connectivity
+  // bits per vertex in file order against 1,986 and 1.0 sorted, 8% smaller
+  // overall and half the peak memory; the 17 meshes with such windows 2.3%
+  // smaller together).
   uint64_t limit = std::max<uint64_t>(1024, options.memory_budget / 4 / 400);
-  bool sorted = options.force_sort || s.window > limit;
+  bool sorted = options.force_sort || s.window > limit || 2 * s.window > s.nv;
   report->sorted = sorted;
   report->window = s.window;
   report->vertices = s.nv;

@@ -12,8 +12,10 @@
 //   smallest index of each block of 4096 triangles is kept (4 bytes per
 //   block); after block b, every vertex below the smallest index of all
 //   later blocks is final. The input is coherent when the vertices this
-//   keeps waiting (the window) fit a share of `memory_budget`. Memory is the
-//   waiting area, never the mesh.
+//   keeps waiting (the window) fit a share of `memory_budget` and are less
+//   than half of the mesh (else the file order is not spatially coherent:
+//   one pass would hold most of the mesh and grow regions full of holes).
+//   Memory is the waiting area, never the mesh.
 // - Any other input (external spatial sort): vertices are sorted along the
 //   longest axis of the bounding box, triangles by the rank of their first
 //   vertex in that order, each with an external merge sort under
