@@ -190,7 +190,61 @@ void Boundary::free_edge(uint32_t slot) {
   free_edges_.push_back(slot);
 }
 
+uint32_t Boundary::enter_edge(BTriangle& t, int k) {
+  const uint32_t s = alloc_edge();
+  if (s == kNone) return kNone;
+  const uint32_t org = t.c[k], dst = t.c[k == 2 ? 0 : k + 1], opp = t.c[k == 0 ? 2 : k - 1];
+  BEdge& e = edges_[s];
+  e.org = org;
+  e.dst = dst;
+  const BVertex& o = vertices_[opp];
+  e.opp[0] = o.pos[0];
+  e.opp[1] = o.pos[1];
+  e.opp[2] = o.pos[2];
+  BVertex& vo = vertices_[org];
+  e.next_out = vo.first_out;
+  vo.first_out = s;
+  ++vo.open;
+  BVertex& vd = vertices_[dst];
+  e.next_in = vd.first_in;
+  vd.first_in = s;
+  ++vd.open;
+  t.eslot[k] = s;
+  e.age = entered_++;
+  recent_.push_back(Recent{s, e.age});
+  return s;
+}
+
+void Boundary::compact_recent() {
+  // Keep the recency stack proportional to the boundary: drop every stale
+  // entry once they outnumber the open edges (amortized O(1) per edge).
+  if (recent_.size() > 2 * static_cast<size_t>(open_edges_) + 64) {
+    size_t w = 0;
+    for (const Recent& r : recent_)
+      if (current(r)) recent_[w++] = r;
+    recent_.resize(w);
+  }
+}
+
+void Boundary::close_edge(BTriangle& t, int k) {
+  const uint32_t u = t.c[k], w = t.c[k == 2 ? 0 : k + 1];
+  t.eslot[k] = t.completes[k];
+  free_edge(t.completes[k]);
+  add_border(u, w);  // now used by two triangles: dead
+}
+
+void Boundary::finish_triangle(BTriangle& t) {
+  for (int k = 0; k < 3; ++k) {
+    BVertex& v = vertices_[t.c[k]];
+    ++v.degree;
+    t.final[k] = v.open == 0;
+  }
+}
+
 bool Boundary::apply(BTriangle& t) {
+  if (t.gate != kNone && t.join_edge == kNone && t.state[1] != EdgeState::kBorder &&
+      t.state[2] != EdgeState::kBorder)
+    return apply_on_gate(t);
   // Entering edges take their slots first (a completed edge's slot is freed
   // after them, so that no slot leaves and enters the boundary in one
   // triangle, psq/sequence.h). Taking a free slot changes no open edge's
@@ -199,28 +253,8 @@ bool Boundary::apply(BTriangle& t) {
   uint32_t fresh[3] = {kNone, kNone, kNone};
   for (int k = 0; k < 3; ++k) {
     if (t.state[k] != EdgeState::kEnters) continue;
-    const uint32_t s = alloc_edge();
-    if (s == kNone) return false;
-    const uint32_t org = t.c[k], dst = t.c[k == 2 ? 0 : k + 1], opp = t.c[k == 0 ? 2 : k - 1];
-    BEdge& e = edges_[s];
-    e.org = org;
-    e.dst = dst;
-    const BVertex& o = vertices_[opp];
-    e.opp[0] = o.pos[0];
-    e.opp[1] = o.pos[1];
-    e.opp[2] = o.pos[2];
-    BVertex& vo = vertices_[org];
-    e.next_out = vo.first_out;
-    vo.first_out = s;
-    ++vo.open;
-    BVertex& vd = vertices_[dst];
-    e.next_in = vd.first_in;
-    vd.first_in = s;
-    ++vd.open;
-    fresh[k] = s;
-    t.eslot[k] = s;
-    e.age = entered_++;
-    recent_.push_back(Recent{s, e.age});
+    fresh[k] = enter_edge(t, k);
+    if (fresh[k] == kNone) return false;
   }
   // Spec 6.1.2: the links at each corner k, between what precedes it (from
   // its entering edge (k + 2) % 3) and what follows it (from its leaving
@@ -261,21 +295,12 @@ bool Boundary::apply(BTriangle& t) {
       lp[nlinks] = P; lq[nlinks] = Q; ++nlinks;
     }
   }
-  // Keep the recency stack proportional to the boundary: drop every stale
-  // entry once they outnumber the open edges (amortized O(1) per edge).
-  if (recent_.size() > 2 * static_cast<size_t>(open_edges_) + 64) {
-    size_t w = 0;
-    for (const Recent& r : recent_)
-      if (current(r)) recent_[w++] = r;
-    recent_.resize(w);
-  }
+  compact_recent();
   for (int k = 0; k < 3; ++k) {
-    const uint32_t u = t.c[k], w = t.c[k == 2 ? 0 : k + 1];
     if (t.state[k] == EdgeState::kCompletes) {
-      t.eslot[k] = t.completes[k];
-      free_edge(t.completes[k]);
-      add_border(u, w);  // now used by two triangles: dead
+      close_edge(t, k);
     } else if (t.state[k] == EdgeState::kBorder) {
+      const uint32_t u = t.c[k], w = t.c[k == 2 ? 0 : k + 1];
       t.eslot[k] = kNone;
       add_border(u, w);
       ++vertices_[u].borders;
@@ -285,11 +310,36 @@ bool Boundary::apply(BTriangle& t) {
   for (int i = 0; i < nlinks; ++i) link(lp[i], lq[i]);
   // The gate reference (spec 6.2.1): the first entering edge in edge order 1, 2, 0.
   reference_ = fresh[1] != kNone ? fresh[1] : fresh[2] != kNone ? fresh[2] : fresh[0];
-  for (int k = 0; k < 3; ++k) {
-    BVertex& v = vertices_[t.c[k]];
-    ++v.degree;
-    t.final[k] = v.open == 0;
-  }
+  finish_triangle(t);
+  return true;
+}
+
+// apply() for the common triangle: on a gate (edge 0 completes it), no
+// join, edges 1 and 2 each entering or completing (adds, fills and ends
+// without borders, most of a mesh). The same steps in the same order as the
+// general case, with its tests on borders and joins resolved.
+bool Boundary::apply_on_gate(BTriangle& t) {
+  const bool enters1 = t.state[1] == EdgeState::kEnters, enters2 = t.state[2] == EdgeState::kEnters;
+  uint32_t fresh1 = kNone, fresh2 = kNone;
+  if (enters1 && (fresh1 = enter_edge(t, 1)) == kNone) return false;
+  if (enters2 && (fresh2 = enter_edge(t, 2)) == kNone) return false;
+  const uint32_t g = t.completes[0], c1 = t.completes[1], c2 = t.completes[2];  // c1, c2: kNone when entering
+  // An old link to an edge this triangle completes links to nothing.
+  auto kept = [&](uint32_t e) { return e == g || e == c1 || e == c2 ? kNone : e; };
+  const uint32_t gate_prev = kept(edges_[g].prev), gate_next = kept(edges_[g].next);
+  const uint32_t before1 = enters1 ? fresh1 : kept(edges_[c1].prev);
+  const uint32_t after1 = enters1 ? fresh1 : kept(edges_[c1].next);
+  const uint32_t before2 = enters2 ? fresh2 : kept(edges_[c2].prev);
+  const uint32_t after2 = enters2 ? fresh2 : kept(edges_[c2].next);
+  compact_recent();
+  close_edge(t, 0);
+  if (!enters1) close_edge(t, 1);
+  if (!enters2) close_edge(t, 2);
+  link(before2, gate_next);  // corner 0
+  link(gate_prev, after1);   // corner 1
+  link(before1, after2);     // corner 2
+  reference_ = fresh1 != kNone ? fresh1 : fresh2;
+  finish_triangle(t);
   return true;
 }
 

@@ -165,6 +165,14 @@ class Boundary {
 
  private:
   uint32_t alloc_edge();
+  // Pieces of apply(): edge k of t enters (a new slot, or kNone at the
+  // limit); drops stale recency entries; edge k completes t.completes[k];
+  // degrees and final flags.
+  uint32_t enter_edge(BTriangle& t, int k);
+  void compact_recent();
+  void close_edge(BTriangle& t, int k);
+  void finish_triangle(BTriangle& t);
+  bool apply_on_gate(BTriangle& t);
   bool is_border(uint32_t a, uint32_t b) const;
   void add_border(uint32_t a, uint32_t b);
   void free_edge(uint32_t slot);
