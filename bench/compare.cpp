@@ -528,7 +528,7 @@ std::vector<Codec> make_codecs() {
   std::vector<Codec> codecs;
   for (int bits : {11, 14, 16, 0}) {
     codecs.push_back({bits ? "psq-q" + std::to_string(bits) : std::string("psq-lossless"),
-                      "streaming, one pass; keeps order and non-manifold vertices",
+                      "streaming (one pass, or an external sort for incoherent input); keeps orientation and non-manifold vertices",
                       [bits](const BenchMesh& m, Bytes* out) { return psq_encode(m, bits, out); }, psq_decode});
   }
   // The codec issue's encode criterion: from a processing sequence.
