@@ -72,7 +72,7 @@ struct Spooled {
   std::vector<uint32_t> block_min;  // smallest index a block of triangles uses
   std::vector<uint32_t> block_max;  // largest
   std::vector<uint32_t> later_min;  // [b]: smallest index used after block b (nv if none)
-  uint64_t window = 0;              // most vertices fed but not yet final (coherent path)
+  uint64_t window = 0;              // most vertices fed but not final during a block (coherent path)
 };
 
 Status spool_input(MeshSource& source, const BuildOptions& options, Spooled* s) {
@@ -109,14 +109,17 @@ Status spool_input(MeshSource& source, const BuildOptions& options, Spooled* s) 
     }
   }
   // Suffix minima, and the window the coherent path would hold: vertices
-  // fed (up to the largest index used so far) but not final after a block.
+  // fed by the end of a block (up to the largest index used so far) that
+  // were not final when the block began (below the smallest index of the
+  // block and all later ones; nothing is final before the first block).
   size_t blocks = s->block_min.size();
   s->later_min.assign(blocks, static_cast<uint32_t>(std::min<uint64_t>(s->nv, 0xffffffffu)));
   for (size_t b = blocks; b-- > 1;) s->later_min[b - 1] = std::min(s->later_min[b], s->block_min[b]);
   uint64_t fed = 0;
   for (size_t b = 0; b < blocks; ++b) {
     fed = std::max<uint64_t>(fed, uint64_t{s->block_max[b]} + 1);
-    if (fed > s->later_min[b]) s->window = std::max<uint64_t>(s->window, fed - s->later_min[b]);
+    const uint64_t final_before = b == 0 ? 0 : s->later_min[b - 1];
+    if (fed > final_before) s->window = std::max<uint64_t>(s->window, fed - final_before);
   }
   PSQ_RETURN_IF_ERROR(s->vertices.rewind());
   return s->triangles.rewind();
@@ -269,13 +272,18 @@ Status build_sequence(MeshSource& source, SequenceSink& sink, const BuildOptions
   // the whole mesh, and its triangles would become ready in scattered places,
   // so that the grown regions are riddled with holes around the vertices
   // still waiting. The sweep of the sort path avoids both (psq convert
-  // --bits 14 of the shared meshes: bunny_closed_loop1, window 150,137 of
-  // 150,818 vertices, at most 20,747 active vertices and 2.6 connectivity
-  // bits per vertex in file order against 1,986 and 1.0 sorted, 8% smaller
-  // overall and half the peak memory; the 17 meshes with such windows 2.3%
-  // smaller together).
+  // --bits 14 of the shared meshes: bunny_closed_loop1, a window of 150,491
+  // of 150,818 vertices, at most 20,747 active vertices and 2.6
+  // connectivity bits per vertex in file order against 1,986 and 1.0
+  // sorted, 8% smaller overall and half the peak memory; the 23 of 25
+  // meshes with such windows 2.3% smaller together). A mesh of one block
+  // of triangles counts as incoherent: one pass would hold all of it, and
+  // the sort costs little at that size. The rule on half of the mesh
+  // applies only when the sort's rank array fits the budget (feed_sorted):
+  // otherwise the one pass runs as before.
   uint64_t limit = std::max<uint64_t>(1024, options.memory_budget / 4 / 400);
-  bool sorted = options.force_sort || s.window > limit || 2 * s.window > s.nv;
+  const bool incoherent = 2 * s.window > s.nv && s.nv * 4 <= options.memory_budget / 2;
+  bool sorted = options.force_sort || s.window > limit || incoherent;
   report->sorted = sorted;
   report->window = s.window;
   report->vertices = s.nv;

@@ -12,10 +12,12 @@
 //   smallest index of each block of 4096 triangles is kept (4 bytes per
 //   block); after block b, every vertex below the smallest index of all
 //   later blocks is final. The input is coherent when the vertices this
-//   keeps waiting (the window) fit a share of `memory_budget` and are less
-//   than half of the mesh (else the file order is not spatially coherent:
-//   one pass would hold most of the mesh and grow regions full of holes).
-//   Memory is the waiting area, never the mesh.
+//   keeps waiting during a block (the window) fit a share of
+//   `memory_budget` and, if the sort's rank array fits it, are less than
+//   half of the mesh (else the file order is not spatially coherent: one
+//   pass would hold most of the mesh and grow regions full of holes; a
+//   mesh of one block counts as such). Memory is the waiting area, never
+//   the mesh.
 // - Any other input (external spatial sort): vertices are sorted along the
 //   longest axis of the bounding box, triangles by the rank of their first
 //   vertex in that order, each with an external merge sort under
@@ -42,7 +44,7 @@ struct BuildOptions {
 
 struct BuildReport {
   bool sorted = false;        // the external sort path was taken
-  uint64_t window = 0;        // most vertices the coherent path keeps waiting
+  uint64_t window = 0;        // most vertices the coherent path keeps waiting during a block
   uint64_t vertices = 0;
   uint64_t triangles = 0;
   ConverterStats converter;
