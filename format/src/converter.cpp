@@ -38,6 +38,18 @@ constexpr uint32_t kNone = 0xffffffffu;
 // converter's rule until then), 256 gave 3992 starts on
 // iso_ball_200k_shuffled and 65536 gave 36, its component count.
 constexpr uint64_t kLookahead = 65536;
+// ... and at least this many per open boundary edge, within the budget of
+// set_lookahead_budget() at about kLookaheadBytes each: a long boundary
+// (the front of a large sweep) needs a deeper lookahead for the same
+// choice, or the region meets triangles not yet ready along the front and
+// leaves through nonzero gate offsets and far gates. Measured on the foam
+// balls at 16 bits: 10M (at most about 12,700 open edges) 17,546,935 ->
+// 17,047,076 / 16,696,304 / 16,440,906 bytes with 16 / 32 / 64 per edge,
+// psq convert peak 43.6 -> 63 / 90 / 183 MiB; 50M (about 27,000 open
+// edges, the default budget binding) 76,011,807 -> 73,063,523 bytes with
+// 32, peak 80.2 -> 165.8 MiB; foam 1M at 14 bits 0.7% smaller with 32.
+constexpr uint64_t kLookaheadPerEdge = 32;
+constexpr uint64_t kLookaheadBytes = 200;
 // Triangle slots are stored as slot * 4 + corner (or edge).
 constexpr uint32_t kMaxTriangles = 1u << 30;
 
@@ -340,6 +352,7 @@ struct SequenceConverter::Impl {
   uint32_t next_dense = 0;
   uint64_t waiting = 0;
   uint64_t ready = 0;       // ready triangles not yet emitted
+  uint64_t lookahead_cap = (uint64_t{128} << 20) / kLookaheadBytes;  // set_lookahead_budget()
   bool finishing = false;   // no more input: start regions freely
 
   SequenceTriangle st;  // reused
@@ -450,6 +463,8 @@ void SequenceConverter::Impl::release_vertex(uint32_t slot) {
 
 SequenceConverter::SequenceConverter(SequenceSink* out) : impl_(std::make_unique<Impl>()) { impl_->out = out; }
 SequenceConverter::~SequenceConverter() = default;
+
+void SequenceConverter::set_lookahead_budget(uint64_t bytes) { impl_->lookahead_cap = bytes / kLookaheadBytes; }
 const ConverterStats& SequenceConverter::stats() const { return impl_->stats; }
 
 // Every public call returns the first error again once there was one.
@@ -969,7 +984,11 @@ bool SequenceConverter::Impl::emit(uint32_t slot, int cls) {
 
 bool SequenceConverter::Impl::drain() {
   for (;;) {
-    if (!finishing && ready < kLookahead) return true;
+    if (!finishing) {
+      const uint64_t open_edges = edge_slots - free_edge_slots.size();
+      const uint64_t lookahead = std::max(kLookahead, std::min(lookahead_cap, kLookaheadPerEdge * open_edges));
+      if (ready < lookahead) return true;
+    }
     bool emitted = false;
     // Locality first (it keeps the boundary short and the .psq gate codes
     // cheap): a neighbour of the last triangle, unless a better op waits

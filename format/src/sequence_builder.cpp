@@ -264,6 +264,9 @@ Status build_sequence(MeshSource& source, SequenceSink& sink, const BuildOptions
     std::copy(s.lo, s.lo + 3, schema.bounds_min);
     std::copy(s.hi, s.hi + 3, schema.bounds_max);
   }
+  // A quarter of the budget for the converter's lookahead (the external
+  // sort takes half, its rank array the rest).
+  conv.set_lookahead_budget(options.memory_budget / 4);
   PSQ_RETURN_IF_ERROR(conv.begin(schema));
   // Coherent enough when the vertices the window keeps waiting fit a small
   // share of the budget (a waiting vertex and its triangles take about

@@ -78,6 +78,12 @@ class SequenceConverter {
   SequenceConverter(const SequenceConverter&) = delete;
   SequenceConverter& operator=(const SequenceConverter&) = delete;
 
+  // Bounds the lookahead: while input still arrives, the converter keeps
+  // ready triangles waiting, at least 65536 and 32 per open boundary edge,
+  // so that a region grows into triangles that already arrived; beyond
+  // 65536 they take at most `bytes` (about 200 bytes each; default 128
+  // MiB). Call before the first triangle.
+  void set_lookahead_budget(uint64_t bytes);
   // Passes the schema on to the sink. Errors: the sink's.
   Status begin(const MeshSchema& schema);
   // The data of input vertex `id` (any 32-bit number but 4294967295, given

@@ -37,7 +37,7 @@
 namespace psq {
 
 struct BuildOptions {
-  uint64_t memory_budget = uint64_t{512} << 20;  // bytes, for the external sorts
+  uint64_t memory_budget = uint64_t{512} << 20;  // bytes, for the external sorts and the converter's lookahead
   std::string tmpdir;                            // spool and sort files; empty: $TMPDIR
   bool force_sort = false;                       // take the sort path even for coherent input
 };
