@@ -1031,8 +1031,8 @@ bool SequenceConverter::Impl::drain() {
       }
     }
     if (emitted) continue;
-    // Nothing adjacent to the boundary: start a new region (kLookahead
-    // triangles wait, or the input ended).
+    // Nothing adjacent to the boundary: start a new region (the lookahead
+    // is full, or the input ended).
     while (!starts.empty()) {
       uint32_t slot = starts.pop();
       const Tri& t = tris[slot];
