@@ -389,6 +389,24 @@ TEST(Codec, FarGatesOfEveryKindRoundTrip) {
   expect_same(ev, back, half_step(ev, 14));
 }
 
+// Spec 7.3: the encoder predicts some adds across the open edge before or
+// after the gate instead of across the gate, and the decoder follows.
+TEST(Codec, AddsArePredictedAcrossTheGateOrANeighbour) {
+  Events ev = sequence_of(test::make_sphere(30, 60));
+  EncodeOptions o;
+  o.bits = 14;
+  PsqStats enc_stats, dec_stats;
+  std::vector<uint8_t> bytes = encode(ev, o, &enc_stats);
+  Events back;
+  Status s = decode(bytes, &back, &dec_stats);
+  ASSERT_TRUE(s.ok()) << s.to_string();
+  expect_same(ev, back, half_step(ev, 14));
+  EXPECT_GT(enc_stats.predictions[0], 0u) << "across the gate";
+  EXPECT_GT(enc_stats.predictions[1], 0u) << "across the edge before";
+  EXPECT_GT(enc_stats.predictions[2], 0u) << "across the edge after";
+  for (int k = 0; k < 3; ++k) EXPECT_EQ(enc_stats.predictions[k], dec_stats.predictions[k]) << k;
+}
+
 TEST(Codec, CompressesASmoothSphereWell) {
   Events ev = sequence_of(test::make_sphere(100, 200));
   EncodeOptions o;
@@ -560,7 +578,10 @@ TEST(CodecHostile, BadHeaders) {
   b[0] = 'X';
   EXPECT_EQ(decode_all(b).code(), ErrorCode::kUnknownFormat);
   b = bytes;
-  b[8] = 6;  // a later major version
+  b[8] = 7;  // a later major version
+  EXPECT_EQ(decode_all(b).code(), ErrorCode::kUnsupported);
+  b = bytes;
+  b[8] = 5;  // format 5.0, which predicted an add only across its gate (spec 11)
   EXPECT_EQ(decode_all(b).code(), ErrorCode::kUnsupported);
   b = bytes;
   b[8] = 4;  // format 4.0, which coded with other binarizations (spec 11)

@@ -103,6 +103,23 @@ TEST(Conformance, FarGatesVectorNamesFarGatesEveryWay) {
   EXPECT_GT(dec.stats().far_gates[2], 0u) << "raw slots";
 }
 
+// spider_16bit predicts adds across the gate and across both of its
+// neighbours (spec 7.3).
+TEST(Conformance, SpiderVectorUsesEveryPrediction) {
+  InputStream in;
+  ASSERT_TRUE(in.open(kDir + "spider_16bit.psq").ok());
+  PsqDecoder dec;
+  ASSERT_TRUE(dec.open(&in).ok());
+  SequenceEvent e;
+  Status s;
+  do s = dec.next(&e);
+  while (s.ok() && e.kind != SequenceEvent::Kind::kEnd);
+  ASSERT_TRUE(s.ok()) << s.to_string();
+  EXPECT_GT(dec.stats().predictions[0], 0u) << "across the gate";
+  EXPECT_GT(dec.stats().predictions[1], 0u) << "across the edge before";
+  EXPECT_GT(dec.stats().predictions[2], 0u) << "across the edge after";
+}
+
 // The encoder still writes the vectors made from tests/data byte for byte.
 TEST(Conformance, EncoderReproducesTheVectors) {
   test::TempDir tmp;

@@ -368,16 +368,21 @@ int third_shape_context(const Boundary& boundary, uint32_t gate) {
 }
 
 Prediction predict_new_vertex(const Boundary& boundary, uint32_t gate, int i, const int64_t last[3],
-                              const int64_t first[3], const int64_t second[3]) {
+                              const int64_t first[3], const int64_t second[3], int choice) {
   Prediction p;
   p.kind = kPredOther;
   p.extent[0] = p.extent[1] = p.extent[2] = 0;
   if (gate != kNone) {
-    const BEdge& g = boundary.edge(gate);
+    // Spec 7.3: the parallelogram over the chosen open edge, whose
+    // triangle is the predicting triangle.
+    const uint32_t e = choice == kChoiceBefore  ? boundary.edge(gate).prev
+                       : choice == kChoiceAfter ? boundary.edge(gate).next
+                                                : gate;
+    const BEdge& g = boundary.edge(e);
     const int64_t* a = boundary.vertex(g.org).pos;
     const int64_t* b = boundary.vertex(g.dst).pos;
     for (int k = 0; k < 3; ++k) p.pos[k] = wrap_sub(wrap_add(a[k], b[k]), g.opp[k]);
-    p.kind = kPredParallelogram;
+    p.kind = choice == kChoiceGate ? kPredParallelogram : kPredNeighbour;
     for (int k = 0; k < 3; ++k) p.extent[k] = triangle_extent(a, b, g.opp, k);
     return p;
   }

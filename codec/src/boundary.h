@@ -205,18 +205,29 @@ class Boundary {
 };
 
 // The prediction of a record's i-th new vertex (spec 7.3) and its residual
-// contexts (7.4): across the gate for an add (gate != kNone; the
-// parallelogram of the gate's endpoints and its opposite vertex, with the
-// gate triangle's extent along each axis as context); for a start's vertices, the last coded position, then
-// the first vertex, then the midpoint of the first two. `first` and `second`
-// are the start's vertices coded so far.
+// contexts (7.4). For an add (gate != kNone), a parallelogram: across the
+// gate (choice kChoiceGate: the gate's endpoints and its opposite vertex),
+// or across the open edge before or after the gate (kChoiceBefore,
+// kChoiceAfter: that edge's endpoints and opposite vertex; the caller
+// checks with prediction_choices() that it exists), with the predicting
+// triangle's extent along each axis as context. For a start's vertices,
+// the last coded position, then the first vertex, then the midpoint of the
+// first two; `first` and `second` are the start's vertices coded so far.
 struct Prediction {
   int64_t pos[3];
-  int kind;   // kPredParallelogram or kPredOther (coding.h)
-  int extent[3];  // per axis: the bit length of the gate triangle's extent, or 0
+  int kind;   // kPredParallelogram, kPredNeighbour or kPredOther (coding.h)
+  int extent[3];  // per axis: the bit length of the predicting triangle's extent, or 0
 };
 Prediction predict_new_vertex(const Boundary& boundary, uint32_t gate, int i, const int64_t last[3],
-                              const int64_t first[3], const int64_t second[3]);
+                              const int64_t first[3], const int64_t second[3], int choice = 0);
+
+// Which other parallelograms may predict the new vertex of an add on
+// `gate` (spec 7.3): bit 0, across the open edge before the gate (its
+// `prev` link); bit 1, across the one after it (`next`). 0: only the gate.
+inline uint32_t prediction_choices(const Boundary& boundary, uint32_t gate) {
+  const BEdge& g = boundary.edge(gate);
+  return (g.prev != kNone ? 1u : 0u) | (g.next != kNone ? 2u : 0u);
+}
 
 // The shape context of the third-vertex symbol of a triangle on `gate`
 // (spec 6.2.2): where the parallelogram across the gate points. With e the

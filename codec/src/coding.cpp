@@ -23,8 +23,9 @@ Models::Models(bool priors) {
     b.p0 = static_cast<uint16_t>(256u * kConnectivityPrior[i++]);
     b.n = 2;
   });
-  for (auto& axis : residual[kPredParallelogram])
-    for (int c = 0; c < kLengthContexts; ++c) init_length_prior(axis[c], c);
+  for (int kind : {kPredParallelogram, kPredNeighbour})
+    for (auto& axis : residual[kind])
+      for (int c = 0; c < kLengthContexts; ++c) init_length_prior(axis[c], c);
 }
 
 namespace {
@@ -61,17 +62,25 @@ void init_length_prior(ResidualModel& m, int c) {
   init_tree(m.escape, escape);
 }
 
-double bit_cost(uint32_t p12) {
-  struct Table {
-    double v[4097];
-    Table() {
-      v[0] = 12;
-      for (int i = 1; i <= 4096; ++i) v[i] = -std::log2(i / 4096.0);
-    }
-  };
-  static const Table kTable;
-  return kTable.v[p12 > 4096 ? 4096 : p12];
+namespace {
+struct CostTable {
+  double v[4097];
+  float f[4097];
+  CostTable() {
+    v[0] = 12;
+    for (int i = 1; i <= 4096; ++i) v[i] = -std::log2(i / 4096.0);
+    for (int i = 0; i <= 4096; ++i) f[i] = static_cast<float>(v[i]);
+  }
+};
+const CostTable& cost_table() {
+  static const CostTable kTable;
+  return kTable;
 }
+}  // namespace
+
+double bit_cost(uint32_t p12) { return cost_table().v[p12 > 4096 ? 4096 : p12]; }
+
+const float* bit_cost_table() { return cost_table().f; }
 
 }  // namespace codec
 }  // namespace psq

@@ -59,9 +59,20 @@ constexpr int kThirdContexts = (kDegreeCap + 1) * (kDegreeCap + 1);
 // Shape contexts of the third-vertex symbol (spec 6.2.2, boundary.h).
 constexpr int kShapeContexts = 5;
 
-// Residual contexts (spec 7.4): prediction kind x axis.
+// Residual contexts (spec 7.4): prediction kind x axis. An add's new
+// vertex is predicted across the gate (kind 0) or, when the encoder chose
+// so, across the open edge before or after the gate (kind 2; spec 7.3);
+// other new vertices have kind 1.
 constexpr int kPredParallelogram = 0;
 constexpr int kPredOther = 1;
+constexpr int kPredNeighbour = 2;
+constexpr int kPredKinds = 3;
+// Which parallelogram predicts an add's new vertex (spec 7.3): across the
+// gate, across the open edge before it (its `prev` link), or after it
+// (`next`).
+constexpr int kChoiceGate = 0;
+constexpr int kChoiceBefore = 1;
+constexpr int kChoiceAfter = 2;
 
 // Signed 64-bit residual (spec 5.6): the bit length 0..64 as min(k, 15) in
 // a 4-bit tree and, from 15 on, k - 15 in a 6-bit escape tree; the bit
@@ -79,14 +90,14 @@ struct ResidualModel {
 // context from the gate triangle's extent along the axis and, for the y and
 // z axes, the bit lengths of the vertex's earlier residuals.
 constexpr int kLengthContexts = 12;
-// `extent`: the bit length of the gate triangle's extent along this axis
-// (a parallelogram prediction; 0 otherwise); `longest_so_far`: the largest
+// `extent`: the bit length of the predicting triangle's extent along this
+// axis (a parallelogram prediction; 0 otherwise); `longest_so_far`: the largest
 // bit length of the earlier axes' residuals. Residuals scale with the local
 // triangle size along the axis, and with the vertex's other residuals;
 // without a gate triangle only the latter is known.
 inline int length_context(int kind, int axis, int extent, int longest_so_far) {
   const int c = axis == 0 ? extent
-                : kind == kPredParallelogram ? (extent + longest_so_far + 1) / 2
+                : kind != kPredOther ? (extent + longest_so_far + 1) / 2
                                              : longest_so_far;
   return std::min(c, kLengthContexts - 1);
 }
@@ -120,13 +131,16 @@ struct Models {
   BitModel swap;              // start: corner 2 was introduced before corner 1
   BitModel join_side;         // join: the naming edge enters (1) or leaves (0) x
   BitModel reappears;
+  // [shape (6.2.2)][node]: node 0 "not across the gate", node 1 "after,
+  // not before" when both neighbours are open edges (spec 7.3).
+  BitModel choice[kShapeContexts][2];
   ResidualModel distance;     // re-appearance distance - 1
   SymbolModel rotation{2};    // 0..2, only with face properties
-  ResidualModel residual[2][3][kLengthContexts];  // [prediction kind][axis][length context]
+  ResidualModel residual[kPredKinds][3][kLengthContexts];  // [prediction kind][axis][length context]
 
   // With `priors` (always, except in the prior-training tool), the models
   // of for_each_prior_model() start from the trained state of spec 6.2.7
-  // and the parallelogram length and escape trees from the prior of 7.4.1; without,
+  // and the length and escape trees of kinds 0 and 2 from the prior of 7.4.1; without,
   // every model starts at p0 = 1/2, n = 0.
   explicit Models(bool priors = true);
 };
@@ -159,7 +173,7 @@ void for_each_prior_model(M& m, F f) {
 }
 
 // Spec 7.4.1: the initial state of the length and escape trees of a
-// parallelogram residual model with length context `c`. Each length k
+// parallelogram residual model (kind 0 or 2) with length context `c`. Each length k
 // <= 64 gets the weight 2^(24 - min(24, |k - mu|)), with mu = floor(3c / 4);
 // leaf 15 of the length tree weighs all lengths from 15 on, leaf e of the
 // escape tree the length 15 + e (0 above 64); each node's p0 is the share
@@ -187,13 +201,17 @@ enum Cost { kCostConnectivity = 0, kCostGeometry = 1, kCostCount = 2 };
 // -log2(p / 4096) for a probability p in 1/4096 units (callers shift
 // the models' 16-bit probabilities by 4).
 double bit_cost(uint32_t p12);
+// The same as a table of 4097 floats, for the encoder's inner loops.
+const float* bit_cost_table();
 
 // Forces the inlining of the coders' per-decision helpers, which GCC
 // otherwise leaves as calls in the encoder's large functions.
 #if defined(__GNUC__)
 #define PSQ_INLINE inline __attribute__((always_inline))
+#define PSQ_NOINLINE __attribute__((noinline))
 #else
 #define PSQ_INLINE inline
+#define PSQ_NOINLINE
 #endif
 
 class Encoder {
@@ -239,6 +257,33 @@ class Encoder {
     }
     rc_->encode_raw(static_cast<uint32_t>(v), bits);
   }
+  // The choice of an add's predicting parallelogram (spec 7.3): `mask`
+  // says which neighbours exist (bit 0 before, bit 1 after; not 0).
+  void choice(BitModel* node, uint32_t mask, int ch) {
+    bit(node[0], ch != kChoiceGate, kCostGeometry);
+    if (ch != kChoiceGate && mask == 3) bit(node[1], ch == kChoiceAfter, kCostGeometry);
+  }
+  // What choice() would cost, in bits, in the models' current state;
+  // `table` is bit_cost_table().
+  static float choice_cost(const float* table, const BitModel* node, uint32_t mask, int ch) {
+    float c = cost_of(table, node[0], ch != kChoiceGate);
+    if (ch != kChoiceGate && mask == 3) c += cost_of(table, node[1], ch == kChoiceAfter);
+    return c;
+  }
+  // What residual() would cost, in bits, in the model's current state
+  // (without changing it); sets *length to the bit length of r.
+  static float residual_cost(const float* table, const ResidualModel& m, int64_t r, int* length) {
+    const uint64_t mag = r < 0 ? 0 - static_cast<uint64_t>(r) : static_cast<uint64_t>(r);
+    const int k = bit_length64(mag);
+    *length = k;
+    float c = k < static_cast<int>(kLengthEscape)
+                  ? tree_cost<4>(table, m.length, static_cast<uint32_t>(k))
+                  : tree_cost<4>(table, m.length, kLengthEscape) +
+                        tree_cost<6>(table, m.escape, static_cast<uint32_t>(k) - kLengthEscape);
+    if (k == 0) return c;
+    if (k >= 2) c += cost_of(table, m.second[k], static_cast<int>((mag >> (k - 2)) & 1));
+    return c + static_cast<float>(k >= 2 ? k - 1 : 1);  // the raw sign and low bits
+  }
   // Returns the bit length it coded.
   int residual(ResidualModel& m, int64_t r, Cost c) {
     uint64_t mag = r < 0 ? 0 - static_cast<uint64_t>(r) : static_cast<uint64_t>(r);
@@ -262,6 +307,21 @@ class Encoder {
  private:
   // Out of line: only `psq info` and the tests measure costs.
   void add_cost(const BitModel& m, int b, Cost c) { cost_[c] += bit_cost((b ? 65536u - m.p0 : m.p0) >> 4); }
+  static float cost_of(const float* table, const BitModel& m, int b) {
+    return table[(b ? 65536u - m.p0 : m.p0) >> 4];
+  }
+  template <int kBits>
+  static float tree_cost(const float* table, const SymbolModel& m, uint32_t s) {
+    const BitModel* tree = m.tree();
+    float c = 0;
+    uint32_t node = 1;
+    for (int i = kBits - 1; i >= 0; --i) {
+      const int b = static_cast<int>((s >> i) & 1u);
+      c += cost_of(table, tree[node], b);
+      node = (node << 1) | static_cast<uint32_t>(b);
+    }
+    return c;
+  }
 
   RangeEncoder* rc_;
   double* cost_;
@@ -301,6 +361,13 @@ class BasicDecoder {
     if (!bit(node[0], kCostConnectivity)) return kThirdNew;
     if (!bit(node[1], kCostConnectivity)) return kThirdLeft;
     return bit(node[2], kCostConnectivity) ? kThirdJoin : kThirdRight;
+  }
+  // The choice of an add's predicting parallelogram (spec 7.3), with
+  // `mask` as for Encoder::choice().
+  int choice(BitModel* node, uint32_t mask) {
+    if (!bit(node[0], kCostGeometry)) return kChoiceGate;
+    if (mask == 3) return bit(node[1], kCostGeometry) ? kChoiceAfter : kChoiceBefore;
+    return mask == 1 ? kChoiceBefore : kChoiceAfter;
   }
   uint64_t raw(int bits, Cost c) {
     if (kMeasure) cost_[c] += bits;

@@ -333,6 +333,7 @@ Status PsqDecoder::Impl::decode_record(Dec& dec) {
   uint32_t intro[3];
   int nintro = 0;
   uint32_t gate = kNone;
+  int shape = 0;  // the gate's shape context (spec 6.2.2)
   // Spec 6.2.1: a far gate or a start leaves the region at R.
   if (R != kNone && g_sym >= kGateFar) boundary.depart(R);
   if (g_sym == kGateStart) {
@@ -373,8 +374,9 @@ Status PsqDecoder::Impl::decode_record(Dec& dec) {
     bt.gate = gate;
     const BEdge& g = boundary.edge(gate);
     const uint32_t p = g.org, q = g.dst;
+    shape = third_shape_context(boundary, gate);
     const uint32_t third =
-        dec.third(models.third[third_shape_context(boundary, gate)]
+        dec.third(models.third[shape]
                               [third_context(boundary.vertex(p).degree, boundary.vertex(q).degree)]);
     uint32_t x = kNone;
     if (third == kThirdLeft) {
@@ -410,7 +412,14 @@ Status PsqDecoder::Impl::decode_record(Dec& dec) {
   for (int i = 0; i < nintro; ++i) {
     const int k = static_cast<int>(intro[i]);
     int64_t pos[3];
-    const Prediction pr = predict_new_vertex(boundary, nintro == 1 ? gate : kNone, i, last_pos, first, second);
+    int choice = kChoiceGate;
+    if (nintro == 1) {
+      // Spec 7.3: the parallelogram across the gate or a neighbour.
+      const uint32_t mask = prediction_choices(boundary, gate);
+      if (mask != 0) choice = dec.choice(models.choice[shape], mask);
+      ++stats.predictions[choice];
+    }
+    const Prediction pr = predict_new_vertex(boundary, nintro == 1 ? gate : kNone, i, last_pos, first, second, choice);
     SequenceEvent& ev = push();
     PSQ_RETURN_IF_ERROR(new_vertex(dec, pr.pos, pr.kind, pr.extent, pos, &ev));
     for (int a = 0; a < 3; ++a) (i == 0 ? first : second)[a] = pos[a];

@@ -163,6 +163,8 @@ int cmd_info(int argc, char** argv) {
            ", \"gates\": {\"offset_0\": " + std::to_string(p.gates[0]) + ", \"offset\": " + std::to_string(p.gates[1]) +
            ", \"far_rank\": " + std::to_string(p.far_gates[0]) + ", \"far_resume\": " + std::to_string(p.far_gates[1]) +
            ", \"far_raw\": " + std::to_string(p.far_gates[2]) + ", \"start_or_isolated\": " + std::to_string(p.gates[3]) +
+           "}, \"add_predictions\": {\"gate\": " + std::to_string(p.predictions[0]) +
+           ", \"before\": " + std::to_string(p.predictions[1]) + ", \"after\": " + std::to_string(p.predictions[2]) +
            "}},\n";
     }
     o += "  \"notes\": [";
@@ -222,6 +224,8 @@ int cmd_info(int argc, char** argv) {
                   "start or isolated %llu\n",
                   u(p.gates[0]), u(p.gates[1]), u(p.gates[2]), u(p.far_gates[0]), u(p.far_gates[1]), u(p.far_gates[2]),
                   u(p.gates[3]));
+      std::printf("add predictions        across the gate %llu, the edge before %llu, the edge after %llu\n",
+                  u(p.predictions[0]), u(p.predictions[1]), u(p.predictions[2]));
     }
     for (const std::string& n : rep.notes) std::printf("note                   %s\n", n.c_str());
   }

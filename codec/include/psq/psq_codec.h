@@ -109,6 +109,9 @@ struct PsqStats {
   // rank, departure point and offset, raw slot (diagnostics: `psq info`).
   uint64_t gates[4] = {0, 0, 0, 0};
   uint64_t far_gates[3] = {0, 0, 0};
+  // Adds by the parallelogram that predicted the new vertex (spec 7.3):
+  // across the gate, the open edge before it, the one after it.
+  uint64_t predictions[3] = {0, 0, 0};
 };
 
 class PsqEncoder : public SequenceSink {

@@ -48,6 +48,7 @@ class SymbolModel {
   explicit SymbolModel(int bits = 8);
   int bits() const { return bits_; }
   BitModel* tree() { return tree_.data(); }
+  const BitModel* tree() const { return tree_.data(); }
 
  private:
   int bits_;
