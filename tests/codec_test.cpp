@@ -390,7 +390,8 @@ TEST(Codec, FarGatesOfEveryKindRoundTrip) {
 }
 
 // Spec 7.3: the encoder predicts some adds across the open edge before or
-// after the gate instead of across the gate, and the decoder follows.
+// after the gate instead of across the gate, or by a mean of two of these
+// parallelograms, and the decoder follows.
 TEST(Codec, AddsArePredictedAcrossTheGateOrANeighbour) {
   Events ev = sequence_of(test::make_sphere(30, 60));
   EncodeOptions o;
@@ -404,7 +405,9 @@ TEST(Codec, AddsArePredictedAcrossTheGateOrANeighbour) {
   EXPECT_GT(enc_stats.predictions[0], 0u) << "across the gate";
   EXPECT_GT(enc_stats.predictions[1], 0u) << "across the edge before";
   EXPECT_GT(enc_stats.predictions[2], 0u) << "across the edge after";
-  for (int k = 0; k < 3; ++k) EXPECT_EQ(enc_stats.predictions[k], dec_stats.predictions[k]) << k;
+  EXPECT_GT(enc_stats.predictions[3], 0u) << "mean with the edge before";
+  EXPECT_GT(enc_stats.predictions[4], 0u) << "mean with the edge after";
+  for (int k = 0; k < 5; ++k) EXPECT_EQ(enc_stats.predictions[k], dec_stats.predictions[k]) << k;
 }
 
 TEST(Codec, CompressesASmoothSphereWell) {
@@ -578,7 +581,10 @@ TEST(CodecHostile, BadHeaders) {
   b[0] = 'X';
   EXPECT_EQ(decode_all(b).code(), ErrorCode::kUnknownFormat);
   b = bytes;
-  b[8] = 7;  // a later major version
+  b[8] = 8;  // a later major version
+  EXPECT_EQ(decode_all(b).code(), ErrorCode::kUnsupported);
+  b = bytes;
+  b[8] = 6;  // format 6.0, without the means of two parallelograms (spec 11)
   EXPECT_EQ(decode_all(b).code(), ErrorCode::kUnsupported);
   b = bytes;
   b[8] = 5;  // format 5.0, which predicted an add only across its gate (spec 11)

@@ -103,8 +103,7 @@ TEST(Conformance, FarGatesVectorNamesFarGatesEveryWay) {
   EXPECT_GT(dec.stats().far_gates[2], 0u) << "raw slots";
 }
 
-// spider_16bit predicts adds across the gate and across both of its
-// neighbours (spec 7.3).
+// spider_16bit predicts adds in all five ways of spec 7.3.
 TEST(Conformance, SpiderVectorUsesEveryPrediction) {
   InputStream in;
   ASSERT_TRUE(in.open(kDir + "spider_16bit.psq").ok());
@@ -118,6 +117,8 @@ TEST(Conformance, SpiderVectorUsesEveryPrediction) {
   EXPECT_GT(dec.stats().predictions[0], 0u) << "across the gate";
   EXPECT_GT(dec.stats().predictions[1], 0u) << "across the edge before";
   EXPECT_GT(dec.stats().predictions[2], 0u) << "across the edge after";
+  EXPECT_GT(dec.stats().predictions[3], 0u) << "mean with the edge before";
+  EXPECT_GT(dec.stats().predictions[4], 0u) << "mean with the edge after";
 }
 
 // The encoder still writes the vectors made from tests/data byte for byte.

@@ -367,6 +367,20 @@ int third_shape_context(const Boundary& boundary, uint32_t gate) {
   return d < (e >> 1) ? 1 + side : d < e ? 3 + side : 0;
 }
 
+void parallelogram(const Boundary& boundary, uint32_t edge, int64_t out[3]) {
+  const BEdge& g = boundary.edge(edge);
+  const int64_t* a = boundary.vertex(g.org).pos;
+  const int64_t* b = boundary.vertex(g.dst).pos;
+  for (int k = 0; k < 3; ++k) out[k] = wrap_sub(wrap_add(a[k], b[k]), g.opp[k]);
+}
+
+void triangle_extents(const Boundary& boundary, uint32_t edge, int out[3]) {
+  const BEdge& g = boundary.edge(edge);
+  const int64_t* a = boundary.vertex(g.org).pos;
+  const int64_t* b = boundary.vertex(g.dst).pos;
+  for (int k = 0; k < 3; ++k) out[k] = triangle_extent(a, b, g.opp, k);
+}
+
 Prediction predict_new_vertex(const Boundary& boundary, uint32_t gate, int i, const int64_t last[3],
                               const int64_t first[3], const int64_t second[3], int choice) {
   Prediction p;
@@ -374,16 +388,21 @@ Prediction predict_new_vertex(const Boundary& boundary, uint32_t gate, int i, co
   p.extent[0] = p.extent[1] = p.extent[2] = 0;
   if (gate != kNone) {
     // Spec 7.3: the parallelogram over the chosen open edge, whose
-    // triangle is the predicting triangle.
-    const uint32_t e = choice == kChoiceBefore  ? boundary.edge(gate).prev
-                       : choice == kChoiceAfter ? boundary.edge(gate).next
-                                                : gate;
-    const BEdge& g = boundary.edge(e);
-    const int64_t* a = boundary.vertex(g.org).pos;
-    const int64_t* b = boundary.vertex(g.dst).pos;
-    for (int k = 0; k < 3; ++k) p.pos[k] = wrap_sub(wrap_add(a[k], b[k]), g.opp[k]);
-    p.kind = choice == kChoiceGate ? kPredParallelogram : kPredNeighbour;
-    for (int k = 0; k < 3; ++k) p.extent[k] = triangle_extent(a, b, g.opp, k);
+    // triangle is the predicting triangle, or the mean of the gate's and
+    // a neighbour's parallelograms, whose predicting triangle is the
+    // gate's.
+    const int side = choice_side(choice);
+    const uint32_t e = side == kChoiceBefore  ? boundary.edge(gate).prev
+                       : side == kChoiceAfter ? boundary.edge(gate).next
+                                              : gate;
+    parallelogram(boundary, e, p.pos);
+    if (choice >= kChoiceMeanBefore) {
+      int64_t g[3];
+      parallelogram(boundary, gate, g);
+      for (int k = 0; k < 3; ++k) p.pos[k] = midpoint(g[k], p.pos[k]);
+    }
+    p.kind = choice == kChoiceGate ? kPredParallelogram : choice >= kChoiceMeanBefore ? kPredMean : kPredNeighbour;
+    triangle_extents(boundary, choice >= kChoiceMeanBefore ? gate : e, p.extent);
     return p;
   }
   for (int k = 0; k < 3; ++k)

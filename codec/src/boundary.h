@@ -204,26 +204,36 @@ class Boundary {
   bool current(const Recent& r) const { return edges_[r.slot].live && edges_[r.slot].age == r.age; }
 };
 
+// The parallelogram point across open edge `edge` (spec 7.3): its
+// endpoints' coordinates added, its `opp` subtracted, modulo 2^64.
+void parallelogram(const Boundary& boundary, uint32_t edge, int64_t out[3]);
+// The extents (spec 7.4) of the triangle that made `edge` open: per axis,
+// the bit length of the largest coordinate distance of its corners.
+void triangle_extents(const Boundary& boundary, uint32_t edge, int out[3]);
+
 // The prediction of a record's i-th new vertex (spec 7.3) and its residual
-// contexts (7.4). For an add (gate != kNone), a parallelogram: across the
-// gate (choice kChoiceGate: the gate's endpoints and its opposite vertex),
-// or across the open edge before or after the gate (kChoiceBefore,
-// kChoiceAfter: that edge's endpoints and opposite vertex; the caller
-// checks with prediction_choices() that it exists), with the predicting
-// triangle's extent along each axis as context. For a start's vertices,
+// contexts (7.4). For an add (gate != kNone), by `choice` (coding.h): the
+// parallelogram across the gate (kChoiceGate: the gate's endpoints and its
+// opposite vertex) or across the open edge before or after it
+// (kChoiceBefore, kChoiceAfter: that edge's endpoints and opposite
+// vertex), with that predicting triangle's extent along each axis as
+// context; or the mean of the gate's parallelogram and the one before or
+// after (kChoiceMeanBefore, kChoiceMeanAfter), with the gate triangle's
+// extents. The caller checks with prediction_choices() that the neighbour
+// exists. For a start's vertices,
 // the last coded position, then the first vertex, then the midpoint of the
 // first two; `first` and `second` are the start's vertices coded so far.
 struct Prediction {
   int64_t pos[3];
-  int kind;   // kPredParallelogram, kPredNeighbour or kPredOther (coding.h)
+  int kind;   // kPredParallelogram, kPredNeighbour, kPredMean or kPredOther (coding.h)
   int extent[3];  // per axis: the bit length of the predicting triangle's extent, or 0
 };
 Prediction predict_new_vertex(const Boundary& boundary, uint32_t gate, int i, const int64_t last[3],
                               const int64_t first[3], const int64_t second[3], int choice = 0);
 
-// Which other parallelograms may predict the new vertex of an add on
-// `gate` (spec 7.3): bit 0, across the open edge before the gate (its
-// `prev` link); bit 1, across the one after it (`next`). 0: only the gate.
+// Which neighbours of `gate` may take part in predicting the new vertex
+// of an add (spec 7.3): bit 0, the open edge before the gate (its `prev`
+// link); bit 1, the one after it (`next`). 0: only the gate.
 inline uint32_t prediction_choices(const Boundary& boundary, uint32_t gate) {
   const BEdge& g = boundary.edge(gate);
   return (g.prev != kNone ? 1u : 0u) | (g.next != kNone ? 2u : 0u);

@@ -23,7 +23,7 @@ Models::Models(bool priors) {
     b.p0 = static_cast<uint16_t>(256u * kConnectivityPrior[i++]);
     b.n = 2;
   });
-  for (int kind : {kPredParallelogram, kPredNeighbour})
+  for (int kind : {kPredParallelogram, kPredNeighbour, kPredMean})
     for (auto& axis : residual[kind])
       for (int c = 0; c < kLengthContexts; ++c) init_length_prior(axis[c], c);
 }

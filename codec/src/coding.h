@@ -61,18 +61,25 @@ constexpr int kShapeContexts = 5;
 
 // Residual contexts (spec 7.4): prediction kind x axis. An add's new
 // vertex is predicted across the gate (kind 0) or, when the encoder chose
-// so, across the open edge before or after the gate (kind 2; spec 7.3);
-// other new vertices have kind 1.
+// so, across the open edge before or after the gate (kind 2), or by the
+// mean of the gate's and such a neighbour's parallelograms (kind 3; spec
+// 7.3); other new vertices have kind 1.
 constexpr int kPredParallelogram = 0;
 constexpr int kPredOther = 1;
 constexpr int kPredNeighbour = 2;
-constexpr int kPredKinds = 3;
-// Which parallelogram predicts an add's new vertex (spec 7.3): across the
-// gate, across the open edge before it (its `prev` link), or after it
-// (`next`).
+constexpr int kPredMean = 3;
+constexpr int kPredKinds = 4;
+// What predicts an add's new vertex (spec 7.3): the parallelogram across
+// the gate, across the open edge before it (its `prev` link) or after it
+// (`next`), or the mean of the gate's and the one before or after.
 constexpr int kChoiceGate = 0;
 constexpr int kChoiceBefore = 1;
 constexpr int kChoiceAfter = 2;
+constexpr int kChoiceMeanBefore = 3;
+constexpr int kChoiceMeanAfter = 4;
+constexpr int kChoices = 5;
+// The neighbour a choice uses: kChoiceGate (none), kChoiceBefore or kChoiceAfter.
+inline int choice_side(int ch) { return ch <= kChoiceAfter ? ch : ch - 2; }
 
 // Signed 64-bit residual (spec 5.6): the bit length 0..64 as min(k, 15) in
 // a 4-bit tree and, from 15 on, k - 15 in a 6-bit escape tree; the bit
@@ -131,16 +138,17 @@ struct Models {
   BitModel swap;              // start: corner 2 was introduced before corner 1
   BitModel join_side;         // join: the naming edge enters (1) or leaves (0) x
   BitModel reappears;
-  // [shape (6.2.2)][node]: node 0 "not across the gate", node 1 "after,
-  // not before" when both neighbours are open edges (spec 7.3).
-  BitModel choice[kShapeContexts][2];
+  // [shape (6.2.2)][node] (spec 7.3): node 0 "not the gate's alone", node
+  // 1 "a mean", and when both neighbours are open edges, node 2 "after,
+  // not before" for one neighbour alone, node 3 for a mean.
+  BitModel choice[kShapeContexts][4];
   ResidualModel distance;     // re-appearance distance - 1
   SymbolModel rotation{2};    // 0..2, only with face properties
   ResidualModel residual[kPredKinds][3][kLengthContexts];  // [prediction kind][axis][length context]
 
   // With `priors` (always, except in the prior-training tool), the models
   // of for_each_prior_model() start from the trained state of spec 6.2.7
-  // and the length and escape trees of kinds 0 and 2 from the prior of 7.4.1; without,
+  // and the length and escape trees of kinds 0, 2 and 3 from the prior of 7.4.1; without,
   // every model starts at p0 = 1/2, n = 0.
   explicit Models(bool priors = true);
 };
@@ -173,7 +181,7 @@ void for_each_prior_model(M& m, F f) {
 }
 
 // Spec 7.4.1: the initial state of the length and escape trees of a
-// parallelogram residual model (kind 0 or 2) with length context `c`. Each length k
+// parallelogram residual model (kind 0, 2 or 3) with length context `c`. Each length k
 // <= 64 gets the weight 2^(24 - min(24, |k - mu|)), with mu = floor(3c / 4);
 // leaf 15 of the length tree weighs all lengths from 15 on, leaf e of the
 // escape tree the length 15 + e (0 above 64); each node's p0 is the share
@@ -257,17 +265,23 @@ class Encoder {
     }
     rc_->encode_raw(static_cast<uint32_t>(v), bits);
   }
-  // The choice of an add's predicting parallelogram (spec 7.3): `mask`
-  // says which neighbours exist (bit 0 before, bit 1 after; not 0).
+  // The choice of an add's prediction (spec 7.3): `mask` says which
+  // neighbours exist (bit 0 before, bit 1 after; not 0).
   void choice(BitModel* node, uint32_t mask, int ch) {
     bit(node[0], ch != kChoiceGate, kCostGeometry);
-    if (ch != kChoiceGate && mask == 3) bit(node[1], ch == kChoiceAfter, kCostGeometry);
+    if (ch == kChoiceGate) return;
+    const int mean = ch >= kChoiceMeanBefore;
+    bit(node[1], mean, kCostGeometry);
+    if (mask == 3) bit(node[2 + mean], choice_side(ch) == kChoiceAfter, kCostGeometry);
   }
   // What choice() would cost, in bits, in the models' current state;
   // `table` is bit_cost_table().
   static float choice_cost(const float* table, const BitModel* node, uint32_t mask, int ch) {
     float c = cost_of(table, node[0], ch != kChoiceGate);
-    if (ch != kChoiceGate && mask == 3) c += cost_of(table, node[1], ch == kChoiceAfter);
+    if (ch == kChoiceGate) return c;
+    const int mean = ch >= kChoiceMeanBefore;
+    c += cost_of(table, node[1], mean);
+    if (mask == 3) c += cost_of(table, node[2 + mean], choice_side(ch) == kChoiceAfter);
     return c;
   }
   // What residual() would cost, in bits, in the model's current state
@@ -362,12 +376,13 @@ class BasicDecoder {
     if (!bit(node[1], kCostConnectivity)) return kThirdLeft;
     return bit(node[2], kCostConnectivity) ? kThirdJoin : kThirdRight;
   }
-  // The choice of an add's predicting parallelogram (spec 7.3), with
-  // `mask` as for Encoder::choice().
+  // The choice of an add's prediction (spec 7.3), with `mask` as for
+  // Encoder::choice().
   int choice(BitModel* node, uint32_t mask) {
     if (!bit(node[0], kCostGeometry)) return kChoiceGate;
-    if (mask == 3) return bit(node[1], kCostGeometry) ? kChoiceAfter : kChoiceBefore;
-    return mask == 1 ? kChoiceBefore : kChoiceAfter;
+    const int mean = bit(node[1], kCostGeometry);
+    const int after = mask == 3 ? bit(node[2 + mean], kCostGeometry) : mask == 2;
+    return (after ? kChoiceAfter : kChoiceBefore) + 2 * mean;
   }
   uint64_t raw(int bits, Cost c) {
     if (kMeasure) cost_[c] += bits;

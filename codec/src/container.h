@@ -15,7 +15,7 @@
 namespace psq {
 namespace codec {
 
-constexpr int kVersionMajor = 6;
+constexpr int kVersionMajor = 7;
 constexpr int kVersionMinor = 0;
 constexpr uint16_t kFlagLossless = 1u << 0;
 constexpr uint16_t kFlagRotation = 1u << 1;

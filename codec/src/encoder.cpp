@@ -275,53 +275,69 @@ int PsqEncoder::Impl::name_far_gate(const uint32_t cand[3], FarName* name) {
 }
 
 // Spec 7.3 leaves the choice to the encoder. This one takes the
-// parallelogram that codes cheapest in the models' current state: the
+// prediction that codes cheapest in the models' current state: the
 // choice's own bits and the three residuals with their length contexts.
-// Ties go to the gate, then to the edge before it. The choice's cost
-// counts fully only from the 2000th choice on, and from nothing at the
-// first: the choice and kind-2 models start untrained, so that a strict
-// count would keep choosing the gate on a mesh where a neighbour predicts
-// better (on a regular grid whose gate parallelograms cross the wrong
-// diagonals it does: blade.ply codes 36% smaller at 16 bits with the ramp,
-// not at all without).
+// Ties go to the lower choice number. The choice's cost counts fully only
+// from the 2000th choice on, and from nothing at the first: the choice
+// models and the residual models of kinds 2 and 3 start untrained, so that
+// a strict count would keep choosing the gate on a mesh where a neighbour
+// predicts better (on a regular grid whose gate parallelograms cross the
+// wrong diagonals it does: blade.ply codes 36% smaller at 16 bits with the
+// ramp, and not at all smaller without).
 int PsqEncoder::Impl::choose_prediction(uint32_t gate, uint32_t mask, int shape, const int64_t pos[3],
                                         Prediction* pred) {
   constexpr double kRamp = 2000;
-  // First the residuals' bit lengths alone: a neighbour whose residuals are
-  // longer than the gate's is not worth pricing (pricing also those up to
-  // 2 bits longer took the encoder 4% more instructions and saved 0.04% of
-  // the bytes of the 25 test meshes).
   const BEdge& g = boundary.edge(gate);
   const uint32_t edge[3] = {gate, g.prev, g.next};
-  Prediction cand[3];
-  int rough[3] = {0, 0, 0};
-  uint32_t keep = 0;
-  for (int ch = kChoiceGate; ch <= kChoiceAfter; ++ch) {
-    if (ch != kChoiceGate && !(mask & (1u << (ch - 1)))) continue;
-    const BEdge& e = boundary.edge(edge[ch]);
-    const int64_t* a = boundary.vertex(e.org).pos;
-    const int64_t* b = boundary.vertex(e.dst).pos;
-    Prediction& c = cand[ch];
+  // The five points, and the bits of their residuals alone: a candidate
+  // whose residuals have more bits than the gate's is not worth pricing
+  // (pricing also those up to 2 bits longer took the encoder 4% more
+  // instructions and saved 0.04% of the bytes of the 25 test meshes).
+  int64_t point[kChoices][3];
+  int rough[kChoices] = {0, 0, 0, 0, 0};
+  uint32_t keep = 1u << kChoiceGate;
+  parallelogram(boundary, gate, point[kChoiceGate]);
+  for (int k = 0; k < 3; ++k) rough[kChoiceGate] += bit_length64(coord_distance(pos[k], point[kChoiceGate][k]));
+  for (int side = kChoiceBefore; side <= kChoiceAfter; ++side) {
+    if (!(mask & (1u << (side - 1)))) continue;
+    const int mean = side + 2;
+    parallelogram(boundary, edge[side], point[side]);
     for (int k = 0; k < 3; ++k) {
-      c.pos[k] = wrap_sub(wrap_add(a[k], b[k]), e.opp[k]);
-      rough[ch] += bit_length64(coord_distance(pos[k], c.pos[k]));
+      point[mean][k] = midpoint(point[kChoiceGate][k], point[side][k]);
+      rough[side] += bit_length64(coord_distance(pos[k], point[side][k]));
+      rough[mean] += bit_length64(coord_distance(pos[k], point[mean][k]));
     }
-    if (ch != kChoiceGate && rough[ch] > rough[0]) continue;
-    c.kind = ch == kChoiceGate ? kPredParallelogram : kPredNeighbour;
-    for (int k = 0; k < 3; ++k) c.extent[k] = triangle_extent(a, b, e.opp, k);
-    keep |= 1u << ch;
+    if (rough[side] <= rough[kChoiceGate]) keep |= 1u << side;
+    if (rough[mean] <= rough[kChoiceGate]) keep |= 1u << mean;
   }
-  if (keep == 1u) {
-    *pred = cand[kChoiceGate];
+  // The extents of the three predicting triangles, as needed.
+  int extent[3][3];
+  uint32_t have = 0;
+  auto candidate = [&](int ch) {
+    Prediction p;
+    const int t = ch >= kChoiceMeanBefore ? kChoiceGate : ch;
+    if (!(have & (1u << t))) {
+      triangle_extents(boundary, edge[t], extent[t]);
+      have |= 1u << t;
+    }
+    for (int k = 0; k < 3; ++k) {
+      p.pos[k] = point[ch][k];
+      p.extent[k] = extent[t][k];
+    }
+    p.kind = ch == kChoiceGate ? kPredParallelogram : ch >= kChoiceMeanBefore ? kPredMean : kPredNeighbour;
+    return p;
+  };
+  if (keep == 1u << kChoiceGate) {
+    *pred = candidate(kChoiceGate);
     return kChoiceGate;
   }
   const float weight = static_cast<float>(std::min(1.0, static_cast<double>(choices_coded) / kRamp));
   const float* table = bit_cost_table();
   int best = kChoiceGate;
   float best_cost = 0;
-  for (int ch = kChoiceGate; ch <= kChoiceAfter; ++ch) {
+  for (int ch = kChoiceGate; ch < kChoices; ++ch) {
     if (!(keep & (1u << ch))) continue;
-    const Prediction& pr = cand[ch];
+    const Prediction pr = candidate(ch);
     float c = weight * Encoder::choice_cost(table, models.choice[shape], mask, ch);
     int lengths[3] = {0, 0, 0};
     for (int a = 0; a < 3; ++a) {
@@ -331,9 +347,9 @@ int PsqEncoder::Impl::choose_prediction(uint32_t gate, uint32_t mask, int shape,
     if (ch == kChoiceGate || c < best_cost) {
       best = ch;
       best_cost = c;
+      *pred = pr;
     }
   }
-  *pred = cand[best];
   return best;
 }
 

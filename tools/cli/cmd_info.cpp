@@ -165,7 +165,8 @@ int cmd_info(int argc, char** argv) {
            ", \"far_raw\": " + std::to_string(p.far_gates[2]) + ", \"start_or_isolated\": " + std::to_string(p.gates[3]) +
            "}, \"add_predictions\": {\"gate\": " + std::to_string(p.predictions[0]) +
            ", \"before\": " + std::to_string(p.predictions[1]) + ", \"after\": " + std::to_string(p.predictions[2]) +
-           "}},\n";
+           ", \"mean_before\": " + std::to_string(p.predictions[3]) +
+           ", \"mean_after\": " + std::to_string(p.predictions[4]) + "}},\n";
     }
     o += "  \"notes\": [";
     for (size_t i = 0; i < rep.notes.size(); ++i) o += (i ? ", \"" : "\"") + json_escape(rep.notes[i]) + "\"";
@@ -224,8 +225,10 @@ int cmd_info(int argc, char** argv) {
                   "start or isolated %llu\n",
                   u(p.gates[0]), u(p.gates[1]), u(p.gates[2]), u(p.far_gates[0]), u(p.far_gates[1]), u(p.far_gates[2]),
                   u(p.gates[3]));
-      std::printf("add predictions        across the gate %llu, the edge before %llu, the edge after %llu\n",
-                  u(p.predictions[0]), u(p.predictions[1]), u(p.predictions[2]));
+      std::printf("add predictions        across the gate %llu, the edge before %llu, the edge after %llu, "
+                  "mean with before %llu, mean with after %llu\n",
+                  u(p.predictions[0]), u(p.predictions[1]), u(p.predictions[2]), u(p.predictions[3]),
+                  u(p.predictions[4]));
     }
     for (const std::string& n : rep.notes) std::printf("note                   %s\n", n.c_str());
   }

@@ -109,9 +109,10 @@ struct PsqStats {
   // rank, departure point and offset, raw slot (diagnostics: `psq info`).
   uint64_t gates[4] = {0, 0, 0, 0};
   uint64_t far_gates[3] = {0, 0, 0};
-  // Adds by the parallelogram that predicted the new vertex (spec 7.3):
-  // across the gate, the open edge before it, the one after it.
-  uint64_t predictions[3] = {0, 0, 0};
+  // Adds by what predicted the new vertex (spec 7.3): the parallelogram
+  // across the gate, across the open edge before it, after it, the mean of
+  // the gate's and the one before, and of the gate's and the one after.
+  uint64_t predictions[5] = {0, 0, 0, 0, 0};
 };
 
 class PsqEncoder : public SequenceSink {
