@@ -136,7 +136,7 @@ payload=$((12 + hvar))     # where the header payload starts
 chunk=$((payload + hlen + 4))  # the first chunk's tag
 # Not .psq at all.
 printf 'PLY\n' > bad_magic.psq; invalid bad_magic unknown_format 0
-# Version 6.0.
+# A major version this decoder does not know (8).
 { head -c 8 "$src"; printf '\x08'; tail -c +10 "$src"; } > bad_version.psq; invalid bad_version unsupported 8
 # An unknown flag.
 { head -c 11 "$src"; printf '\x80'; tail -c +13 "$src"; } > bad_flags.psq; invalid bad_flags unsupported 10
