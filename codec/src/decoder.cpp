@@ -414,7 +414,7 @@ Status PsqDecoder::Impl::decode_record(Dec& dec) {
     int64_t pos[3];
     int choice = kChoiceGate;
     if (nintro == 1) {
-      // Spec 7.3: the parallelogram across the gate or a neighbour.
+      // Spec 7.3: the parallelogram across the gate or a neighbour, or a mean.
       const uint32_t mask = prediction_choices(boundary, gate);
       if (mask != 0) choice = dec.choice(models.choice[shape], mask);
       ++stats.predictions[choice];
