@@ -352,12 +352,19 @@ uint64_t linf_distance(const int64_t* a, const int64_t* b) {
 }
 }  // namespace
 
+void parallelogram(const Boundary& boundary, uint32_t edge, int64_t out[3]) {
+  const BEdge& g = boundary.edge(edge);
+  const int64_t* a = boundary.vertex(g.org).pos;
+  const int64_t* b = boundary.vertex(g.dst).pos;
+  for (int k = 0; k < 3; ++k) out[k] = wrap_sub(wrap_add(a[k], b[k]), g.opp[k]);
+}
+
 int third_shape_context(const Boundary& boundary, uint32_t gate) {
   const BEdge& g = boundary.edge(gate);
   const int64_t* p = boundary.vertex(g.org).pos;
   const int64_t* q = boundary.vertex(g.dst).pos;
   int64_t par[3];
-  for (int k = 0; k < 3; ++k) par[k] = wrap_sub(wrap_add(p[k], q[k]), g.opp[k]);
+  parallelogram(boundary, gate, par);
   const uint64_t e = linf_distance(p, q);
   const uint64_t none = ~uint64_t{0};
   const uint64_t dl = g.prev != kNone ? linf_distance(par, boundary.vertex(boundary.edge(g.prev).org).pos) : none;
@@ -365,13 +372,6 @@ int third_shape_context(const Boundary& boundary, uint32_t gate) {
   const uint64_t d = std::min(dl, dr);
   const int side = dl <= dr ? 0 : 1;
   return d < (e >> 1) ? 1 + side : d < e ? 3 + side : 0;
-}
-
-void parallelogram(const Boundary& boundary, uint32_t edge, int64_t out[3]) {
-  const BEdge& g = boundary.edge(edge);
-  const int64_t* a = boundary.vertex(g.org).pos;
-  const int64_t* b = boundary.vertex(g.dst).pos;
-  for (int k = 0; k < 3; ++k) out[k] = wrap_sub(wrap_add(a[k], b[k]), g.opp[k]);
 }
 
 void triangle_extents(const Boundary& boundary, uint32_t edge, int out[3]) {
