@@ -87,38 +87,37 @@ TEST(Conformance, InvalidVectorsFailWithTheirErrors) {
   }
 }
 
+// Decodes vector `name` to its end and returns the decoder's statistics.
+PsqStats stats_of(const std::string& name) {
+  InputStream in;
+  EXPECT_TRUE(in.open(kDir + name).ok()) << name;
+  PsqDecoder dec;
+  Status s = dec.open(&in);
+  SequenceEvent e;
+  while (s.ok()) {
+    s = dec.next(&e);
+    if (e.kind == SequenceEvent::Kind::kEnd) break;
+  }
+  EXPECT_TRUE(s.ok()) << name << ": " << s.to_string();
+  return dec.stats();
+}
+
 // far_gates exercises every way of naming a far gate (spec 6.2.1).
 TEST(Conformance, FarGatesVectorNamesFarGatesEveryWay) {
-  InputStream in;
-  ASSERT_TRUE(in.open(kDir + "far_gates.psq").ok());
-  PsqDecoder dec;
-  ASSERT_TRUE(dec.open(&in).ok());
-  SequenceEvent e;
-  Status s;
-  do s = dec.next(&e);
-  while (s.ok() && e.kind != SequenceEvent::Kind::kEnd);
-  ASSERT_TRUE(s.ok()) << s.to_string();
-  EXPECT_GT(dec.stats().far_gates[0], 0u) << "recency ranks";
-  EXPECT_GT(dec.stats().far_gates[1], 0u) << "departure points";
-  EXPECT_GT(dec.stats().far_gates[2], 0u) << "raw slots";
+  const PsqStats st = stats_of("far_gates.psq");
+  EXPECT_GT(st.far_gates[0], 0u) << "recency ranks";
+  EXPECT_GT(st.far_gates[1], 0u) << "departure points";
+  EXPECT_GT(st.far_gates[2], 0u) << "raw slots";
 }
 
 // spider_16bit predicts adds in all five ways of spec 7.3.
 TEST(Conformance, SpiderVectorUsesEveryPrediction) {
-  InputStream in;
-  ASSERT_TRUE(in.open(kDir + "spider_16bit.psq").ok());
-  PsqDecoder dec;
-  ASSERT_TRUE(dec.open(&in).ok());
-  SequenceEvent e;
-  Status s;
-  do s = dec.next(&e);
-  while (s.ok() && e.kind != SequenceEvent::Kind::kEnd);
-  ASSERT_TRUE(s.ok()) << s.to_string();
-  EXPECT_GT(dec.stats().predictions[0], 0u) << "across the gate";
-  EXPECT_GT(dec.stats().predictions[1], 0u) << "across the edge before";
-  EXPECT_GT(dec.stats().predictions[2], 0u) << "across the edge after";
-  EXPECT_GT(dec.stats().predictions[3], 0u) << "mean with the edge before";
-  EXPECT_GT(dec.stats().predictions[4], 0u) << "mean with the edge after";
+  const PsqStats st = stats_of("spider_16bit.psq");
+  EXPECT_GT(st.predictions[0], 0u) << "across the gate";
+  EXPECT_GT(st.predictions[1], 0u) << "across the edge before";
+  EXPECT_GT(st.predictions[2], 0u) << "across the edge after";
+  EXPECT_GT(st.predictions[3], 0u) << "mean with the edge before";
+  EXPECT_GT(st.predictions[4], 0u) << "mean with the edge after";
 }
 
 // The encoder still writes the vectors made from tests/data byte for byte.
