@@ -391,18 +391,16 @@ Prediction predict_new_vertex(const Boundary& boundary, uint32_t gate, int i, co
     // triangle is the predicting triangle, or the mean of the gate's and
     // a neighbour's parallelograms, whose predicting triangle is the
     // gate's.
-    const int side = choice_side(choice);
-    const uint32_t e = side == kChoiceBefore  ? boundary.edge(gate).prev
-                       : side == kChoiceAfter ? boundary.edge(gate).next
-                                              : gate;
-    parallelogram(boundary, e, p.pos);
+    const BEdge& g = boundary.edge(gate);
+    const uint32_t edge[3] = {gate, g.prev, g.next};  // by side
+    parallelogram(boundary, edge[choice_side(choice)], p.pos);
     if (choice >= kChoiceMeanBefore) {
-      int64_t g[3];
-      parallelogram(boundary, gate, g);
-      for (int k = 0; k < 3; ++k) p.pos[k] = midpoint(g[k], p.pos[k]);
+      int64_t across_gate[3];
+      parallelogram(boundary, gate, across_gate);
+      for (int k = 0; k < 3; ++k) p.pos[k] = midpoint(across_gate[k], p.pos[k]);
     }
-    p.kind = choice == kChoiceGate ? kPredParallelogram : choice >= kChoiceMeanBefore ? kPredMean : kPredNeighbour;
-    triangle_extents(boundary, choice >= kChoiceMeanBefore ? gate : e, p.extent);
+    p.kind = prediction_kind(choice);
+    triangle_extents(boundary, edge[predicting_side(choice)], p.extent);
     return p;
   }
   for (int k = 0; k < 3; ++k)

@@ -97,7 +97,7 @@ struct PsqEncoder::Impl {
   // *pred to its prediction. Out of line: inlined, it made GCC stop
   // inlining the range coder into triangle().
   PSQ_NOINLINE int choose_prediction(uint32_t gate, uint32_t mask, int shape, const int64_t pos[3],
-                                                  Prediction* pred);
+                                     Prediction* pred);
   // Spec 6.2.1, the reference encoder's choice of a far gate among the
   // candidates (kNone where none): the one with the lowest recency rank,
   // else the first that a departure point and offset reach, else the first
@@ -288,7 +288,7 @@ int PsqEncoder::Impl::choose_prediction(uint32_t gate, uint32_t mask, int shape,
                                         Prediction* pred) {
   constexpr double kRamp = 2000;
   const BEdge& g = boundary.edge(gate);
-  const uint32_t edge[3] = {gate, g.prev, g.next};
+  const uint32_t edge[3] = {gate, g.prev, g.next};  // by side
   // The five points, and the bits of their residuals alone: a candidate
   // whose residuals have more bits than the gate's is not worth pricing
   // (pricing also those up to 2 bits longer took the encoder 4% more
@@ -315,7 +315,7 @@ int PsqEncoder::Impl::choose_prediction(uint32_t gate, uint32_t mask, int shape,
   uint32_t have = 0;
   auto candidate = [&](int ch) {
     Prediction p;
-    const int t = ch >= kChoiceMeanBefore ? kChoiceGate : ch;
+    const int t = predicting_side(ch);
     if (!(have & (1u << t))) {
       triangle_extents(boundary, edge[t], extent[t]);
       have |= 1u << t;
@@ -324,7 +324,7 @@ int PsqEncoder::Impl::choose_prediction(uint32_t gate, uint32_t mask, int shape,
       p.pos[k] = point[ch][k];
       p.extent[k] = extent[t][k];
     }
-    p.kind = ch == kChoiceGate ? kPredParallelogram : ch >= kChoiceMeanBefore ? kPredMean : kPredNeighbour;
+    p.kind = prediction_kind(ch);
     return p;
   };
   if (keep == 1u << kChoiceGate) {
