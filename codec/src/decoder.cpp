@@ -143,7 +143,8 @@ Status PsqDecoder::Impl::open(InputStream* stream) {
   uint16_t flags = get.u16();
   if (header.version_major != kVersionMajor)
     return Status(ErrorCode::kUnsupported, "format version " + std::to_string(header.version_major) + "." +
-                                               std::to_string(header.version_minor) + "; this psq reads 5.x", 8);
+                                               std::to_string(header.version_minor) + "; this psq reads " +
+                                               std::to_string(kVersionMajor) + ".x", 8);
   if (flags & ~kKnownFlags)
     return Status(ErrorCode::kUnsupported, "unknown header flags (value " + std::to_string(flags & ~kKnownFlags) + ")", 10);
   uint64_t length = 0;
