@@ -4,6 +4,7 @@
 // meshes in tests/data are what the encoder writes today (determinism).
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <fstream>
 #include <sstream>
 
@@ -118,6 +119,33 @@ TEST(Conformance, SpiderVectorUsesEveryPrediction) {
   EXPECT_GT(st.predictions[2], 0u) << "across the edge after";
   EXPECT_GT(st.predictions[3], 0u) << "mean with the edge before";
   EXPECT_GT(st.predictions[4], 0u) << "mean with the edge after";
+}
+
+// doubles_lossless holds f64 positions whose order-preserving integers
+// (spec 7.2) have magnitudes of 2^62 or more, so that the sum of any two
+// overflows 64 bits, and uses the means of spec 7.3 (mid()), which a
+// decoder must compute without that overflow; its dump pins the result.
+TEST(Conformance, DoublesVectorNeedsMeansBeyond64Bits) {
+  InputStream in;
+  ASSERT_TRUE(in.open(kDir + "doubles_lossless.psq").ok());
+  PsqDecoder dec;
+  Status s = dec.open(&in);
+  ASSERT_TRUE(s.ok()) << s.to_string();
+  EXPECT_TRUE(dec.header().lossless);
+  EXPECT_EQ(dec.schema().position_type, ScalarType::kFloat64);
+  size_t vertices = 0;
+  SequenceEvent e;
+  while ((s = dec.next(&e)).ok() && e.kind != SequenceEvent::Kind::kEnd) {
+    if (e.kind != SequenceEvent::Kind::kVertex) continue;
+    ++vertices;
+    // |x| >= 2: the f64 bit pattern without its sign is 0x4000000000000000 or more.
+    for (double x : e.vertex.position) EXPECT_GE(std::fabs(x), 2.0);
+  }
+  ASSERT_TRUE(s.ok()) << s.to_string();
+  EXPECT_EQ(vertices, 81u);
+  const PsqStats& st = dec.stats();
+  EXPECT_GT(st.predictions[3] + st.predictions[4], 0u) << "no mean of two parallelograms";
+  EXPECT_GT(st.gates[3], 0u) << "no start";
 }
 
 // The encoder still writes the vectors made from tests/data byte for byte.

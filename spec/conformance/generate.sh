@@ -87,6 +87,37 @@ for p in v: print("%.6f %.6f %.6f" % p)
 for t in f: print("3 %d %d %d" % t)
 PY
 
+# A curved 8x8 grid of double positions, jittered and with mixed
+# diagonals (so that the encoder also chooses means), far from the origin on
+# both sides: every coordinate has a magnitude of 2 or more, so that its
+# order-preserving integer (spec 7.2) has a magnitude of 2^62 or more and
+# the sum of any two of them overflows 64 bits. The means of spec 7.3
+# (mid(), choices 3 and 4 and a start's third vertex) must be computed
+# without that overflow.
+python3 - > "$tmp/doubles.ply" <<'PY'
+import math
+n = 9
+v = []
+for j in range(n):
+    for i in range(n):
+        x = 1000.0 + 1.3 * i + 0.4 * math.sin(7.1 * i + 3.7 * j * j)
+        y = -(2000.0 + 1.1 * j + 0.4 * math.cos(5.3 * i * i - 2.9 * j))
+        z = 3.0 + 0.02 * (i * i + j * j) + 0.2 * math.sin(1.9 * i * j + i)
+        v.append((x, y, z))
+f = []
+for j in range(n - 1):
+    for i in range(n - 1):
+        a = j * n + i
+        if (3 * i + 5 * j) % 7 < 3:  # the other diagonal
+            f += [(a, a + 1, a + n), (a + 1, a + n + 1, a + n)]
+        else:
+            f += [(a, a + 1, a + n + 1), (a, a + n + 1, a + n)]
+print("ply\nformat ascii 1.0\nelement vertex %d\nproperty double x\nproperty double y\nproperty double z" % len(v))
+print("element face %d\nproperty list uchar int vertex_indices\nend_header" % len(f))
+for p in v: print("%.17g %.17g %.17g" % p)
+for t in f: print("3 %d %d %d" % t)
+PY
+
 valid() {  # NAME INPUT [convert options...]
   local name="$1" input="$2"
   shift 2
@@ -103,6 +134,7 @@ valid nonmanifold_wrap "$data/nonmanifold_wrap.ply" --bits 12
 valid max_export_chunks "$data/max_export_nm.ply" --bits 14 --chunk 256
 valid properties_lossless "$tmp/props.ply" --lossless
 valid properties_1bit "$tmp/props.ply" --bits 1
+valid doubles_lossless "$tmp/doubles.ply" --lossless
 # Written to a pipe: the same bytes as to a file (the encoder never seeks).
 "$psq" convert - - --to psq --bits 10 < "$data/spider.ply" > spider_pipe.psq
 "$psq" dump spider_pipe.psq -o spider_pipe.dump
