@@ -10,6 +10,12 @@
 namespace psq {
 namespace codec {
 
+// The pieces of apply() and the checks of find_completions() are forced
+// inline (PSQ_INLINE, coding.h): GCC kept them as calls, a few per
+// triangle. Inlined, decoding iso_ball_200k at 16 bits takes 4.8% fewer
+// instructions and encoding it 2.9% fewer (bench/instructions.sh); the
+// bytes are the same.
+
 uint32_t Boundary::new_vertex(uint32_t index, uint32_t key, const int64_t pos[3]) {
   uint32_t slot;
   if (!free_vertices_.empty()) {
@@ -33,7 +39,7 @@ uint32_t Boundary::new_vertex(uint32_t index, uint32_t key, const int64_t pos[3]
   return slot;
 }
 
-bool Boundary::is_border(uint32_t a, uint32_t b) const {
+PSQ_INLINE bool Boundary::is_border(uint32_t a, uint32_t b) const {
   const BVertex& va = vertices_[a];
   for (uint32_t i = 0; i < va.ndead; ++i)
     if (va.dead[i] == b) return true;
@@ -46,7 +52,7 @@ bool Boundary::is_border(uint32_t a, uint32_t b) const {
   return false;
 }
 
-void Boundary::add_border(uint32_t a, uint32_t b) {
+PSQ_INLINE void Boundary::add_border(uint32_t a, uint32_t b) {
   BVertex& va = vertices_[a];
   BVertex& vb = vertices_[b];
   if (va.ndead < kInlineDead && vb.ndead < kInlineDead) {
@@ -103,7 +109,7 @@ void Boundary::free_vertex(uint32_t slot) {
   free_vertices_.push_back(slot);
 }
 
-uint32_t Boundary::alloc_edge() {
+PSQ_INLINE uint32_t Boundary::alloc_edge() {
   uint32_t slot;
   if (!free_edges_.empty()) {
     slot = free_edges_.back();
@@ -159,7 +165,7 @@ bool Boundary::find_completions(BTriangle& t) const {
 // Makes q follow p on its loop (either may be kNone), first detaching
 // whatever followed p and whatever preceded q, so that next and prev stay
 // mutual (spec 6.1.2).
-void Boundary::link(uint32_t p, uint32_t q) {
+PSQ_INLINE void Boundary::link(uint32_t p, uint32_t q) {
   if (p != kNone) {
     uint32_t old = edges_[p].next;
     if (old != kNone && edges_[old].prev == p) edges_[old].prev = kNone;
@@ -172,7 +178,7 @@ void Boundary::link(uint32_t p, uint32_t q) {
   }
 }
 
-void Boundary::free_edge(uint32_t slot) {
+PSQ_INLINE void Boundary::free_edge(uint32_t slot) {
   BEdge& e = edges_[slot];
   if (e.next != kNone && edges_[e.next].prev == slot) edges_[e.next].prev = kNone;
   if (e.prev != kNone && edges_[e.prev].next == slot) edges_[e.prev].next = kNone;
@@ -190,7 +196,7 @@ void Boundary::free_edge(uint32_t slot) {
   free_edges_.push_back(slot);
 }
 
-uint32_t Boundary::enter_edge(BTriangle& t, int k) {
+PSQ_INLINE uint32_t Boundary::enter_edge(BTriangle& t, int k) {
   const uint32_t s = alloc_edge();
   if (s == kNone) return kNone;
   const uint32_t org = t.c[k], dst = t.c[k == 2 ? 0 : k + 1], opp = t.c[k == 0 ? 2 : k - 1];
@@ -215,7 +221,7 @@ uint32_t Boundary::enter_edge(BTriangle& t, int k) {
   return s;
 }
 
-void Boundary::compact_recent() {
+PSQ_INLINE void Boundary::compact_recent() {
   // Keep the recency stack proportional to the boundary: drop every stale
   // entry once they outnumber the open edges (amortized O(1) per edge).
   if (recent_.size() > 2 * static_cast<size_t>(open_edges_) + 64) {
@@ -226,14 +232,14 @@ void Boundary::compact_recent() {
   }
 }
 
-void Boundary::close_edge(BTriangle& t, int k) {
+PSQ_INLINE void Boundary::close_edge(BTriangle& t, int k) {
   const uint32_t u = t.c[k], w = t.c[k == 2 ? 0 : k + 1];
   t.eslot[k] = t.completes[k];
   free_edge(t.completes[k]);
   add_border(u, w);  // now used by two triangles: dead
 }
 
-void Boundary::finish_triangle(BTriangle& t) {
+PSQ_INLINE void Boundary::finish_triangle(BTriangle& t) {
   for (int k = 0; k < 3; ++k) {
     BVertex& v = vertices_[t.c[k]];
     ++v.degree;
