@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <functional>
 #include <sstream>
 
 #include "psq/psq_codec.h"
@@ -88,18 +89,26 @@ TEST(Conformance, InvalidVectorsFailWithTheirErrors) {
   }
 }
 
-// Decodes vector `name` to its end and returns the decoder's statistics.
-PsqStats stats_of(const std::string& name) {
+// Decodes vector `name` to its end with `dec`, passing every event before
+// the end to `on_event` when given.
+void decode_vector(const std::string& name, PsqDecoder* dec,
+                   const std::function<void(const SequenceEvent&)>& on_event = nullptr) {
   InputStream in;
   EXPECT_TRUE(in.open(kDir + name).ok()) << name;
-  PsqDecoder dec;
-  Status s = dec.open(&in);
+  Status s = dec->open(&in);
   SequenceEvent e;
   while (s.ok()) {
-    s = dec.next(&e);
-    if (e.kind == SequenceEvent::Kind::kEnd) break;
+    s = dec->next(&e);
+    if (!s.ok() || e.kind == SequenceEvent::Kind::kEnd) break;
+    if (on_event) on_event(e);
   }
   EXPECT_TRUE(s.ok()) << name << ": " << s.to_string();
+}
+
+// The decoder's statistics of vector `name`.
+PsqStats stats_of(const std::string& name) {
+  PsqDecoder dec;
+  decode_vector(name, &dec);
   return dec.stats();
 }
 
@@ -126,22 +135,16 @@ TEST(Conformance, SpiderVectorUsesEveryPrediction) {
 // overflows 64 bits, and uses the means of spec 7.3 (mid()), which a
 // decoder must compute without that overflow; its dump pins the result.
 TEST(Conformance, DoublesVectorNeedsMeansBeyond64Bits) {
-  InputStream in;
-  ASSERT_TRUE(in.open(kDir + "doubles_lossless.psq").ok());
   PsqDecoder dec;
-  Status s = dec.open(&in);
-  ASSERT_TRUE(s.ok()) << s.to_string();
-  EXPECT_TRUE(dec.header().lossless);
-  EXPECT_EQ(dec.schema().position_type, ScalarType::kFloat64);
   size_t vertices = 0;
-  SequenceEvent e;
-  while ((s = dec.next(&e)).ok() && e.kind != SequenceEvent::Kind::kEnd) {
-    if (e.kind != SequenceEvent::Kind::kVertex) continue;
+  decode_vector("doubles_lossless.psq", &dec, [&](const SequenceEvent& e) {
+    if (e.kind != SequenceEvent::Kind::kVertex) return;
     ++vertices;
     // |x| >= 2: the f64 bit pattern without its sign is 0x4000000000000000 or more.
     for (double x : e.vertex.position) EXPECT_GE(std::fabs(x), 2.0);
-  }
-  ASSERT_TRUE(s.ok()) << s.to_string();
+  });
+  EXPECT_TRUE(dec.header().lossless);
+  EXPECT_EQ(dec.schema().position_type, ScalarType::kFloat64);
   EXPECT_EQ(vertices, 81u);
   const PsqStats& st = dec.stats();
   EXPECT_GT(st.predictions[3] + st.predictions[4], 0u) << "no mean of two parallelograms";
