@@ -136,6 +136,26 @@ TEST(Cli, ConvertThroughPipes) {
   EXPECT_EQ(a.triangles, b.triangles);
 }
 
+TEST(Cli, ConvertWritesTheSameBytesOnOneOrTwoThreads) {
+  test::TempDir dir;
+  std::string ply = write_sphere(dir, "s.ply", true);
+  std::string out, err;
+  // From a mesh (the converter feeds the encoder) and from a .psq (the
+  // decoder does).
+  for (const char* t : {"1", "2"}) {
+    ASSERT_EQ(run_psq("convert --threads " + std::string(t) + " " + ply + " " + dir.file(std::string("s") + t + ".psq"),
+                      &out, &err), 0) << err;
+    ASSERT_EQ(run_psq("convert --bits 12 --threads " + std::string(t) + " " + dir.file("s1.psq") + " " +
+                          dir.file(std::string("r") + t + ".psq"), &out, &err), 0) << err;
+  }
+  EXPECT_EQ(test::read_file(dir.file("s1.psq")), test::read_file(dir.file("s2.psq")));
+  EXPECT_EQ(test::read_file(dir.file("r1.psq")), test::read_file(dir.file("r2.psq")));
+  EXPECT_NE(test::read_file(dir.file("r1.psq")), test::read_file(dir.file("s1.psq")));
+  EXPECT_EQ(run_psq("convert --threads 3 " + ply + " " + dir.file("s3.psq"), &out, &err), 2);
+  EXPECT_NE(err.find("bad --threads '3'"), std::string::npos) << err;
+  EXPECT_FALSE(test::file_exists(dir.file("s3.psq")));
+}
+
 TEST(Cli, ConvertSafety) {
   test::TempDir dir;
   std::string ply = write_sphere(dir, "s.ply");

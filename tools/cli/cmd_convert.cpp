@@ -3,7 +3,9 @@
 
 #include <cstdio>
 #include <cstdlib>
+#include <memory>
 #include <string>
+#include <thread>
 
 #include "cli_util.h"
 #include "progress.h"
@@ -13,6 +15,7 @@
 #include "psq/obj.h"
 #include "psq/psq_codec.h"
 #include "psq/sequence_builder.h"
+#include "psq/threaded_sink.h"
 
 namespace psq::cli {
 namespace {
@@ -47,6 +50,9 @@ const char kHelp[] =
     "  --chunk SIZE   .psq: close a chunk at this many coded bytes (default 1M)\n"
     "  --ascii        write ascii PLY instead of binary little-endian\n"
     "  --tmpdir DIR   directory for temporary spool files (default $TMPDIR)\n"
+    "  --threads N    .psq: 1 runs on one thread; 2 (the default on two or\n"
+    "                 more cores) encodes on a second thread while the first\n"
+    "                 reads and converts (the output is the same)\n"
     "  -f, --force    overwrite OUT if it exists\n"
     "  -q, --quiet    print no notes, no progress line and no summary\n"
     "  --json         print a JSON summary on standard output (not with OUT '-')\n"
@@ -55,13 +61,17 @@ const char kHelp[] =
 // IN (any mesh, or .psq) to a .psq OUT: the processing sequence of the
 // mesh, or the decoded sequence of a .psq, into the encoder.
 int to_psq(const std::string& in, const std::string& out, OpenedMesh& mesh, OutputFile& output,
-           const EncodeOptions& encode_options, const BuildOptions& build_options, bool quiet, bool json) {
+           const EncodeOptions& encode_options, const BuildOptions& build_options, int threads, bool quiet,
+           bool json) {
   FileWriter writer(&output);
   PsqEncoder encoder(&writer, encode_options);
   Status s;
   BuildReport report;
   Progress progress(mesh.stream.get(), !quiet);
-  ProgressSequenceSink sink(&encoder, &progress);
+  // With two threads the encoder runs on the second (psq/threaded_sink.h).
+  std::unique_ptr<ThreadedSequenceSink> threaded;
+  if (threads > 1) threaded = std::make_unique<ThreadedSequenceSink>(&encoder);
+  ProgressSequenceSink sink(threaded ? static_cast<SequenceSink*>(threaded.get()) : &encoder, &progress);
   if (mesh.decoder) {
     s = mesh.decoder->pump(sink);
   } else {
@@ -69,6 +79,7 @@ int to_psq(const std::string& in, const std::string& out, OpenedMesh& mesh, Outp
     s = build_sequence(source, sink, build_options, &report);
   }
   if (!s.ok()) {
+    threaded.reset();  // stops the encoder's thread before the output goes
     output.discard();
     return report_pipeline_error(in, out, s);
   }
@@ -124,6 +135,7 @@ int cmd_convert(int argc, char** argv) {
   std::string bits_text = args.option("--bits", "16");
   std::string memory = args.option("--memory", "512M");
   std::string chunk = args.option("--chunk", "1M");
+  std::string threads_text = args.option("--threads", std::thread::hardware_concurrency() >= 2 ? "2" : "1");
   std::vector<std::string> files = args.positionals();
   if (!args.error().empty()) return usage_error("convert", args.error());
   if (files.size() != 2) return usage_error("convert", "convert takes IN and OUT");
@@ -142,6 +154,9 @@ int cmd_convert(int argc, char** argv) {
   if (!parse_size(chunk, &chunk_bytes) || chunk_bytes > (uint64_t{1} << 24))
     return usage_error("convert", "bad --chunk '" + chunk + "' (1 to 16M)");
   encode_options.chunk_bytes = static_cast<uint32_t>(chunk_bytes);
+  if (threads_text != "1" && threads_text != "2")
+    return usage_error("convert", "bad --threads '" + threads_text + "' (1 or 2)");
+  const int threads = threads_text == "2" ? 2 : 1;
   BuildOptions build_options;
   build_options.tmpdir = tmpdir;
   if (!parse_size(memory, &build_options.memory_budget))
@@ -170,7 +185,7 @@ int cmd_convert(int argc, char** argv) {
   OutputFile output;
   s = output.open(out, force);
   if (!s.ok()) return report_error(out, s);
-  if (out_format == MeshFormat::kPsq) return to_psq(in, out, mesh, output, encode_options, build_options, quiet, json);
+  if (out_format == MeshFormat::kPsq) return to_psq(in, out, mesh, output, encode_options, build_options, threads, quiet, json);
   WriteOptions write_options;
   write_options.ascii = ascii;
   write_options.spool_dir = tmpdir;
@@ -194,6 +209,9 @@ int cmd_convert(int argc, char** argv) {
     }
     Status finish() override { return next->finish(); }
   } counter;
+  // One thread: a writer's work per element is too small to pay for
+  // handing elements to another core (bench/RESULTS.md, "Two threads in
+  // psq convert").
   counter.next = writer.get();
 
   Progress progress(mesh.stream.get(), !quiet);
