@@ -23,8 +23,9 @@ using test::run_psq;
 std::string shared(const std::string& rel) { return std::string(PSQ_SHARED_DATA) + "/" + rel; }
 
 // Writes a generated mesh as binary PLY and returns its path.
-std::string write_sphere(const test::TempDir& dir, const std::string& name, bool with_props = false) {
-  Mesh m = test::make_sphere(10, 16);
+std::string write_sphere(const test::TempDir& dir, const std::string& name, bool with_props = false, int rings = 10,
+                         int segments = 16) {
+  Mesh m = test::make_sphere(rings, segments);
   if (with_props) {
     m.schema.vertex_properties.push_back({"confidence", ScalarType::kFloat32});
     m.schema.vertex_properties.push_back({"label", ScalarType::kUInt16});
@@ -138,7 +139,9 @@ TEST(Cli, ConvertThroughPipes) {
 
 TEST(Cli, ConvertWritesTheSameBytesOnOneOrTwoThreads) {
   test::TempDir dir;
-  std::string ply = write_sphere(dir, "s.ply", true);
+  // 19,000 triangles: many batches go to the encoder's thread while the
+  // converter runs.
+  std::string ply = write_sphere(dir, "s.ply", true, 80, 120);
   std::string out, err;
   // From a mesh (the converter feeds the encoder) and from a .psq (the
   // decoder does).
@@ -153,7 +156,15 @@ TEST(Cli, ConvertWritesTheSameBytesOnOneOrTwoThreads) {
   EXPECT_NE(test::read_file(dir.file("r1.psq")), test::read_file(dir.file("s1.psq")));
   EXPECT_EQ(run_psq("convert --threads 3 " + ply + " " + dir.file("s3.psq"), &out, &err), 2);
   EXPECT_NE(err.find("bad --threads '3'"), std::string::npos) << err;
-  EXPECT_FALSE(test::file_exists(dir.file("s3.psq")));
+  // A truncated input fails while the encoder's thread runs: one line, exit
+  // 1, no output left behind.
+  const std::string bytes = test::read_file(ply);
+  test::write_file(dir.file("cut.ply"), bytes.substr(0, bytes.size() * 3 / 4));
+  EXPECT_EQ(run_psq("convert --threads 2 " + dir.file("cut.ply") + " " + dir.file("cut.psq"), &out, &err), 1);
+  EXPECT_EQ(count_lines(err), 1) << err;
+  EXPECT_NE(err.find("psq: error: " + dir.file("cut.ply") + ": byte "), std::string::npos) << err;
+  EXPECT_FALSE(test::file_exists(dir.file("cut.psq")));
+  EXPECT_EQ(dir.entries(), (std::vector<std::string>{"cut.ply", "r1.psq", "r2.psq", "s.ply", "s1.psq", "s2.psq"}));
 }
 
 TEST(Cli, ConvertSafety) {

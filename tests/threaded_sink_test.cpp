@@ -4,7 +4,7 @@
 // producer that gives up never hangs.
 #include <gtest/gtest.h>
 
-#include <atomic>
+#include <iomanip>
 #include <sstream>
 
 #include "psq/psq_codec.h"
@@ -19,6 +19,7 @@ namespace {
 // `fail_at`-th event (0-based).
 class TextSink : public SequenceSink {
  public:
+  TextSink() { text << std::setprecision(17); }  // doubles bit-exact
   Status begin(const MeshSchema& schema) override {
     text << "begin " << schema.vertex_properties.size() << " " << schema.face_properties.size() << "\n";
     return Status();
@@ -53,14 +54,14 @@ class TextSink : public SequenceSink {
   }
 
   std::ostringstream text;
-  uint64_t events = 0;
+  uint64_t calls = 0;  // event calls, the failing one and any after it included
   uint64_t fail_at = ~uint64_t{0};
   bool finished = false;
 
  private:
   Status count() {
-    if (events == fail_at) return Status(ErrorCode::kBadValue, "sink fails at event " + std::to_string(events));
-    ++events;
+    const uint64_t n = calls++;
+    if (n >= fail_at) return Status(ErrorCode::kBadValue, "sink fails at event " + std::to_string(n));
     return Status();
   }
 };
@@ -98,9 +99,11 @@ TEST(ThreadedSequenceSink, ReplaysTheSameEventsInOrder) {
 
 TEST(ThreadedSequenceSink, AnEncoderBehindItWritesTheSameBytes) {
   const test::Mesh m = mesh_with_values();
+  for (bool lossless : {false, true}) {
   std::vector<uint8_t> direct, threaded;
   EncodeOptions options;
   options.bits = 14;
+  options.lossless = lossless;
   {
     VectorWriter w(&direct);
     PsqEncoder encoder(&w, options);
@@ -115,7 +118,8 @@ TEST(ThreadedSequenceSink, AnEncoderBehindItWritesTheSameBytes) {
     EXPECT_EQ(encoder.stats().triangles, m.triangles.size());
   }
   EXPECT_GT(direct.size(), 100u);
-  EXPECT_EQ(threaded, direct);
+  EXPECT_EQ(threaded, direct) << "lossless " << lossless;
+  }
 }
 
 TEST(ThreadedSequenceSink, TheWrappedSinksErrorReachesTheProducer) {
@@ -130,21 +134,55 @@ TEST(ThreadedSequenceSink, TheWrappedSinksErrorReachesTheProducer) {
     EXPECT_NE(s.to_string().find("sink fails at event " + std::to_string(fail_at)), std::string::npos)
         << s.to_string();
     // Nothing reached the sink after its error, and it was not finished.
-    EXPECT_EQ(wrapped.events, fail_at);
+    EXPECT_EQ(wrapped.calls, fail_at + 1);
     EXPECT_FALSE(wrapped.finished);
   }
 }
 
 TEST(ThreadedSequenceSink, AProducerThatGivesUpDoesNotHang) {
-  TextSink wrapped;
-  {
-    ThreadedSequenceSink threaded(&wrapped, 8, 2);
-    ASSERT_TRUE(threaded.begin(MeshSchema()).ok());
-    for (uint32_t i = 0; i < 100; ++i) ASSERT_TRUE(threaded.finalize(i).ok());
-    // Destroyed without finish(): what is in flight is dropped.
+  // As psq convert nests them: the wrapped sink first, the threaded sink
+  // destroyed before it (ASan would see a worker that outlives it).
+  for (uint64_t fail_at : {~uint64_t{0}, uint64_t{3}}) {
+    TextSink wrapped;
+    wrapped.fail_at = fail_at;
+    {
+      ThreadedSequenceSink threaded(&wrapped, 8, 2);
+      ASSERT_TRUE(threaded.begin(MeshSchema()).ok());
+      for (uint32_t i = 0; i < 100; ++i)
+        if (!threaded.finalize(i).ok()) break;
+      // Destroyed without finish(): what is in flight is dropped.
+    }
+    EXPECT_FALSE(wrapped.finished);
+    EXPECT_LE(wrapped.calls, fail_at == 3 ? 4u : 100u);
   }
+}
+
+TEST(ThreadedSequenceSink, ErrorsAreStickyOnEveryCall) {
+  TextSink wrapped;
+  wrapped.fail_at = 0;
+  ThreadedSequenceSink threaded(&wrapped, 1, 2);
+  ASSERT_TRUE(threaded.begin(MeshSchema()).ok());
+  // The first event fails in the worker; later calls report it once the
+  // producer has handed a batch over.
+  Status s;
+  for (uint32_t i = 0; i < 10 && s.ok(); ++i) s = threaded.finalize(i);
+  ASSERT_FALSE(s.ok());
+  EXPECT_EQ(s.code(), ErrorCode::kBadValue);
+  EXPECT_EQ(threaded.finalize(99).code(), ErrorCode::kBadValue);
+  EXPECT_EQ(threaded.finish().code(), ErrorCode::kBadValue);
+  EXPECT_EQ(wrapped.calls, 1u);
   EXPECT_FALSE(wrapped.finished);
-  EXPECT_LE(wrapped.events, 100u);
+}
+
+TEST(ThreadedSequenceSink, EventsBeforeBeginAndASecondBeginAreErrors) {
+  TextSink wrapped;
+  ThreadedSequenceSink threaded(&wrapped);
+  EXPECT_EQ(threaded.finalize(0).code(), ErrorCode::kUsage);
+  ASSERT_TRUE(threaded.begin(MeshSchema()).ok());
+  EXPECT_EQ(threaded.begin(MeshSchema()).code(), ErrorCode::kUsage);
+  ASSERT_TRUE(threaded.finish().ok());
+  EXPECT_EQ(wrapped.calls, 0u);
+  EXPECT_TRUE(wrapped.finished);
 }
 
 TEST(ThreadedSequenceSink, EventsAfterFinishAreAnError) {
@@ -153,7 +191,7 @@ TEST(ThreadedSequenceSink, EventsAfterFinishAreAnError) {
   ASSERT_TRUE(threaded.begin(MeshSchema()).ok());
   ASSERT_TRUE(threaded.finalize(0).ok());
   ASSERT_TRUE(threaded.finish().ok());
-  EXPECT_EQ(wrapped.events, 1u);
+  EXPECT_EQ(wrapped.calls, 1u);
   EXPECT_EQ(threaded.finalize(1).code(), ErrorCode::kUsage);
   EXPECT_EQ(threaded.finish().code(), ErrorCode::kUsage);
 }

@@ -2,6 +2,7 @@
 // thread, replayed into the wrapped sink by a worker.
 #include "psq/threaded_sink.h"
 
+#include <atomic>
 #include <condition_variable>
 #include <cstring>
 #include <deque>
@@ -98,15 +99,26 @@ struct ThreadedSequenceSink::Impl {
   // producer may not add events (after finish(), after an error without a
   // thread).
   std::vector<uint8_t>* batch(Status* s) {
-    if (closed_) {
-      *s = Status(ErrorCode::kUsage, "event after finish() of a threaded sink");
+    if (!begun_ || closed_) {
+      *s = Status(ErrorCode::kUsage, closed_ ? "event after finish() of a threaded sink"
+                                             : "event before begin() of a threaded sink");
       return nullptr;
     }
-    if (!threaded_ && !error_.ok()) {
+    if (threaded_ ? failed_flag_.load(std::memory_order_acquire) : !error_.ok()) {
+      // Sticky: every event after the wrapped sink's error returns it.
+      std::lock_guard<std::mutex> lock(mu_);
       *s = error_;
       return nullptr;
     }
     return &pool_[cur_];
+  }
+
+  // begin() of the wrapped sink, on the caller's thread: before the first
+  // event, so that the worker is idle.
+  Status begin(const MeshSchema& schema) {
+    if (begun_ || closed_) return Status(ErrorCode::kUsage, "begin() twice on a threaded sink");
+    begun_ = true;
+    return next->begin(schema);
   }
 
   // After a record was appended: replays it at once without a thread, or
@@ -158,6 +170,7 @@ struct ThreadedSequenceSink::Impl {
       if (!s.ok()) {
         error_ = std::move(s);
         failed_ = true;
+        failed_flag_.store(true, std::memory_order_release);
       }
       free_.push_back(b);
       free_cv_.notify_one();
@@ -203,7 +216,7 @@ struct ThreadedSequenceSink::Impl {
   std::vector<std::vector<uint8_t>> pool_;
   // Producer side only.
   size_t cur_ = 0;
-  bool closed_ = false;
+  bool begun_ = false, closed_ = false;
   bool threaded_ = false;
   // Shared, under mu_ (error_ also when the worker is not running).
   std::mutex mu_;
@@ -211,6 +224,8 @@ struct ThreadedSequenceSink::Impl {
   std::deque<size_t> full_, free_;
   bool closing_ = false, abandon_ = false, failed_ = false;
   Status error_;
+  // failed_, readable without the lock: the producer's check per event.
+  std::atomic<bool> failed_flag_{false};
   std::thread worker_;  // last: starts after everything above exists
 };
 
@@ -218,7 +233,7 @@ ThreadedSequenceSink::ThreadedSequenceSink(SequenceSink* next, size_t batch_byte
     : impl_(std::make_unique<Impl>(next, batch_bytes, batches)) {}
 ThreadedSequenceSink::~ThreadedSequenceSink() = default;
 
-Status ThreadedSequenceSink::begin(const MeshSchema& schema) { return impl_->next->begin(schema); }
+Status ThreadedSequenceSink::begin(const MeshSchema& schema) { return impl_->begin(schema); }
 
 Status ThreadedSequenceSink::vertex(const SequenceVertex& v) {
   Status s;

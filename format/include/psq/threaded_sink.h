@@ -25,8 +25,10 @@
 // triangles; bench/RESULTS.md).
 //
 // Errors: the wrapped sink's first error is sticky. The producer learns it
-// at its next batch hand-over (an event call then returns it) or from
-// finish() at the latest; batches in flight after the error are dropped.
+// from the next event call after it happened (every later call returns
+// it too) or from finish() at the latest; batches in flight after the error
+// are dropped. Events before begin() or after finish(), and a second
+// begin() or finish(), are kUsage errors.
 // Destroying a threaded sink without finish() (the producer failed) drops
 // what is in flight and joins the worker. If no thread can be started, the
 // sink forwards every event on the caller's thread instead.
@@ -56,7 +58,8 @@ class ThreadedSequenceSink : public SequenceSink {
   ThreadedSequenceSink(const ThreadedSequenceSink&) = delete;
   ThreadedSequenceSink& operator=(const ThreadedSequenceSink&) = delete;
 
-  // Forwards to the wrapped sink's begin() on the caller's thread.
+  // Forwards to the wrapped sink's begin() on the caller's thread (the
+  // worker is idle until the first event).
   Status begin(const MeshSchema& schema) override;
   // Queue the event; return the wrapped sink's error once it failed.
   Status vertex(const SequenceVertex& v) override;
