@@ -301,10 +301,15 @@ class SlotQueue {
     }
     return x;
   }
-  template <class Keep>
-  void filter(Keep keep) {
+  // Keeps the items for which keep(x) holds, in order. touch(x) is called
+  // on the item 8 places further on first: it prefetches what keep() will
+  // read, so that the scan does not wait for one cache miss per item.
+  template <class Keep, class Touch>
+  void filter(Keep keep, Touch touch) {
+    constexpr size_t kAhead = 8;
     size_t n = 0;
     for (size_t i = head_; i < items_.size(); ++i) {
+      if (i + kAhead < items_.size()) touch(items_[i + kAhead]);
       if (keep(items_[i])) items_[n++] = items_[i];
     }
     items_.resize(n);
@@ -849,10 +854,12 @@ void SequenceConverter::Impl::make_ready(uint32_t slot) {
     // proportional to the waiting area.
     SlotQueue& q = arrived[c];
     if (q.size() > 2 * ready + 4096) {
-      q.filter([&](uint32_t x) {
-        const Tri& tx = tris[x];
-        return !tx.emitted() && tx.ready() && classify(tx) == c;
-      });
+      q.filter(
+          [&](uint32_t x) {
+            const Tri& tx = tris[x];
+            return !tx.emitted() && tx.ready() && classify(tx) == c;
+          },
+          [&](uint32_t x) { __builtin_prefetch(&tris[x]); });
     }
   } else if (c == 4) {
     // A triangle that is no start candidate now never becomes one (it
@@ -862,10 +869,12 @@ void SequenceConverter::Impl::make_ready(uint32_t slot) {
     // is needed, which coherent input rarely needs: drop them now and then
     // so that the queue stays proportional to the waiting area.
     if (starts.size() > 2 * ready + 4096) {
-      starts.filter([&](uint32_t x) {
-        const Tri& tx = tris[x];
-        return !tx.emitted() && tx.ready() && classify(tx) == 4;
-      });
+      starts.filter(
+          [&](uint32_t x) {
+            const Tri& tx = tris[x];
+            return !tx.emitted() && tx.ready() && classify(tx) == 4;
+          },
+          [&](uint32_t x) { __builtin_prefetch(&tris[x]); });
     }
   }
 }
@@ -884,6 +893,11 @@ bool SequenceConverter::Impl::emit(uint32_t slot, int cls) {
   Tri& t = tris[slot];
   if (cls < 0) return fail(Status(ErrorCode::kInternal, "converter emitted a triangle that is none of the five ops"));
   st.op = kOps[cls];
+  // The partners across this triangle's edges are marked below, after the
+  // sink's work on the triangle: start loading their cache lines now (most
+  // of emit()'s time went to those loads).
+  for (uint32_t k = 0; k < 3; ++k)
+    if (t.partner[k] != kNone) __builtin_prefetch(&tris[t.partner[k] >> 2], 1);
   uint32_t new_mask = 0, final_mask = 0, border_mask = 0, nonmanifold_mask = 0, leaving_mask = 0, entering_mask = 0;
   for (uint32_t k = 0; k < 3; ++k) {
     Seg& s = segs[t.seg[k]];
