@@ -96,15 +96,15 @@ struct ThreadedSequenceSink::Impl {
   }
 
   // The batch to append the next record to, or null with *s set when the
-  // producer may not add events (after finish(), after an error without a
-  // thread).
+  // producer may not add events (before begin(), after finish(), after the
+  // wrapped sink's error).
   std::vector<uint8_t>* batch(Status* s) {
     if (!begun_ || closed_) {
       *s = Status(ErrorCode::kUsage, closed_ ? "event after finish() of a threaded sink"
                                              : "event before begin() of a threaded sink");
       return nullptr;
     }
-    if (threaded_ ? failed_flag_.load(std::memory_order_acquire) : !error_.ok()) {
+    if (threaded_ ? failed_.load(std::memory_order_acquire) : !error_.ok()) {
       // Sticky: every event after the wrapped sink's error returns it.
       std::lock_guard<std::mutex> lock(mu_);
       *s = error_;
@@ -116,7 +116,7 @@ struct ThreadedSequenceSink::Impl {
   // begin() of the wrapped sink, on the caller's thread: before the first
   // event, so that the worker is idle.
   Status begin(const MeshSchema& schema) {
-    if (begun_ || closed_) return Status(ErrorCode::kUsage, "begin() twice on a threaded sink");
+    if (begun_ || closed_) return Status(ErrorCode::kUsage, "begin() twice or after finish() on a threaded sink");
     begun_ = true;
     return next->begin(schema);
   }
@@ -138,7 +138,7 @@ struct ThreadedSequenceSink::Impl {
     free_cv_.wait(lock, [&] { return !free_.empty(); });
     cur_ = free_.front();
     free_.pop_front();
-    return failed_ ? error_ : Status();
+    return failed_.load(std::memory_order_relaxed) ? error_ : Status();
   }
 
   Status close() {
@@ -162,15 +162,14 @@ struct ThreadedSequenceSink::Impl {
       if (full_.empty()) return;  // closing, and everything replayed
       const size_t b = full_.front();
       full_.pop_front();
-      const bool skip = failed_ || abandon_;
+      const bool skip = failed_.load(std::memory_order_relaxed) || abandon_;
       lock.unlock();
       Status s = skip ? Status() : replay(pool_[b]);
       pool_[b].clear();
       lock.lock();
       if (!s.ok()) {
         error_ = std::move(s);
-        failed_ = true;
-        failed_flag_.store(true, std::memory_order_release);
+        failed_.store(true, std::memory_order_release);
       }
       free_.push_back(b);
       free_cv_.notify_one();
@@ -222,10 +221,11 @@ struct ThreadedSequenceSink::Impl {
   std::mutex mu_;
   std::condition_variable work_cv_, free_cv_;
   std::deque<size_t> full_, free_;
-  bool closing_ = false, abandon_ = false, failed_ = false;
+  bool closing_ = false, abandon_ = false;
   Status error_;
-  // failed_, readable without the lock: the producer's check per event.
-  std::atomic<bool> failed_flag_{false};
+  // The wrapped sink failed (error_ says how): set under mu_, and atomic so
+  // that the producer's check per event needs no lock.
+  std::atomic<bool> failed_{false};
   std::thread worker_;  // last: starts after everything above exists
 };
 
