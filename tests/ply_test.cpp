@@ -96,7 +96,7 @@ TEST(Ply, DoublePositionsStayExact) {
   Mesh m = test::make_grid(3);
   m.schema.position_type = ScalarType::kFloat64;
   m.positions[5] = {0.1, 1.0 / 3.0, 1e-300};
-  for (PlyEncoding enc : {PlyEncoding::kAscii, PlyEncoding::kBinaryBigEndian}) {
+  for (PlyEncoding enc : {PlyEncoding::kAscii, PlyEncoding::kBinaryLittleEndian, PlyEncoding::kBinaryBigEndian}) {
     Mesh back;
     ASSERT_TRUE(read_ply(write_ply(m, enc), &back).ok());
     EXPECT_EQ(back.schema.position_type, ScalarType::kFloat64);

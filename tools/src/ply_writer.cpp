@@ -183,7 +183,32 @@ Status PlyWriter::Impl::emit_face(const std::string& data) {
 Status PlyWriter::vertex(const double p[3], const PropertyValues& values) {
   Impl& m = *impl_;
   m.record.clear();
-  for (int k = 0; k < 3; ++k) PSQ_RETURN_IF_ERROR(m.enc.put(m.schema.position_type, p[k], &m.record));
+  if (m.options.encoding != PlyEncoding::kAscii) {
+    // The position as put() writes it (float types need no check), without
+    // its dispatch per value.
+    const bool swap = m.options.encoding == PlyEncoding::kBinaryBigEndian;
+    char b[24];
+    if (m.schema.position_type == ScalarType::kFloat32) {
+      for (int k = 0; k < 3; ++k) {
+        const float f = static_cast<float>(p[k]);
+        uint32_t x;
+        std::memcpy(&x, &f, 4);
+        if (swap) x = __builtin_bswap32(x);
+        std::memcpy(b + 4 * k, &x, 4);
+      }
+      m.record.append(b, 12);
+    } else {
+      for (int k = 0; k < 3; ++k) {
+        uint64_t x;
+        std::memcpy(&x, &p[k], 8);
+        if (swap) x = __builtin_bswap64(x);
+        std::memcpy(b + 8 * k, &x, 8);
+      }
+      m.record.append(b, 24);
+    }
+  } else {
+    for (int k = 0; k < 3; ++k) PSQ_RETURN_IF_ERROR(m.enc.put(m.schema.position_type, p[k], &m.record));
+  }
   PSQ_RETURN_IF_ERROR(m.enc.put_all(m.schema.vertex_properties, values, &m.record));
   if (m.options.encoding == PlyEncoding::kAscii) m.record.push_back('\n');
   return m.emit_vertex(m.record);
@@ -192,8 +217,23 @@ Status PlyWriter::vertex(const double p[3], const PropertyValues& values) {
 Status PlyWriter::triangle(const uint32_t idx[3], const PropertyValues& values) {
   Impl& m = *impl_;
   m.record.clear();
-  PSQ_RETURN_IF_ERROR(m.enc.put(ScalarType::kUInt8, 3, &m.record));
-  for (int k = 0; k < 3; ++k) PSQ_RETURN_IF_ERROR(m.enc.put(m.index_type, idx[k], &m.record));
+  const uint32_t index_max = m.index_type == ScalarType::kInt32 ? 0x7fffffffu : 0xffffffffu;
+  if (m.options.encoding != PlyEncoding::kAscii && idx[0] <= index_max && idx[1] <= index_max &&
+      idx[2] <= index_max) {
+    // The count and the indices as put() writes them, without its checks
+    // and conversions per value: they were most of a binary writer's work.
+    char b[13];
+    b[0] = 3;
+    for (int k = 0; k < 3; ++k) {
+      uint32_t x = idx[k];
+      if (m.options.encoding == PlyEncoding::kBinaryBigEndian) x = __builtin_bswap32(x);
+      std::memcpy(b + 1 + 4 * k, &x, 4);
+    }
+    m.record.append(b, sizeof b);
+  } else {
+    PSQ_RETURN_IF_ERROR(m.enc.put(ScalarType::kUInt8, 3, &m.record));
+    for (int k = 0; k < 3; ++k) PSQ_RETURN_IF_ERROR(m.enc.put(m.index_type, idx[k], &m.record));
+  }
   PSQ_RETURN_IF_ERROR(m.enc.put_all(m.schema.face_properties, values, &m.record));
   if (m.options.encoding == PlyEncoding::kAscii) m.record.push_back('\n');
   return m.emit_face(m.record);
