@@ -1,6 +1,7 @@
 // Streaming PLY writer (psq/ply.h). PLY puts element counts in its header,
 // so when the source cannot promise them up front the elements are spooled to
 // unlinked temporary files and copied after the header at finish().
+#include <algorithm>
 #include <charconv>
 #include <cstring>
 #include <string>
@@ -34,23 +35,31 @@ class ValueEncoder {
       out->append(buf, r.ptr);
       return Status();
     }
-    uint8_t b[8];
-    int n = scalar_size(t);
+    char b[8];
+    char* e = b;
     switch (t) {
-      case ScalarType::kInt8: { int8_t x = static_cast<int8_t>(v); std::memcpy(b, &x, 1); break; }
-      case ScalarType::kUInt8: { uint8_t x = static_cast<uint8_t>(v); std::memcpy(b, &x, 1); break; }
-      case ScalarType::kInt16: { int16_t x = static_cast<int16_t>(v); std::memcpy(b, &x, 2); break; }
-      case ScalarType::kUInt16: { uint16_t x = static_cast<uint16_t>(v); std::memcpy(b, &x, 2); break; }
-      case ScalarType::kInt32: { int32_t x = static_cast<int32_t>(v); std::memcpy(b, &x, 4); break; }
-      case ScalarType::kUInt32: { uint32_t x = static_cast<uint32_t>(v); std::memcpy(b, &x, 4); break; }
-      case ScalarType::kFloat32: { float x = static_cast<float>(v); std::memcpy(b, &x, 4); break; }
-      case ScalarType::kFloat64: std::memcpy(b, &v, 8); break;
+      case ScalarType::kInt8: e = store(static_cast<int8_t>(v), b); break;
+      case ScalarType::kUInt8: e = store(static_cast<uint8_t>(v), b); break;
+      case ScalarType::kInt16: e = store(static_cast<int16_t>(v), b); break;
+      case ScalarType::kUInt16: e = store(static_cast<uint16_t>(v), b); break;
+      case ScalarType::kInt32: e = store(static_cast<int32_t>(v), b); break;
+      case ScalarType::kUInt32: e = store(static_cast<uint32_t>(v), b); break;
+      case ScalarType::kFloat32: e = store(static_cast<float>(v), b); break;
+      case ScalarType::kFloat64: e = store(v, b); break;
     }
-    if (enc_ == PlyEncoding::kBinaryBigEndian) {
-      for (int i = 0; i < n / 2; ++i) std::swap(b[i], b[n - 1 - i]);
-    }
-    out->append(reinterpret_cast<const char*>(b), static_cast<size_t>(n));
+    out->append(b, e);
     return Status();
+  }
+
+  // Stores `x` at `at` as its bytes in the binary encoding's order (the
+  // host is little-endian); returns the end. For values known to fit their
+  // type, callers build a record with it: put() without its check and its
+  // dispatch per value.
+  template <class T>
+  char* store(T x, char* at) const {
+    std::memcpy(at, &x, sizeof(T));
+    if (enc_ == PlyEncoding::kBinaryBigEndian) std::reverse(at, at + sizeof(T));
+    return at + sizeof(T);
   }
 
   // Appends the flattened `values` of `props`. Errors: as put(), and
@@ -184,28 +193,14 @@ Status PlyWriter::vertex(const double p[3], const PropertyValues& values) {
   Impl& m = *impl_;
   m.record.clear();
   if (m.options.encoding != PlyEncoding::kAscii) {
-    // The position as put() writes it (float types need no check), without
-    // its dispatch per value.
-    const bool swap = m.options.encoding == PlyEncoding::kBinaryBigEndian;
+    // Float types need no check (put()): the position without put()'s
+    // dispatch per value, in one append.
     char b[24];
-    if (m.schema.position_type == ScalarType::kFloat32) {
-      for (int k = 0; k < 3; ++k) {
-        const float f = static_cast<float>(p[k]);
-        uint32_t x;
-        std::memcpy(&x, &f, 4);
-        if (swap) x = __builtin_bswap32(x);
-        std::memcpy(b + 4 * k, &x, 4);
-      }
-      m.record.append(b, 12);
-    } else {
-      for (int k = 0; k < 3; ++k) {
-        uint64_t x;
-        std::memcpy(&x, &p[k], 8);
-        if (swap) x = __builtin_bswap64(x);
-        std::memcpy(b + 8 * k, &x, 8);
-      }
-      m.record.append(b, 24);
-    }
+    char* e = b;
+    for (int k = 0; k < 3; ++k)
+      e = m.schema.position_type == ScalarType::kFloat32 ? m.enc.store(static_cast<float>(p[k]), e)
+                                                         : m.enc.store(p[k], e);
+    m.record.append(b, e);
   } else {
     for (int k = 0; k < 3; ++k) PSQ_RETURN_IF_ERROR(m.enc.put(m.schema.position_type, p[k], &m.record));
   }
@@ -220,16 +215,13 @@ Status PlyWriter::triangle(const uint32_t idx[3], const PropertyValues& values) 
   const uint32_t index_max = m.index_type == ScalarType::kInt32 ? 0x7fffffffu : 0xffffffffu;
   if (m.options.encoding != PlyEncoding::kAscii && idx[0] <= index_max && idx[1] <= index_max &&
       idx[2] <= index_max) {
-    // The count and the indices as put() writes them, without its checks
-    // and conversions per value: they were most of a binary writer's work.
+    // The count and the indices fit their types: put() without its checks
+    // and conversions per value, which were most of a binary writer's work.
+    // (An index up to index_max has the same bytes as int32 and uint32.)
     char b[13];
-    b[0] = 3;
-    for (int k = 0; k < 3; ++k) {
-      uint32_t x = idx[k];
-      if (m.options.encoding == PlyEncoding::kBinaryBigEndian) x = __builtin_bswap32(x);
-      std::memcpy(b + 1 + 4 * k, &x, 4);
-    }
-    m.record.append(b, sizeof b);
+    char* e = m.enc.store(uint8_t{3}, b);
+    for (int k = 0; k < 3; ++k) e = m.enc.store(idx[k], e);
+    m.record.append(b, e);
   } else {
     PSQ_RETURN_IF_ERROR(m.enc.put(ScalarType::kUInt8, 3, &m.record));
     for (int k = 0; k < 3; ++k) PSQ_RETURN_IF_ERROR(m.enc.put(m.index_type, idx[k], &m.record));
