@@ -14,7 +14,7 @@
 set -euo pipefail
 verbose=0
 if [ "${1:-}" = "-v" ]; then verbose=1; shift; fi
-[ $# -ge 2 ] || { sed -n '2,14p' "$0" >&2; exit 2; }
+[ $# -ge 2 ] || { sed -n '2,13p' "$0" >&2; exit 2; }
 old=$1 new=$2; shift 2
 for b in "$old" "$new"; do [ -x "$b" ] || { echo "size_ab.sh: $b is not an executable" >&2; exit 2; }; done
 meshes=("$@")
