@@ -133,33 +133,61 @@ uint32_t Boundary::find_edge(uint32_t a, uint32_t b) const {
   return kNone;
 }
 
-bool Boundary::find_completions(BTriangle& t) const {
-  int k0 = 0;
-  if (t.gate != kNone) {
-    // Edge 0 (q->p) completes the gate p->q. The lookups below could not
-    // find otherwise: an open p->q has no open twin q->p (that would have
-    // completed it) and {p, q} is no dead edge (p->q could not have entered
-    // over one, and nothing made it dead while p->q stayed open).
-    t.completes[0] = t.gate;
-    t.state[0] = EdgeState::kCompletes;
-    k0 = 1;
-  }
-  for (int k = k0; k < 3; ++k) {
-    const uint32_t u = t.c[k], w = t.c[(k + 1) % 3];
-    t.completes[k] = kNone;
-    if (t.is_new[k] || t.is_new[(k + 1) % 3]) {
-      t.state[k] = t.border[k] ? EdgeState::kBorder : EdgeState::kEnters;
-      continue;
-    }
-    // Spec 6.1.3: u->w must not be open already (it would be on the
-    // boundary twice) nor a border; w->u open means this edge completes it.
-    if (find_edge(u, w) != kNone || is_border(u, w)) return false;
-    t.completes[k] = find_edge(w, u);
-    t.state[k] = t.completes[k] != kNone ? EdgeState::kCompletes
-                 : t.border[k]           ? EdgeState::kBorder
-                                         : EdgeState::kEnters;
-  }
+// Edge k of t, whose endpoints are both old: an error when it is open
+// already or dead (spec 6.1.3), else it completes its open twin or, without
+// one, enters or is a border as t.border says.
+PSQ_INLINE bool Boundary::classify_old_edge(BTriangle& t, int k) const {
+  const uint32_t u = t.c[k], w = t.c[k == 2 ? 0 : k + 1];
+  if (find_edge(u, w) != kNone || is_border(u, w)) return false;
+  t.completes[k] = find_edge(w, u);
+  t.state[k] = t.completes[k] != kNone ? EdgeState::kCompletes
+               : t.border[k]           ? EdgeState::kBorder
+                                       : EdgeState::kEnters;
   return true;
+}
+
+// An edge with a new endpoint enters or is a border.
+PSQ_INLINE void classify_new_edge(BTriangle& t, int k) {
+  t.completes[k] = kNone;
+  t.state[k] = t.border[k] ? EdgeState::kBorder : EdgeState::kEnters;
+}
+
+bool Boundary::find_completions(BTriangle& t) const {
+  if (t.gate == kNone) {
+    for (int k = 0; k < 3; ++k) {
+      if (t.is_new[k] || t.is_new[(k + 1) % 3]) classify_new_edge(t, k);
+      else if (!classify_old_edge(t, k)) return false;
+    }
+    return true;
+  }
+  // Edge 0 (q->p) completes the gate p->q. The lookups could not find
+  // otherwise: an open p->q has no open twin q->p (that would have
+  // completed it) and {p, q} is no dead edge (p->q could not have entered
+  // over one, and nothing made it dead while p->q stayed open).
+  t.completes[0] = t.gate;
+  t.state[0] = EdgeState::kCompletes;
+  if (t.is_new[2]) {  // an add: edges 1 and 2 touch the new vertex
+    classify_new_edge(t, 1);
+    classify_new_edge(t, 2);
+    return true;
+  }
+  // When x is the vertex before the gate, edge 1 (p->x) completes the open
+  // edge before it, x->p (its links end and start at the shared vertex,
+  // spec 6.1.2); for the same reason as above, no lookup could find
+  // otherwise. Likewise edge 2 (x->q) and the open edge after the gate.
+  const BEdge& g = edges_[t.gate];
+  const uint32_t x = t.c[2];
+  if (g.prev != kNone && edges_[g.prev].org == x) {
+    t.completes[1] = g.prev;
+    t.state[1] = EdgeState::kCompletes;
+    return classify_old_edge(t, 2);
+  }
+  if (g.next != kNone && edges_[g.next].dst == x) {
+    t.completes[2] = g.next;
+    t.state[2] = EdgeState::kCompletes;
+    return classify_old_edge(t, 1);
+  }
+  return classify_old_edge(t, 1) && classify_old_edge(t, 2);
 }
 
 // Makes q follow p on its loop (either may be kNone), first detaching
@@ -325,6 +353,15 @@ bool Boundary::apply(BTriangle& t) {
 // without borders, most of a mesh). The same steps in the same order as the
 // general case, with its tests on borders and joins resolved.
 bool Boundary::apply_on_gate(BTriangle& t) {
+  // A fill whose completed neighbour is linked to the gate (the common
+  // case, and every fill whose third vertex was named "left" or "right").
+  const BEdge& gate = edges_[t.completes[0]];
+  if (t.state[1] == EdgeState::kEnters) {
+    if (t.state[2] == EdgeState::kEnters) return apply_add(t);
+    if (t.completes[2] == gate.next) return apply_fill(t, 1);
+  } else if (t.state[2] == EdgeState::kEnters && t.completes[1] == gate.prev) {
+    return apply_fill(t, 2);
+  }
   const bool enters1 = t.state[1] == EdgeState::kEnters, enters2 = t.state[2] == EdgeState::kEnters;
   uint32_t fresh1 = kNone, fresh2 = kNone;
   if (enters1 && (fresh1 = enter_edge(t, 1)) == kNone) return false;
@@ -345,6 +382,66 @@ bool Boundary::apply_on_gate(BTriangle& t) {
   link(gate_prev, after1);   // corner 1
   link(before1, after2);     // corner 2
   reference_ = fresh1 != kNone ? fresh1 : fresh2;
+  finish_triangle(t);
+  return true;
+}
+
+// apply_on_gate() for an add: p->x and x->q enter, the gate closes. The
+// same steps again, with what an add implies resolved: no old link names a
+// completed edge but the gate (the gate is neither its own neighbour nor
+// one of the fresh edges), and no vertex becomes final (p and q trade the
+// gate for a fresh edge; x has two).
+PSQ_INLINE bool Boundary::apply_add(BTriangle& t) {
+  const uint32_t f1 = enter_edge(t, 1);
+  if (f1 == kNone) return false;
+  const uint32_t f2 = enter_edge(t, 2);
+  if (f2 == kNone) return false;
+  const uint32_t g = t.completes[0];
+  const uint32_t gate_prev = edges_[g].prev, gate_next = edges_[g].next;
+  compact_recent();
+  close_edge(t, 0);  // clears the neighbours' links to the gate
+  // link(f2, gate_next), link(gate_prev, f1) and link(f1, f2) on fresh edges.
+  BEdge& e1 = edges_[f1];
+  BEdge& e2 = edges_[f2];
+  e1.prev = gate_prev;
+  e1.next = f2;
+  e2.prev = f1;
+  e2.next = gate_next;
+  if (gate_prev != kNone) edges_[gate_prev].next = f1;
+  if (gate_next != kNone) edges_[gate_next].prev = f2;
+  reference_ = f1;
+  for (int k = 0; k < 3; ++k) {
+    ++vertices_[t.c[k]].degree;
+    t.final[k] = false;
+  }
+  return true;
+}
+
+// apply_on_gate() for a fill: edge 3 - k completes the gate's neighbour
+// on its side (linked to it: the edge before the gate for k = 2, after it
+// for k = 1), and edge k enters. Resolved: the fresh edge takes the place
+// of the two completed ones on the loop, between the neighbour's other
+// neighbour and the gate's other neighbour. The triangle completes neither
+// of these: the neighbour's other neighbour ends or starts at x, not at p
+// or q, and the gate's other neighbour would be edge k's twin (edge k
+// would complete it, not enter).
+PSQ_INLINE bool Boundary::apply_fill(BTriangle& t, int k) {
+  const uint32_t f = enter_edge(t, k);
+  if (f == kNone) return false;
+  const uint32_t g = t.completes[0], c = t.completes[3 - k];
+  // k = 2: prev of f is the neighbour's prev, next of f the gate's next.
+  // k = 1: prev of f is the gate's prev, next of f the neighbour's next.
+  const uint32_t before = k == 2 ? edges_[c].prev : edges_[g].prev;
+  const uint32_t after = k == 2 ? edges_[g].next : edges_[c].next;
+  compact_recent();
+  close_edge(t, 0);
+  close_edge(t, 3 - k);
+  BEdge& e = edges_[f];
+  e.prev = before;
+  e.next = after;
+  if (before != kNone) edges_[before].next = f;
+  if (after != kNone) edges_[after].prev = f;
+  reference_ = f;
   finish_triangle(t);
   return true;
 }

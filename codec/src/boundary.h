@@ -173,7 +173,10 @@ class Boundary {
   void close_edge(BTriangle& t, int k);
   void finish_triangle(BTriangle& t);
   bool apply_on_gate(BTriangle& t);
+  bool apply_add(BTriangle& t);
+  bool apply_fill(BTriangle& t, int k);
   bool is_border(uint32_t a, uint32_t b) const;
+  bool classify_old_edge(BTriangle& t, int k) const;
   void add_border(uint32_t a, uint32_t b);
   void free_edge(uint32_t slot);
   void link(uint32_t p, uint32_t q);
