@@ -394,6 +394,7 @@ class BasicDecoder {
   }
   uint64_t raw(int bits, Cost c) {
     if (kMeasure) cost_[c] += bits;
+    if (bits >= 1 && bits <= 16) return rc_->decode_raw_short(bits);
     uint64_t v = 0;
     if (bits > 32) {
       v = static_cast<uint64_t>(rc_->decode_raw(bits - 32)) << 32;

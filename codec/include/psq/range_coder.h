@@ -127,6 +127,18 @@ class RangeDecoder {
   }
   uint32_t decode_symbol(SymbolModel& m);
   uint32_t decode_raw(int bits);
+  // decode_raw() for 1 to 16 bits, inline: the same single step.
+  uint32_t decode_raw_short(int bits) {
+    range_ >>= bits;
+    uint32_t part = code_ / range_;
+    if (part >> bits) {  // only a corrupt stream puts code beyond the range
+      overran_ = true;
+      part = (1u << bits) - 1;
+    }
+    code_ -= part * range_;
+    if (range_ < (1u << 24)) normalize();
+    return part;
+  }
   int32_t decode_int(IntegerModel& m);
 
   // True when decoding needed bytes past the end of the input: the stream
