@@ -127,8 +127,14 @@ inline uint64_t coord_distance(int64_t a, int64_t b) {
 // The bit length of a triangle's extent along `axis`: of the largest
 // coordinate distance between two of its corners a, b, c.
 inline int triangle_extent(const int64_t* a, const int64_t* b, const int64_t* c, int axis) {
-  return bit_length64(std::max(coord_distance(a[axis], b[axis]),
-                               std::max(coord_distance(a[axis], c[axis]), coord_distance(b[axis], c[axis]))));
+  // When the largest minus the smallest is below 2^63, every pair's
+  // difference is its distance and none is larger; otherwise some
+  // difference wraps, and the pairs decide.
+  const int64_t x = a[axis], y = b[axis], z = c[axis];
+  const uint64_t spread = static_cast<uint64_t>(std::max(x, std::max(y, z))) -
+                          static_cast<uint64_t>(std::min(x, std::min(y, z)));
+  if (static_cast<int64_t>(spread) >= 0) return bit_length64(spread);
+  return bit_length64(std::max(coord_distance(x, y), std::max(coord_distance(x, z), coord_distance(y, z))));
 }
 
 struct Models {
