@@ -41,6 +41,22 @@ inline int adapt_shift(uint16_t n) {
   return kShift[n];
 }
 
+// One update of a model with count n: its shift (adapt_shift(n)) and its
+// count after the update, min(n + 1, 30). A single lookup instead of the
+// lookup and the saturating increment: 2 fewer instructions per decision.
+struct AdaptStep {
+  uint8_t shift;
+  uint8_t next;
+};
+inline AdaptStep adapt_step(uint16_t n) {
+  static const AdaptStep kStep[31] = {
+      {2, 1}, {2, 2}, {3, 3}, {3, 4}, {3, 5}, {3, 6}, {4, 7}, {4, 8},
+      {4, 9}, {4, 10}, {4, 11}, {4, 12}, {4, 13}, {4, 14}, {5, 15}, {5, 16},
+      {5, 17}, {5, 18}, {5, 19}, {5, 20}, {5, 21}, {5, 22}, {5, 23}, {5, 24},
+      {5, 25}, {5, 26}, {5, 27}, {5, 28}, {5, 29}, {5, 30}, {6, 30}};
+  return kStep[n];
+}
+
 // An adaptive model for symbols of `bits` bits (1..16): a binary tree of
 // BitModels, most significant bit first.
 class SymbolModel {
@@ -69,8 +85,9 @@ class RangeEncoder {
   // Inline: the encoder's innermost operation (spec 5.7).
   void encode_bit(BitModel& m, int bit) {
     const uint32_t bound = (range_ >> 16) * m.p0;
-    const int sh = adapt_shift(m.n);
-    m.n = static_cast<uint16_t>(m.n + (m.n < 30));
+    const AdaptStep step = adapt_step(m.n);
+    const int sh = step.shift;
+    m.n = step.next;
     if (bit == 0) {
       range_ = bound;
       m.p0 = static_cast<uint16_t>(m.p0 + ((65536u - 32 - m.p0) >> sh));
@@ -109,8 +126,9 @@ class RangeDecoder {
   // Inline: the decoder's innermost operation (spec/psq-format.md 5).
   int decode_bit(BitModel& m) {
     const uint32_t bound = (range_ >> 16) * m.p0;
-    const int sh = adapt_shift(m.n);
-    m.n = static_cast<uint16_t>(m.n + (m.n < 30));
+    const AdaptStep step = adapt_step(m.n);
+    const int sh = step.shift;
+    m.n = step.next;
     int bit;
     if (code_ < bound) {
       range_ = bound;
