@@ -361,7 +361,7 @@ template <bool kMeasure>
 class BasicDecoder {
  public:
   BasicDecoder(RangeDecoder* rc, double* cost) : rc_(rc), cost_(cost) {}
-  int bit(BitModel& m, Cost c) {
+  PSQ_INLINE int bit(BitModel& m, Cost c) {
     if (!kMeasure) return rc_->decode_bit(m);
     const uint16_t p0 = m.p0;
     const int b = rc_->decode_bit(m);
@@ -379,13 +379,13 @@ class BasicDecoder {
   }
   // The gate symbol in context ctx (spec 6.2.1): 0..15, or 16 and 17 for
   // the tree's two invalid symbols (a corrupt stream).
-  uint32_t gate(Models& m, int ctx) {
+  PSQ_INLINE uint32_t gate(Models& m, int ctx) {
     if (!bit(m.gate_zero[ctx], kCostConnectivity)) return 0;
     if (!bit(m.gate_one[ctx], kCostConnectivity)) return 1;
     return symbol<kGateBits>(m.gate[ctx], kCostConnectivity) + 2;
   }
   // The third-vertex symbol with the nodes of its context (spec 6.2.2).
-  uint32_t third(BitModel* node) {
+  PSQ_INLINE uint32_t third(BitModel* node) {
     if (!bit(node[0], kCostConnectivity)) return kThirdNew;
     if (!bit(node[1], kCostConnectivity)) return kThirdLeft;
     return bit(node[2], kCostConnectivity) ? kThirdJoin : kThirdRight;
