@@ -99,15 +99,7 @@ uint32_t RangeDecoder::decode_raw(int bits) {
   while (bits > 0) {
     int n = bits > 16 ? 16 : bits;
     bits -= n;
-    range_ >>= n;
-    uint32_t part = code_ / range_;
-    if (part >> n) {  // only a corrupt stream puts code beyond the range
-      overran_ = true;
-      part = (1u << n) - 1;
-    }
-    code_ -= part * range_;
-    value = (value << n) | part;
-    normalize();
+    value = (value << n) | decode_raw_short(n);
   }
   return value;
 }

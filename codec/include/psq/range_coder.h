@@ -33,17 +33,11 @@ struct BitModel {
   uint16_t p0 = 32768;  // the chance of a 0, in 1/65536 units
   uint16_t n = 0;       // updates so far, counted up to 30: sets the adaptation rate
 };
-// The adaptation shift after n updates: 2, 3, 4, 5, then 6 from n = 30 on
-// (spec 5.1 counts on to 255; the shift is the same from 30 on).
-inline int adapt_shift(uint16_t n) {
-  static const uint8_t kShift[31] = {2, 2, 3, 3, 3, 3, 4, 4, 4, 4, 4, 4, 4, 4, 5, 5,
-                                     5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 6};
-  return kShift[n];
-}
-
-// One update of a model with count n: its shift (adapt_shift(n)) and its
-// count after the update, min(n + 1, 30). A single lookup instead of the
-// lookup and the saturating increment: 2 fewer instructions per decision.
+// One update of a model with n updates so far (n <= 30): the adaptation
+// shift, 2, 3, 4, 5, then 6 from n = 30 on (spec 5.1 counts on to 255; the
+// shift is the same from 30 on), and the count after the update,
+// min(n + 1, 30). One lookup instead of a lookup and a saturating
+// increment: 2 fewer instructions per decision.
 struct AdaptStep {
   uint8_t shift;
   uint8_t next;
@@ -56,6 +50,8 @@ inline AdaptStep adapt_step(uint16_t n) {
       {5, 25}, {5, 26}, {5, 27}, {5, 28}, {5, 29}, {5, 30}, {6, 30}};
   return kStep[n];
 }
+// The adaptation shift after n updates.
+inline int adapt_shift(uint16_t n) { return adapt_step(n).shift; }
 
 // An adaptive model for symbols of `bits` bits (1..16): a binary tree of
 // BitModels, most significant bit first.
@@ -145,7 +141,8 @@ class RangeDecoder {
   }
   uint32_t decode_symbol(SymbolModel& m);
   uint32_t decode_raw(int bits);
-  // decode_raw() for 1 to 16 bits, inline: the same single step.
+  // decode_raw() for 1 to 16 bits, inline: one step, which decode_raw()
+  // repeats for longer values.
   uint32_t decode_raw_short(int bits) {
     range_ >>= bits;
     uint32_t part = code_ / range_;
