@@ -1,0 +1,349 @@
+// codec/src/fast_decoder.cpp: the fast profile's records (draft
+// spec/fast-profile-draft.md, sections 2 to 6). The boundary is a
+// FastBoundary: every edge a triangle completes is named by its record
+// (the gate, the gate's neighbours, or a slot in an escape), so the decoder
+// keeps no lookups by endpoints. Every symbol is one rANS table lookup.
+#include <algorithm>
+
+#include "decoder_impl.h"
+#include "geometry.h"
+
+namespace psq {
+
+namespace {
+
+uint64_t get_raw(RawReader& raw, int bits) {
+  if (bits > 32) {
+    const uint64_t low = raw.get(32);
+    return low | static_cast<uint64_t>(raw.get(bits - 32)) << 32;
+  }
+  return raw.get(bits);
+}
+
+}  // namespace
+
+Status PsqDecoder::Impl::fast_open_chunk() {
+  auto bad = [&](const std::string& what, uint64_t at) {
+    return Status(ErrorCode::kBadValue, "fast record section: " + what, conn_offset + at);
+  };
+  uint64_t table_bytes = 0, rans_bytes = 0;
+  const int n1 = parse_varint(conn.data(), conn.size(), &table_bytes);
+  if (n1 <= 0) return bad("malformed table block length", 0);
+  const int n2 = parse_varint(conn.data() + n1, conn.size() - static_cast<size_t>(n1), &rans_bytes);
+  if (n2 <= 0) return bad("malformed rANS block length", static_cast<uint64_t>(n1));
+  const size_t at = static_cast<size_t>(n1 + n2);
+  if (table_bytes > conn.size() - at || rans_bytes > conn.size() - at - table_bytes)
+    return bad("block lengths exceed the section", 0);
+  RawReader tables(conn.data() + at, table_bytes);
+  bool present[kFastTables];
+  for (int i = 0; i < kFastTables; ++i) present[i] = tables.get(1) != 0;
+  for (int i = 0; i < kFastTables; ++i) {
+    ft[i] = &fabsent;
+    if (!present[i]) continue;
+    if (!ftables[i].read(tables, fast_table_size(i))) return bad("table " + std::to_string(i) + " is invalid", at);
+    ft[i] = &ftables[i];
+  }
+  if (!tables.at_clean_end()) return bad("the table block does not end with its last table", at);
+  frans = std::make_unique<RansDecoder>(conn.data() + at + table_bytes, rans_bytes);
+  const size_t raw_at = at + table_bytes + rans_bytes;
+  fraw = std::make_unique<RawReader>(conn.data() + raw_at, conn.size() - raw_at);
+  return Status();
+}
+
+Status PsqDecoder::Impl::fast_close_chunk() {
+  if (frans->overran() || fraw->overran())
+    return Status(ErrorCode::kTruncated, "coded records end early", conn_offset + conn.size());
+  if (!frans->at_clean_end())
+    return Status(ErrorCode::kBadValue, "the rANS block does not end where the chunk's records do", conn_offset);
+  if (!fraw->at_clean_end())
+    return Status(ErrorCode::kBadValue, "the raw bits do not end where the chunk's records do", conn_offset);
+  return Status();
+}
+
+bool PsqDecoder::Impl::fast_residual(int table, int64_t* r, int* k) {
+  const int s = frans->decode(*ft[table]);
+  if (s >= kFastLengthSymbols) return false;
+  int len;
+  uint64_t second = 0;
+  if (s < 2) {
+    len = s;
+  } else if (s < kFastLengthEscape) {
+    len = (s + 2) >> 1;
+    second = static_cast<uint64_t>(s & 1);
+  } else {
+    len = 33 + static_cast<int>(fraw->get(5));
+    second = fraw->get(1);
+  }
+  *k = len;
+  if (len == 0) {
+    *r = 0;
+    return true;
+  }
+  uint64_t mag = uint64_t{1} << (len - 1);
+  if (len >= 2) mag |= second << (len - 2);
+  const int low_bits = len >= 2 ? len - 2 : 0;
+  const uint64_t v = get_raw(*fraw, low_bits + 1);
+  mag |= v & ((uint64_t{1} << low_bits) - 1);
+  if ((v >> low_bits) == 0) {
+    if (mag >= uint64_t{1} << 63) return false;  // +2^63 is not an i64 (spec 5.6)
+    *r = static_cast<int64_t>(mag);
+  } else {
+    *r = static_cast<int64_t>(0 - mag);
+  }
+  return true;
+}
+
+Status PsqDecoder::Impl::fast_vertex_begin(bool reappears, SequenceEvent* ev) {
+  if (seen_vertices >= chunk_vertices) return corrupt("more vertices than the chunk declares");
+  if (next_out >= 0xffffffffull) return Status(ErrorCode::kLimit, "more than 4294967295 vertices", conn_offset);
+  SequenceVertex& v = ev->vertex;
+  ev->kind = SequenceEvent::Kind::kVertex;
+  v.index = static_cast<uint32_t>(next_out);
+  v.slot = kNoSlot;
+  v.reappears = kNoVertex;
+  if (reappears) {
+    int64_t d;
+    int length;
+    if (!fast_residual(kFastTableDistance, &d, &length) || d < 0 || static_cast<uint64_t>(d) >= next_out)
+      return corrupt("re-appearance of a vertex that does not exist");
+    v.reappears = static_cast<uint32_t>(next_out - 1 - static_cast<uint64_t>(d));
+  }
+  return Status();
+}
+
+Status PsqDecoder::Impl::fast_vertex_position(const int64_t pred[3], int kind, const int extent[3], int64_t pos[3],
+                                              SequenceEvent* ev) {
+  int lengths[3] = {0, 0, 0};
+  for (int i = 0; i < 3; ++i) {
+    int64_t r;
+    const int c = length_context(kind, i, extent[i], std::max(lengths[0], lengths[1]));
+    if (!fast_residual(fast_length_table(kind, i, c), &r, &lengths[i])) return corrupt("bad residual");
+    pos[i] = wrap_add(pred[i], r);
+  }
+  return finish_vertex(pos, ev->vertex);
+}
+
+Status PsqDecoder::Impl::decode_record_fast() {
+  RansDecoder& d = *frans;
+  RawReader& bits = *fraw;
+  FastBoundary& b = fboundary;
+  const int cls = d.decode(*ft[kFastTableA + fast_context]);
+  if (cls >= kFastClasses) return corrupt("record class " + std::to_string(cls));
+  const uint32_t R = b.reference();
+  if (cls == kFastIsolated) {
+    fast_context = kFastAContexts - 2;
+    ++stats.gates[3];
+    SequenceEvent& ev = push();
+    const bool reappears = bits.get(1) != 0;
+    int64_t pos[3];
+    const int64_t pred[3] = {last_pos[0], last_pos[1], last_pos[2]};
+    const int no_extent[3] = {0, 0, 0};
+    PSQ_RETURN_IF_ERROR(fast_vertex_begin(reappears, &ev));
+    PSQ_RETURN_IF_ERROR(fast_vertex_position(pred, kPredOther, no_extent, pos, &ev));
+    SequenceEvent& fin = push();
+    fin.kind = SequenceEvent::Kind::kFinalize;
+    fin.finalized = ev.vertex.index;
+    return Status();
+  }
+  if (seen_triangles >= chunk_triangles) return corrupt("more triangles than the chunk declares");
+  BTriangle bt;
+  uint32_t intro[3];
+  int nintro = 0;
+  uint32_t gate = kNone;
+  int e[3] = {kFastEnters, kFastEnters, kFastEnters};  // states of edges that do not complete
+  bool completes[3] = {false, false, false};
+  uint32_t reappear_mask = 0;  // by introduction order
+  bool choice_allowed = false;
+  const int sbits = slot_bits(b.edge_capacity());
+  if (cls == kFastStart) {
+    const int s = d.decode(*ft[kFastTableS]);
+    if (s >= kFastSSymbols) return corrupt("start symbol " + std::to_string(s));
+    const int m = d.decode(*ft[kFastTableReappear]);
+    if (m >= 8) return corrupt("start re-appearance symbol " + std::to_string(m));
+    reappear_mask = static_cast<uint32_t>(m);
+    e[0] = s % 3;
+    e[1] = s / 3 % 3;
+    e[2] = s / 9 % 3;
+    const bool swap = s >= 27;
+    intro[0] = 0;
+    intro[1] = swap ? 2 : 1;
+    intro[2] = swap ? 1 : 2;
+    nintro = 3;
+    for (int k = 0; k < 3; ++k) bt.is_new[k] = true;
+    fast_context = kFastAStartContext;
+    ++stats.gates[3];
+  } else {
+    uint32_t x = kNone;
+    int xkind = 0;  // 0 new, 1 new re-appearing, 2 old
+    if (cls == kFastEscape) {
+      gate = bits.get(sbits);
+      if (!b.edge_live(gate)) return corrupt("escaped gate is not an open edge");
+      xkind = static_cast<int>(bits.get(2));
+      if (xkind == 3) return corrupt("escaped third vertex kind 3");
+      if (xkind == 2) {
+        const uint32_t j = bits.get(sbits);
+        const bool side = bits.get(1) != 0;
+        if (!b.edge_live(j)) return corrupt("escaped third vertex names an edge that is not open");
+        x = side ? b.edge(j).dst : b.edge(j).org;
+        bt.join_edge = j;
+      }
+      for (int k = 1; k < 3; ++k) {
+        const uint32_t st = bits.get(2);
+        if (st == 3) {
+          if (xkind != 2) return corrupt("an edge of a new vertex completes an open edge");
+          bt.completes[k] = bits.get(sbits);
+          completes[k] = true;
+        } else {
+          e[k] = static_cast<int>(st);
+        }
+      }
+      fast_context = kFastAContexts - 1;
+      ++stats.gates[2];
+    } else {
+      if (cls == kFastGateFar) {
+        const int rank = d.decode(*ft[kFastTableRank + (R == kNone ? 1 : 0)]);
+        if (rank >= kFastRanks) return corrupt("far gate rank " + std::to_string(rank));
+        gate = ring.ranked(b, static_cast<uint32_t>(rank));
+        if (gate == kNone) return corrupt("far gate rank beyond the open edges of the ring");
+        ++stats.gates[2];
+      } else {
+        if (R == kNone) return corrupt("gate offset without a reference edge");
+        gate = cls == kFastGateR ? R : cls == kFastGateNext ? b.edge(R).next : b.edge(R).prev;
+        if (gate == kNone) return corrupt("gate offset leaves the boundary");
+        ++stats.gates[cls == kFastGateR ? 0 : 1];
+      }
+      const BEdge& g = b.edge(gate);
+      const int bsym = d.decode(*ft[kFastTableB + third_context(b.vertex(g.org).degree, b.vertex(g.dst).degree)]);
+      if (bsym >= kFastBSymbols) return corrupt("third-vertex symbol " + std::to_string(bsym));
+      int third;
+      fast_b_split(bsym, &third, &e[1], &e[2]);
+      switch (third) {
+        case kFastNew: xkind = 0; break;
+        case kFastNewReappears: xkind = 1; break;
+        case kFastLeft:
+          if (g.prev == kNone) return corrupt("no boundary edge before the gate");
+          x = b.edge(g.prev).org;
+          bt.completes[1] = g.prev;
+          completes[1] = true;
+          xkind = 2;
+          break;
+        case kFastRight:
+          if (g.next == kNone) return corrupt("no boundary edge after the gate");
+          x = b.edge(g.next).dst;
+          bt.completes[2] = g.next;
+          completes[2] = true;
+          xkind = 2;
+          break;
+        case kFastEnd:
+          if (g.prev == kNone || g.next == kNone || g.prev == g.next || b.edge(g.prev).org != b.edge(g.next).dst)
+            return corrupt("an end on a gate whose neighbours do not meet");
+          x = b.edge(g.prev).org;
+          bt.completes[1] = g.prev;
+          bt.completes[2] = g.next;
+          completes[1] = completes[2] = true;
+          xkind = 2;
+          break;
+        default: {  // join
+          const uint32_t j = bits.get(sbits);
+          const bool side = bits.get(1) != 0;
+          if (!b.edge_live(j)) return corrupt("join names an edge that is not open");
+          x = side ? b.edge(j).dst : b.edge(j).org;
+          bt.join_edge = j;
+          xkind = 2;
+        }
+      }
+      fast_context = fast_a_context_gate(cls, third);
+      choice_allowed = xkind != 2;
+    }
+    const BEdge& g = b.edge(gate);
+    const uint32_t p = g.org, q = g.dst;
+    if (xkind == 2 && (x == p || x == q)) return corrupt("triangle repeats a vertex");
+    bt.c[0] = q;
+    bt.c[1] = p;
+    bt.c[2] = x;
+    bt.gate = gate;
+    bt.completes[0] = gate;
+    completes[0] = true;
+    // An escape names its completions by slot: each must be the open twin
+    // of its edge (spec 6.1.3; the fast boundary has no other check).
+    for (int k = 1; k < 3; ++k)
+      if (completes[k] && cls == kFastEscape) {
+        const uint32_t c = bt.completes[k];
+        if (!b.edge_live(c) || b.edge(c).org != bt.c[(k + 1) % 3] || b.edge(c).dst != bt.c[k] || c == gate ||
+            (k == 2 && completes[1] && bt.completes[1] == c))
+          return corrupt("an escaped completion is not the open twin of its edge");
+      }
+    if (xkind != 2) {
+      bt.is_new[2] = true;
+      intro[0] = 2;
+      nintro = 1;
+      reappear_mask = xkind == 1 ? 1u : 0u;
+    }
+  }
+  uint32_t r = 0;
+  if (header.rotation) {
+    r = static_cast<uint32_t>(d.decode(*ft[kFastTableRotation]));
+    if (r > 2) return corrupt("rotation above 2");
+  }
+  // New vertices in the order of introduction (spec 6.3).
+  int64_t first[3] = {0, 0, 0}, second[3] = {0, 0, 0};
+  for (int i = 0; i < nintro; ++i) {
+    const int k = static_cast<int>(intro[i]);
+    SequenceEvent& ev = push();
+    // The distance, the choice, the residuals: the encoder's order.
+    PSQ_RETURN_IF_ERROR(fast_vertex_begin((reappear_mask >> i) & 1, &ev));
+    int choice = kChoiceGate;
+    Prediction pr;
+    int64_t pos[3];
+    if (nintro == 1) {
+      const uint32_t mask = choice_allowed ? prediction_choices(b, gate) : 0;
+      if (mask != 0) {
+        choice = d.decode(*ft[fast_choice_table(mask, fast_choice)]);
+        if (choice >= kChoices || (choice != kChoiceGate && !(mask & (1u << (choice_side(choice) - 1)))))
+          return corrupt("prediction choice " + std::to_string(choice));
+        fast_choice = choice;
+      }
+      ++stats.predictions[choice];
+      pr = predict_new_vertex(b, gate, 0, last_pos, first, second, choice);
+    } else {
+      pr = predict_new_vertex(b, kNone, i, last_pos, first, second);
+    }
+    PSQ_RETURN_IF_ERROR(fast_vertex_position(pr.pos, pr.kind, pr.extent, pos, &ev));
+    for (int a = 0; a < 3; ++a) (i == 0 ? first : second)[a] = pos[a];
+    const uint32_t s = b.new_vertex(ev.vertex.index, 0, pos);
+    if (s == kNone) return Status(ErrorCode::kLimit, "more active vertices than the header's boundary limit", conn_offset);
+    ev.vertex.slot = s;
+    bt.c[k] = s;
+  }
+  // Edge states (draft section 5): named completions, else entering or a
+  // border, a cut border setting the non-manifold flag.
+  uint8_t cut = 0;
+  int completed = 0;
+  for (int k = 0; k < 3; ++k) {
+    if (completes[k]) {
+      bt.state[k] = EdgeState::kCompletes;
+      ++completed;
+      continue;
+    }
+    bt.completes[k] = kNone;
+    bt.border[k] = e[k] != kFastEnters;
+    bt.state[k] = bt.border[k] ? EdgeState::kBorder : EdgeState::kEnters;
+    if (e[k] == kFastCut) cut |= static_cast<uint8_t>(1u << k);
+  }
+  const int nnew = bt.is_new[0] + bt.is_new[1] + bt.is_new[2];
+  const Op op = nnew == 3 ? Op::kStart
+                : completed == 1 ? (nnew == 1 ? Op::kAdd : Op::kJoin)
+                : completed == 2 ? Op::kFill
+                                 : Op::kEnd;
+  if (d.overran() || bits.overran())
+    return Status(ErrorCode::kTruncated, "record " + std::to_string(record_no) + ": coded data ends early",
+                  conn_offset + conn.size());
+  if (!b.apply(bt)) return Status(ErrorCode::kLimit, "more open edges than the header's boundary limit", conn_offset);
+  for (int k = 0; k < 3; ++k)
+    if (bt.state[k] == EdgeState::kEnters) ring.push(bt.eslot[k]);
+  last_op = static_cast<int>(op);
+  emit_triangle(b, bt, op, r, cut);
+  return Status();
+}
+
+}  // namespace psq
