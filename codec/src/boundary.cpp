@@ -258,12 +258,12 @@ PSQ_INLINE uint32_t BasicBoundary<L>::enter_edge(BTriangle& t, int k) {
   ++vo.open;
   ++vd.open;
   t.eslot[k] = s;
+  e.age = entered_++;
   if constexpr (L) {
     e.next_out = vo.first_out;
     vo.first_out = s;
     e.next_in = vd.first_in;
     vd.first_in = s;
-    e.age = entered_++;
     recent_.push_back(Recent{s, e.age});
   }
   return s;
@@ -484,13 +484,6 @@ uint64_t linf_distance(const int64_t* a, const int64_t* b) {
 }
 }  // namespace
 
-template <class B>
-void parallelogram(const B& boundary, uint32_t edge, int64_t out[3]) {
-  const BEdge& g = boundary.edge(edge);
-  const int64_t* a = boundary.vertex(g.org).pos;
-  const int64_t* b = boundary.vertex(g.dst).pos;
-  for (int k = 0; k < 3; ++k) out[k] = wrap_sub(wrap_add(a[k], b[k]), g.opp[k]);
-}
 
 template <class B>
 int third_shape_context(const B& boundary, uint32_t gate) {
@@ -508,41 +501,7 @@ int third_shape_context(const B& boundary, uint32_t gate) {
   return d < (e >> 1) ? 1 + side : d < e ? 3 + side : 0;
 }
 
-template <class B>
-void triangle_extents(const B& boundary, uint32_t edge, int out[3]) {
-  const BEdge& g = boundary.edge(edge);
-  const int64_t* a = boundary.vertex(g.org).pos;
-  const int64_t* b = boundary.vertex(g.dst).pos;
-  for (int k = 0; k < 3; ++k) out[k] = triangle_extent(a, b, g.opp, k);
-}
 
-template <class B>
-Prediction predict_new_vertex(const B& boundary, uint32_t gate, int i, const int64_t last[3],
-                              const int64_t first[3], const int64_t second[3], int choice) {
-  Prediction p;
-  p.kind = kPredOther;
-  p.extent[0] = p.extent[1] = p.extent[2] = 0;
-  if (gate != kNone) {
-    // Spec 7.3: the parallelogram over the chosen open edge, whose
-    // triangle is the predicting triangle, or the mean of the gate's and
-    // a neighbour's parallelograms, whose predicting triangle is the
-    // gate's.
-    const BEdge& g = boundary.edge(gate);
-    const uint32_t edge[3] = {gate, g.prev, g.next};  // by side
-    parallelogram(boundary, edge[choice_side(choice)], p.pos);
-    if (choice >= kChoiceMeanBefore) {
-      int64_t across_gate[3];
-      parallelogram(boundary, gate, across_gate);
-      for (int k = 0; k < 3; ++k) p.pos[k] = midpoint(across_gate[k], p.pos[k]);
-    }
-    p.kind = prediction_kind(choice);
-    triangle_extents(boundary, edge[predicting_side(choice)], p.extent);
-    return p;
-  }
-  for (int k = 0; k < 3; ++k)
-    p.pos[k] = i == 0 ? last[k] : i == 1 ? first[k] : midpoint(first[k], second[k]);
-  return p;
-}
 
 template <bool L>
 uint32_t BasicBoundary<L>::scan_recent(uint32_t want, uint32_t* out) {
@@ -589,15 +548,7 @@ uint32_t BasicBoundary<L>::recent_edge(uint32_t rank) {
 
 template class BasicBoundary<true>;
 template class BasicBoundary<false>;
-template void parallelogram(const Boundary&, uint32_t, int64_t[3]);
-template void parallelogram(const FastBoundary&, uint32_t, int64_t[3]);
 template int third_shape_context(const Boundary&, uint32_t);
-template void triangle_extents(const Boundary&, uint32_t, int[3]);
-template void triangle_extents(const FastBoundary&, uint32_t, int[3]);
-template Prediction predict_new_vertex(const Boundary&, uint32_t, int, const int64_t[3], const int64_t[3],
-                                       const int64_t[3], int);
-template Prediction predict_new_vertex(const FastBoundary&, uint32_t, int, const int64_t[3], const int64_t[3],
-                                       const int64_t[3], int);
 
 }  // namespace codec
 }  // namespace psq

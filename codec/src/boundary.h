@@ -25,6 +25,9 @@
 #include <cstdint>
 #include <vector>
 
+#include "coding.h"
+#include "geometry.h"
+
 namespace psq {
 namespace codec {
 
@@ -144,6 +147,12 @@ class BasicBoundary {
   // relinks the loops and updates degrees and open counts. Fills t.eslot and
   // t.final. Returns false when an entering edge would exceed the limit.
   bool apply(BTriangle& t);
+  // apply() for triangles whose kind the caller knows (the fast profile's
+  // decoder): an add on gate t.completes[0] whose edges 1 and 2 enter, and
+  // a fill whose edge 3 - k completes the gate's neighbour on that side
+  // (linked to the gate) while edge k enters. Same result as apply().
+  bool apply_known_add(BTriangle& t) { return apply_add(t); }
+  bool apply_known_fill(BTriangle& t, int k) { return apply_fill(t, k); }
 
   // The gate reference after the last apply() (spec 6.2.1): the first
   // entering edge of the last triangle in edge order 1, 2, 0, or kNone.
@@ -220,12 +229,8 @@ using FastBoundary = BasicBoundary<false>;
 
 // The parallelogram point across open edge `edge` (spec 7.3): its
 // endpoints' coordinates added, its `opp` subtracted, modulo 2^64.
-template <class B>
-void parallelogram(const B& boundary, uint32_t edge, int64_t out[3]);
 // The extents (spec 7.4) of the triangle that made `edge` open: per axis,
 // the bit length of the largest coordinate distance of its corners.
-template <class B>
-void triangle_extents(const B& boundary, uint32_t edge, int out[3]);
 
 // The prediction of a record's i-th new vertex (spec 7.3) and its residual
 // contexts (7.4). For an add (gate != kNone), by `choice` (coding.h): the
@@ -244,9 +249,50 @@ struct Prediction {
   int kind;   // kPredParallelogram, kPredNeighbour, kPredMean or kPredOther (coding.h)
   int extent[3];  // per axis: the bit length of the predicting triangle's extent, or 0
 };
+
 template <class B>
-Prediction predict_new_vertex(const B& boundary, uint32_t gate, int i, const int64_t last[3],
-                              const int64_t first[3], const int64_t second[3], int choice = 0);
+inline void parallelogram(const B& boundary, uint32_t edge, int64_t out[3]) {
+  const BEdge& g = boundary.edge(edge);
+  const int64_t* a = boundary.vertex(g.org).pos;
+  const int64_t* b = boundary.vertex(g.dst).pos;
+  for (int k = 0; k < 3; ++k) out[k] = wrap_sub(wrap_add(a[k], b[k]), g.opp[k]);
+}
+
+template <class B>
+inline void triangle_extents(const B& boundary, uint32_t edge, int out[3]) {
+  const BEdge& g = boundary.edge(edge);
+  const int64_t* a = boundary.vertex(g.org).pos;
+  const int64_t* b = boundary.vertex(g.dst).pos;
+  for (int k = 0; k < 3; ++k) out[k] = triangle_extent(a, b, g.opp, k);
+}
+
+template <class B>
+inline Prediction predict_new_vertex(const B& boundary, uint32_t gate, int i, const int64_t last[3],
+                                     const int64_t first[3], const int64_t second[3], int choice = 0) {
+  Prediction p;
+  p.kind = kPredOther;
+  p.extent[0] = p.extent[1] = p.extent[2] = 0;
+  if (gate != kNone) {
+    // Spec 7.3: the parallelogram over the chosen open edge, whose
+    // triangle is the predicting triangle, or the mean of the gate's and
+    // a neighbour's parallelograms, whose predicting triangle is the
+    // gate's.
+    const BEdge& g = boundary.edge(gate);
+    const uint32_t edge[3] = {gate, g.prev, g.next};  // by side
+    parallelogram(boundary, edge[choice_side(choice)], p.pos);
+    if (choice >= kChoiceMeanBefore) {
+      int64_t across_gate[3];
+      parallelogram(boundary, gate, across_gate);
+      for (int k = 0; k < 3; ++k) p.pos[k] = midpoint(across_gate[k], p.pos[k]);
+    }
+    p.kind = prediction_kind(choice);
+    triangle_extents(boundary, edge[predicting_side(choice)], p.extent);
+    return p;
+  }
+  for (int k = 0; k < 3; ++k)
+    p.pos[k] = i == 0 ? last[k] : i == 1 ? first[k] : midpoint(first[k], second[k]);
+  return p;
+}
 
 // Which neighbours of `gate` may take part in predicting the new vertex
 // of an add (spec 7.3): bit 0, the open edge before the gate (its `prev`

@@ -146,6 +146,9 @@ struct PsqDecoder::Impl {
   Status finish_vertex(const int64_t pos[3], SequenceVertex& v);
   template <class B>
   void emit_triangle(B& b, const BTriangle& bt, Op op, uint32_t r, uint8_t cut);
+  // emit_triangle() for a triangle of the fast profile's common path: no
+  // rotation, no border, the masks known from its kind.
+  void emit_common(const BTriangle& bt, Op op, uint8_t new_mask, uint8_t leaving, uint8_t entering);
 
   // The fast profile (fast_decoder.cpp).
   bool fast = false;
@@ -163,6 +166,7 @@ struct PsqDecoder::Impl {
   // At the chunk's end: every byte used, the rANS state back at its start.
   Status fast_close_chunk();
   Status decode_record_fast();
+  Status fast_common(int cls, int bsym, uint32_t gate);
   bool fast_residual(int table, int64_t* r, int* k);
   // A new vertex's event: its index and, when it re-appears, the distance.
   Status fast_vertex_begin(bool reappears, SequenceEvent* ev);

@@ -507,7 +507,7 @@ Status PsqEncoder::Impl::close_triangle(const SequenceTriangle& t, BTriangle& bt
                                          " open edges (the boundary limit)");
   if (fast)  // draft section 3: entering edges join the ring, in edge order
     for (int k = 0; k < 3; ++k)
-      if (bt.state[k] == EdgeState::kEnters) ring.push(bt.eslot[k]);
+      if (bt.state[k] == EdgeState::kEnters) ring.push(boundary, bt.eslot[k]);
   pending.clear();
   last_op = static_cast<int>(op);
   // Spec 6.4: vertices left with no open edge are finalized, in canonical

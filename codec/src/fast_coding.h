@@ -133,10 +133,11 @@ inline int fast_choice_table(uint32_t mask, int previous) {
 // far gates name an edge by its rank among them.
 class FastRing {
  public:
-  // Edge slot `slot` entered the boundary.
-  void push(uint32_t slot) {
-    if (slot >= gen_.size()) gen_.resize(std::max<size_t>(slot + 1, 2 * gen_.size()), 0);
-    ring_[head_++ & (kFastRing - 1)] = Entry{slot, ++gen_[slot]};
+  // Edge slot `slot` of `boundary` entered it (its age tells it from a
+  // later edge in the same slot).
+  template <class B>
+  void push(const B& boundary, uint32_t slot) {
+    ring_[head_++ & (kFastRing - 1)] = Entry{slot, boundary.edge(slot).age};
   }
   // The open edge of rank `rank` (the rank-th current entry, 0 the newest,
   // among the newest kFastRingScan), or kNone.
@@ -166,15 +167,15 @@ class FastRing {
 
  private:
   struct Entry {
-    uint32_t slot = 0, gen = 0;
+    uint32_t slot = 0;
+    uint64_t age = 0;
   };
   template <class B>
   bool current(const B& boundary, const Entry& e) const {
-    return boundary.edge_live(e.slot) && gen_[e.slot] == e.gen;
+    return boundary.edge_live(e.slot) && boundary.edge(e.slot).age == e.age;
   }
   Entry ring_[kFastRing];
   uint64_t head_ = 0;
-  std::vector<uint32_t> gen_;
 };
 
 // A residual's length symbol (draft section 6): k for k < 2, 2k - 2 + the

@@ -12,7 +12,7 @@ namespace psq {
 
 namespace {
 
-uint64_t get_raw(RawReader& raw, int bits) {
+PSQ_INLINE uint64_t get_raw(RawReader& raw, int bits) {
   if (bits > 32) {
     const uint64_t low = raw.get(32);
     return low | static_cast<uint64_t>(raw.get(bits - 32)) << 32;
@@ -60,7 +60,7 @@ Status PsqDecoder::Impl::fast_close_chunk() {
   return Status();
 }
 
-bool PsqDecoder::Impl::fast_residual(int table, int64_t* r, int* k) {
+PSQ_INLINE bool PsqDecoder::Impl::fast_residual(int table, int64_t* r, int* k) {
   const int s = frans->decode(*ft[table]);
   if (s >= kFastLengthSymbols) return false;
   int len;
@@ -111,7 +111,7 @@ Status PsqDecoder::Impl::fast_vertex_begin(bool reappears, SequenceEvent* ev) {
   return Status();
 }
 
-Status PsqDecoder::Impl::fast_vertex_position(const int64_t pred[3], int kind, const int extent[3], int64_t pos[3],
+PSQ_INLINE Status PsqDecoder::Impl::fast_vertex_position(const int64_t pred[3], int kind, const int extent[3], int64_t pos[3],
                                               SequenceEvent* ev) {
   int lengths[3] = {0, 0, 0};
   for (int i = 0; i < 3; ++i) {
@@ -121,6 +121,105 @@ Status PsqDecoder::Impl::fast_vertex_position(const int64_t pred[3], int kind, c
     pos[i] = wrap_add(pred[i], r);
   }
   return finish_vertex(pos, ev->vertex);
+}
+
+// The common records: an add, or a fill on the gate's neighbour, every
+// new edge entering, no rotation (B symbols 0, 27 and 30). The general
+// path below would do the same in more steps.
+Status PsqDecoder::Impl::fast_common(int cls, int bsym, uint32_t gate) {
+  FastBoundary& b = fboundary;
+  const BEdge& g = b.edge(gate);
+  BTriangle bt;
+  bt.c[0] = g.dst;
+  bt.c[1] = g.org;
+  bt.gate = gate;
+  bt.completes[0] = gate;
+  bt.state[0] = EdgeState::kCompletes;
+  if (bsym == 0) {
+    fast_context = fast_a_context_gate(cls, kFastNew);
+    SequenceEvent& ev = push();
+    PSQ_RETURN_IF_ERROR(fast_vertex_begin(false, &ev));
+    const uint32_t mask = prediction_choices(b, gate);
+    int choice = kChoiceGate;
+    if (mask != 0) {
+      choice = frans->decode(*ft[fast_choice_table(mask, fast_choice)]);
+      if (choice >= kChoices || (choice != kChoiceGate && !(mask & (1u << (choice_side(choice) - 1)))))
+        return corrupt("prediction choice " + std::to_string(choice));
+      fast_choice = choice;
+    }
+    ++stats.predictions[choice];
+    const Prediction pr = predict_new_vertex(b, gate, 0, last_pos, nullptr, nullptr, choice);
+    int64_t pos[3];
+    PSQ_RETURN_IF_ERROR(fast_vertex_position(pr.pos, pr.kind, pr.extent, pos, &ev));
+    const uint32_t s = b.new_vertex(ev.vertex.index, 0, pos);
+    if (s == kNone) return Status(ErrorCode::kLimit, "more active vertices than the header's boundary limit", conn_offset);
+    ev.vertex.slot = s;
+    bt.c[2] = s;
+    bt.is_new[2] = true;
+    if (frans->overran() || fraw->overran())
+      return Status(ErrorCode::kTruncated, "record " + std::to_string(record_no) + ": coded data ends early",
+                    conn_offset + conn.size());
+    if (!b.apply_known_add(bt)) return Status(ErrorCode::kLimit, "more open edges than the header's boundary limit", conn_offset);
+    ring.push(b, bt.eslot[1]);
+    ring.push(b, bt.eslot[2]);
+    last_op = static_cast<int>(Op::kAdd);
+    emit_common(bt, Op::kAdd, 4, 1, 6);
+    return Status();
+  }
+  // A fill: "left" (x starts the edge before the gate; edge 1 completes
+  // it, edge 2 enters) or "right" (x ends the edge after it).
+  const bool left = bsym == 27;
+  fast_context = fast_a_context_gate(cls, left ? kFastLeft : kFastRight);
+  const uint32_t c = left ? g.prev : g.next;
+  if (c == kNone) return corrupt(left ? "no boundary edge before the gate" : "no boundary edge after the gate");
+  const uint32_t x = left ? b.edge(c).org : b.edge(c).dst;
+  if (x == bt.c[0] || x == bt.c[1]) return corrupt("triangle repeats a vertex");
+  bt.c[2] = x;
+  const int enters = left ? 2 : 1, completes = 3 - enters;
+  bt.completes[completes] = c;
+  bt.state[completes] = EdgeState::kCompletes;
+  if (frans->overran() || fraw->overran())
+    return Status(ErrorCode::kTruncated, "record " + std::to_string(record_no) + ": coded data ends early",
+                  conn_offset + conn.size());
+  if (!b.apply_known_fill(bt, enters)) return Status(ErrorCode::kLimit, "more open edges than the header's boundary limit", conn_offset);
+  ring.push(b, bt.eslot[enters]);
+  last_op = static_cast<int>(Op::kFill);
+  emit_common(bt, Op::kFill, 0, static_cast<uint8_t>(1 | 1 << completes), static_cast<uint8_t>(1 << enters));
+  return Status();
+}
+
+void PsqDecoder::Impl::emit_common(const BTriangle& bt, Op op, uint8_t new_mask, uint8_t leaving, uint8_t entering) {
+  FastBoundary& b = fboundary;
+  SequenceEvent& ev = push();
+  ev.kind = SequenceEvent::Kind::kTriangle;
+  SequenceTriangle& t = ev.triangle;
+  t.op = op;
+  for (int k = 0; k < 3; ++k) {
+    t.v[k] = b.vertex(bt.c[k]).index;
+    t.vslot[k] = bt.c[k];
+    t.eslot[k] = bt.eslot[k];
+  }
+  const uint8_t final_mask = static_cast<uint8_t>(bt.final[0] | bt.final[1] << 1 | bt.final[2] << 2);
+  t.new_mask = new_mask;
+  t.final_mask = final_mask;
+  t.border_mask = 0;
+  t.nonmanifold_mask = 0;
+  t.leaving_mask = leaving;
+  t.entering_mask = entering;
+  props->next_face(&t.values);
+  ++seen_triangles;
+  ++stats.triangles;
+  if (final_mask) {
+    // Spec 6.4: finalization events and freed slots in corner order.
+    for (int k = 0; k < 3; ++k)
+      if (bt.final[k]) {
+        SequenceEvent& fin = push();
+        fin.kind = SequenceEvent::Kind::kFinalize;
+        fin.finalized = t.v[k];
+      }
+    for (int k = 0; k < 3; ++k)
+      if (bt.final[k]) b.free_vertex(bt.c[k]);
+  }
 }
 
 Status PsqDecoder::Impl::decode_record_fast() {
@@ -146,10 +245,30 @@ Status PsqDecoder::Impl::decode_record_fast() {
     return Status();
   }
   if (seen_triangles >= chunk_triangles) return corrupt("more triangles than the chunk declares");
+  // A gate record: its gate and B symbol first, for the common path.
+  uint32_t gate = kNone;
+  int bsym = -1;
+  if (cls <= kFastGateFar) {
+    if (cls == kFastGateFar) {
+      const int rank = d.decode(*ft[kFastTableRank + (R == kNone ? 1 : 0)]);
+      if (rank >= kFastRanks) return corrupt("far gate rank " + std::to_string(rank));
+      gate = ring.ranked(b, static_cast<uint32_t>(rank));
+      if (gate == kNone) return corrupt("far gate rank beyond the open edges of the ring");
+      ++stats.gates[2];
+    } else {
+      if (R == kNone) return corrupt("gate offset without a reference edge");
+      gate = cls == kFastGateR ? R : cls == kFastGateNext ? b.edge(R).next : b.edge(R).prev;
+      if (gate == kNone) return corrupt("gate offset leaves the boundary");
+      ++stats.gates[cls == kFastGateR ? 0 : 1];
+    }
+    const BEdge& g = b.edge(gate);
+    bsym = d.decode(*ft[kFastTableB + third_context(b.vertex(g.org).degree, b.vertex(g.dst).degree)]);
+    if (bsym >= kFastBSymbols) return corrupt("third-vertex symbol " + std::to_string(bsym));
+    if (!header.rotation && (bsym == 0 || bsym == 27 || bsym == 30)) return fast_common(cls, bsym, gate);
+  }
   BTriangle bt;
   uint32_t intro[3];
   int nintro = 0;
-  uint32_t gate = kNone;
   int e[3] = {kFastEnters, kFastEnters, kFastEnters};  // states of edges that do not complete
   bool completes[3] = {false, false, false};
   uint32_t reappear_mask = 0;  // by introduction order
@@ -200,21 +319,7 @@ Status PsqDecoder::Impl::decode_record_fast() {
       fast_context = kFastAContexts - 1;
       ++stats.gates[2];
     } else {
-      if (cls == kFastGateFar) {
-        const int rank = d.decode(*ft[kFastTableRank + (R == kNone ? 1 : 0)]);
-        if (rank >= kFastRanks) return corrupt("far gate rank " + std::to_string(rank));
-        gate = ring.ranked(b, static_cast<uint32_t>(rank));
-        if (gate == kNone) return corrupt("far gate rank beyond the open edges of the ring");
-        ++stats.gates[2];
-      } else {
-        if (R == kNone) return corrupt("gate offset without a reference edge");
-        gate = cls == kFastGateR ? R : cls == kFastGateNext ? b.edge(R).next : b.edge(R).prev;
-        if (gate == kNone) return corrupt("gate offset leaves the boundary");
-        ++stats.gates[cls == kFastGateR ? 0 : 1];
-      }
       const BEdge& g = b.edge(gate);
-      const int bsym = d.decode(*ft[kFastTableB + third_context(b.vertex(g.org).degree, b.vertex(g.dst).degree)]);
-      if (bsym >= kFastBSymbols) return corrupt("third-vertex symbol " + std::to_string(bsym));
       int third;
       fast_b_split(bsym, &third, &e[1], &e[2]);
       switch (third) {
@@ -340,7 +445,7 @@ Status PsqDecoder::Impl::decode_record_fast() {
                   conn_offset + conn.size());
   if (!b.apply(bt)) return Status(ErrorCode::kLimit, "more open edges than the header's boundary limit", conn_offset);
   for (int k = 0; k < 3; ++k)
-    if (bt.state[k] == EdgeState::kEnters) ring.push(bt.eslot[k]);
+    if (bt.state[k] == EdgeState::kEnters) ring.push(b, bt.eslot[k]);
   last_op = static_cast<int>(op);
   emit_triangle(b, bt, op, r, cut);
   return Status();

@@ -105,7 +105,7 @@ class RansDecoder {
   RansDecoder(const uint8_t* data, size_t size);
 
   // The next symbol, coded with table `t` (built, read or absent).
-  int decode(const RansTable& t) {
+  __attribute__((always_inline)) int decode(const RansTable& t) {
     const uint32_t e = t.entry(x_ & (kRansScale - 1));
     x_ = ((e >> 7) & 0xfffu) * (x_ >> kRansScaleBits) + (e >> 19);
     if (x_ < kRansLow) x_ = x_ << 16 | next_word();
@@ -173,7 +173,7 @@ class RawReader {
 
   // The next `bits` bits (0..32). Past the end it returns zero bits and
   // sets the overrun flag.
-  uint32_t get(int bits) {
+  __attribute__((always_inline)) uint32_t get(int bits) {
     if (n_ < bits) refill();
     const uint32_t v = static_cast<uint32_t>(acc_ & ((uint64_t{1} << bits) - 1));
     acc_ >>= bits;
