@@ -20,12 +20,15 @@ Status PsqDecoder::Impl::open(InputStream* stream) {
   header.version_major = get.u8();
   header.version_minor = get.u8();
   uint16_t flags = get.u16();
-  if (header.version_major != kVersionMajor)
+  if (header.version_major < kOldestVersionMajor || header.version_major > kVersionMajor)
     return Status(ErrorCode::kUnsupported, "format version " + std::to_string(header.version_major) + "." +
                                                std::to_string(header.version_minor) + "; this psq reads " +
+                                               std::to_string(kOldestVersionMajor) + ".x and " +
                                                std::to_string(kVersionMajor) + ".x", 8);
-  if (flags & ~kKnownFlags)
-    return Status(ErrorCode::kUnsupported, "unknown header flags (value " + std::to_string(flags & ~kKnownFlags) + ")", 10);
+  // Format 7 had no fast profile (spec 11).
+  const uint16_t known = header.version_major < 8 ? static_cast<uint16_t>(kKnownFlags & ~kFlagFast) : kKnownFlags;
+  if (flags & ~known)
+    return Status(ErrorCode::kUnsupported, "unknown header flags (value " + std::to_string(flags & ~known) + ")", 10);
   uint64_t length = 0;
   PSQ_RETURN_IF_ERROR(read_varint(&length, nullptr));
   const uint64_t payload_at = in->offset();
@@ -46,12 +49,8 @@ Status PsqDecoder::Impl::open(InputStream* stream) {
   chain_crc = crc32c_update(0, c, 4);
   PSQ_RETURN_IF_ERROR(parse_header_payload(payload.data(), payload.size(), payload_at, &header));
   stats.header_bytes = payload_at + length + 4;
-  if (fast) {
-    fboundary = FastBoundary(header.boundary_limit);
-    fabsent.set_absent();
-  } else {
-    boundary = Boundary(header.boundary_limit);
-  }
+  boundary = Boundary(header.boundary_limit);
+  if (fast) fabsent.set_absent();
   props = std::make_unique<PropertyUnpacker>(header.schema.vertex_properties, header.schema.face_properties);
   if (!header.lossless) {
     grid_max = static_cast<int64_t>((uint64_t{1} << header.bits) - 1);
@@ -392,7 +391,6 @@ void PsqDecoder::Impl::emit_triangle(B& b, const BTriangle& bt, Op op, uint32_t 
     if (bt.final[k]) b.free_vertex(bt.c[k]);
 }
 
-template void PsqDecoder::Impl::emit_triangle(FastBoundary&, const BTriangle&, Op, uint32_t, uint8_t);
 
 // ------------------------------------------------------------------ API
 

@@ -127,7 +127,7 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_vertex_position(const int64_t pred[3], 
 // new edge entering, no rotation (B symbols 0, 27 and 30). The general
 // path below would do the same in more steps.
 Status PsqDecoder::Impl::fast_common(int cls, int bsym, uint32_t gate) {
-  FastBoundary& b = fboundary;
+  Boundary& b = boundary;
   const BEdge& g = b.edge(gate);
   BTriangle bt;
   bt.c[0] = g.dst;
@@ -176,6 +176,8 @@ Status PsqDecoder::Impl::fast_common(int cls, int bsym, uint32_t gate) {
   if (x == bt.c[0] || x == bt.c[1]) return corrupt("triangle repeats a vertex");
   bt.c[2] = x;
   const int enters = left ? 2 : 1, completes = 3 - enters;
+  if (!b.edge_may_enter(bt.c[enters], bt.c[(enters + 1) % 3]))
+    return corrupt("an entering edge is open already, completes an edge the record does not name, or is dead");
   bt.completes[completes] = c;
   bt.state[completes] = EdgeState::kCompletes;
   if (frans->overran() || fraw->overran())
@@ -189,7 +191,7 @@ Status PsqDecoder::Impl::fast_common(int cls, int bsym, uint32_t gate) {
 }
 
 void PsqDecoder::Impl::emit_common(const BTriangle& bt, Op op, uint8_t new_mask, uint8_t leaving, uint8_t entering) {
-  FastBoundary& b = fboundary;
+  Boundary& b = boundary;
   SequenceEvent& ev = push();
   ev.kind = SequenceEvent::Kind::kTriangle;
   SequenceTriangle& t = ev.triangle;
@@ -225,7 +227,7 @@ void PsqDecoder::Impl::emit_common(const BTriangle& bt, Op op, uint8_t new_mask,
 Status PsqDecoder::Impl::decode_record_fast() {
   RansDecoder& d = *frans;
   RawReader& bits = *fraw;
-  FastBoundary& b = fboundary;
+  Boundary& b = boundary;
   const int cls = d.decode(*ft[kFastTableA + fast_context]);
   if (cls >= kFastClasses) return corrupt("record class " + std::to_string(cls));
   const uint32_t R = b.reference();
@@ -435,6 +437,11 @@ Status PsqDecoder::Impl::decode_record_fast() {
     bt.state[k] = bt.border[k] ? EdgeState::kBorder : EdgeState::kEnters;
     if (e[k] == kFastCut) cut |= static_cast<uint8_t>(1u << k);
   }
+  // Entering edges and borders between old vertices (spec 6.1.3): the
+  // fast boundary is told which edges complete, and checks the others.
+  for (int k = 0; k < 3; ++k)
+    if (!completes[k] && !bt.is_new[k] && !bt.is_new[(k + 1) % 3] && !b.edge_may_enter(bt.c[k], bt.c[(k + 1) % 3]))
+      return corrupt("an entering edge is open already, completes an edge the record does not name, or is dead");
   const int nnew = bt.is_new[0] + bt.is_new[1] + bt.is_new[2];
   const Op op = nnew == 3 ? Op::kStart
                 : completed == 1 ? (nnew == 1 ? Op::kAdd : Op::kJoin)
