@@ -152,14 +152,6 @@ class BasicBoundary {
   // a fill whose edge 3 - k completes the gate's neighbour on that side
   // (linked to the gate) while edge k enters. Same result as apply().
   bool apply_known_add(BTriangle& t) { return apply_add(t); }
-  // Whether a triangle's edge u->w between two old vertices may enter the
-  // boundary or be a border (the fast profile's decoder, which is told
-  // which edges complete): no open u->w (it would be on the boundary
-  // twice), no open w->u (the edge would complete it) and {u, w} not dead
-  // (spec 6.1.3).
-  bool edge_may_enter(uint32_t u, uint32_t w) const {
-    return find_edge(u, w) == kNone && find_edge(w, u) == kNone && !is_border(u, w);
-  }
   bool apply_known_fill(BTriangle& t, int k) { return apply_fill(t, k); }
 
   // The gate reference after the last apply() (spec 6.2.1): the first

@@ -49,8 +49,12 @@ Status PsqDecoder::Impl::open(InputStream* stream) {
   chain_crc = crc32c_update(0, c, 4);
   PSQ_RETURN_IF_ERROR(parse_header_payload(payload.data(), payload.size(), payload_at, &header));
   stats.header_bytes = payload_at + length + 4;
-  boundary = Boundary(header.boundary_limit);
-  if (fast) fabsent.set_absent();
+  if (fast) {
+    fboundary = FastBoundary(header.boundary_limit);
+    fabsent.set_absent();
+  } else {
+    boundary = Boundary(header.boundary_limit);
+  }
   props = std::make_unique<PropertyUnpacker>(header.schema.vertex_properties, header.schema.face_properties);
   if (!header.lossless) {
     grid_max = static_cast<int64_t>((uint64_t{1} << header.bits) - 1);
@@ -390,6 +394,8 @@ void PsqDecoder::Impl::emit_triangle(B& b, const BTriangle& bt, Op op, uint32_t 
   for (int k = 0; k < 3; ++k)
     if (bt.final[k]) b.free_vertex(bt.c[k]);
 }
+
+template void PsqDecoder::Impl::emit_triangle(FastBoundary&, const BTriangle&, Op, uint32_t, uint8_t);
 
 
 // ------------------------------------------------------------------ API

@@ -13,6 +13,7 @@
 #include "coding.h"
 #include "container.h"
 #include "crc32c.h"
+#include "neighbors.h"
 #include "fast_coding.h"
 #include "properties.h"
 #include "psq/io.h"
@@ -152,6 +153,8 @@ struct PsqDecoder::Impl {
 
   // The fast profile (fast_decoder.cpp).
   bool fast = false;
+  FastBoundary fboundary{1};
+  Neighbors fneighbors;  // which active vertices an edge joins (the fast profile's checks)
   std::vector<RansTable> ftables = std::vector<RansTable>(kFastTables);
   RansTable fabsent;
   const RansTable* ft[kFastTables] = {};
@@ -172,8 +175,8 @@ struct PsqDecoder::Impl {
   // Then its residuals against `pred`, and its position.
   Status fast_vertex_position(const int64_t pred[3], int kind, const int extent[3], int64_t pos[3],
                               SequenceEvent* ev);
-  uint32_t active_vertices() const { return boundary.active_vertices(); }
-  uint32_t open_edges() const { return boundary.open_edges(); }
+  uint32_t active_vertices() const { return fast ? fboundary.active_vertices() : boundary.active_vertices(); }
+  uint32_t open_edges() const { return fast ? fboundary.open_edges() : boundary.open_edges(); }
 };
 
 }  // namespace psq

@@ -127,7 +127,7 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_vertex_position(const int64_t pred[3], 
 // new edge entering, no rotation (B symbols 0, 27 and 30). The general
 // path below would do the same in more steps.
 Status PsqDecoder::Impl::fast_common(int cls, int bsym, uint32_t gate) {
-  Boundary& b = boundary;
+  FastBoundary& b = fboundary;
   const BEdge& g = b.edge(gate);
   BTriangle bt;
   bt.c[0] = g.dst;
@@ -153,6 +153,7 @@ Status PsqDecoder::Impl::fast_common(int cls, int bsym, uint32_t gate) {
     PSQ_RETURN_IF_ERROR(fast_vertex_position(pr.pos, pr.kind, pr.extent, pos, &ev));
     const uint32_t s = b.new_vertex(ev.vertex.index, 0, pos);
     if (s == kNone) return Status(ErrorCode::kLimit, "more active vertices than the header's boundary limit", conn_offset);
+    fneighbors.vertex_begins(s);
     ev.vertex.slot = s;
     bt.c[2] = s;
     bt.is_new[2] = true;
@@ -162,6 +163,8 @@ Status PsqDecoder::Impl::fast_common(int cls, int bsym, uint32_t gate) {
     if (!b.apply_known_add(bt)) return Status(ErrorCode::kLimit, "more open edges than the header's boundary limit", conn_offset);
     ring.push(b, bt.eslot[1]);
     ring.push(b, bt.eslot[2]);
+    fneighbors.insert(bt.c[1], bt.c[2]);
+    fneighbors.insert(bt.c[2], bt.c[0]);
     last_op = static_cast<int>(Op::kAdd);
     emit_common(bt, Op::kAdd, 4, 1, 6);
     return Status();
@@ -176,7 +179,7 @@ Status PsqDecoder::Impl::fast_common(int cls, int bsym, uint32_t gate) {
   if (x == bt.c[0] || x == bt.c[1]) return corrupt("triangle repeats a vertex");
   bt.c[2] = x;
   const int enters = left ? 2 : 1, completes = 3 - enters;
-  if (!b.edge_may_enter(bt.c[enters], bt.c[(enters + 1) % 3]))
+  if (fneighbors.contains(bt.c[enters], bt.c[(enters + 1) % 3]))
     return corrupt("an entering edge is open already, completes an edge the record does not name, or is dead");
   bt.completes[completes] = c;
   bt.state[completes] = EdgeState::kCompletes;
@@ -185,13 +188,14 @@ Status PsqDecoder::Impl::fast_common(int cls, int bsym, uint32_t gate) {
                   conn_offset + conn.size());
   if (!b.apply_known_fill(bt, enters)) return Status(ErrorCode::kLimit, "more open edges than the header's boundary limit", conn_offset);
   ring.push(b, bt.eslot[enters]);
+  fneighbors.insert(bt.c[enters], bt.c[(enters + 1) % 3]);
   last_op = static_cast<int>(Op::kFill);
   emit_common(bt, Op::kFill, 0, static_cast<uint8_t>(1 | 1 << completes), static_cast<uint8_t>(1 << enters));
   return Status();
 }
 
 void PsqDecoder::Impl::emit_common(const BTriangle& bt, Op op, uint8_t new_mask, uint8_t leaving, uint8_t entering) {
-  Boundary& b = boundary;
+  FastBoundary& b = fboundary;
   SequenceEvent& ev = push();
   ev.kind = SequenceEvent::Kind::kTriangle;
   SequenceTriangle& t = ev.triangle;
@@ -227,7 +231,7 @@ void PsqDecoder::Impl::emit_common(const BTriangle& bt, Op op, uint8_t new_mask,
 Status PsqDecoder::Impl::decode_record_fast() {
   RansDecoder& d = *frans;
   RawReader& bits = *fraw;
-  Boundary& b = boundary;
+  FastBoundary& b = fboundary;
   const int cls = d.decode(*ft[kFastTableA + fast_context]);
   if (cls >= kFastClasses) return corrupt("record class " + std::to_string(cls));
   const uint32_t R = b.reference();
@@ -419,6 +423,7 @@ Status PsqDecoder::Impl::decode_record_fast() {
     for (int a = 0; a < 3; ++a) (i == 0 ? first : second)[a] = pos[a];
     const uint32_t s = b.new_vertex(ev.vertex.index, 0, pos);
     if (s == kNone) return Status(ErrorCode::kLimit, "more active vertices than the header's boundary limit", conn_offset);
+    fneighbors.vertex_begins(s);
     ev.vertex.slot = s;
     bt.c[k] = s;
   }
@@ -440,7 +445,7 @@ Status PsqDecoder::Impl::decode_record_fast() {
   // Entering edges and borders between old vertices (spec 6.1.3): the
   // fast boundary is told which edges complete, and checks the others.
   for (int k = 0; k < 3; ++k)
-    if (!completes[k] && !bt.is_new[k] && !bt.is_new[(k + 1) % 3] && !b.edge_may_enter(bt.c[k], bt.c[(k + 1) % 3]))
+    if (!completes[k] && !bt.is_new[k] && !bt.is_new[(k + 1) % 3] && fneighbors.contains(bt.c[k], bt.c[(k + 1) % 3]))
       return corrupt("an entering edge is open already, completes an edge the record does not name, or is dead");
   const int nnew = bt.is_new[0] + bt.is_new[1] + bt.is_new[2];
   const Op op = nnew == 3 ? Op::kStart
@@ -451,8 +456,10 @@ Status PsqDecoder::Impl::decode_record_fast() {
     return Status(ErrorCode::kTruncated, "record " + std::to_string(record_no) + ": coded data ends early",
                   conn_offset + conn.size());
   if (!b.apply(bt)) return Status(ErrorCode::kLimit, "more open edges than the header's boundary limit", conn_offset);
-  for (int k = 0; k < 3; ++k)
+  for (int k = 0; k < 3; ++k) {
     if (bt.state[k] == EdgeState::kEnters) ring.push(b, bt.eslot[k]);
+    if (bt.state[k] != EdgeState::kCompletes) fneighbors.insert(bt.c[k], bt.c[(k + 1) % 3]);
+  }
   last_op = static_cast<int>(op);
   emit_triangle(b, bt, op, r, cut);
   return Status();
