@@ -49,6 +49,7 @@
 #include "psq/indexed_mesh.h"
 #include "psq/mesh_formats.h"
 #include "psq/psq_codec.h"
+#include "psq/psq_memory.h"
 #include "psq/sequence_builder.h"
 #include "psq/status.h"
 
@@ -514,6 +515,16 @@ Status psq_decode(const Bytes& in, DecodedCounts* counts) {
   return decoder.pump(count);
 }
 
+// psq-q16-arrays: decode_mesh (psq/psq_memory.h) into vertex and index
+// arrays, as Draco decodes into its mesh.
+Status psq_decode_arrays(const Bytes& in, DecodedCounts* counts) {
+  psq::MeshBuffers mesh;
+  PSQ_RETURN_IF_ERROR(psq::decode_mesh(in.data(), in.size(), &mesh));
+  counts->vertices = mesh.positions.size() / 3;
+  counts->triangles = mesh.indices.size() / 3;
+  return Status();
+}
+
 // -------------------------------------------------------------- codec table
 
 struct Codec {
@@ -539,6 +550,8 @@ std::vector<Codec> make_codecs() {
                       "the fast profile: static rANS tables per chunk, a boundary without lookups in the decoder",
                       [bits](const BenchMesh& m, Bytes* out) { return psq_encode(m, bits, true, out); }, psq_decode});
   }
+  codecs.push_back({"psq-q16-arrays", "as psq-q16, decoded into vertex and index arrays (decode_mesh)",
+                    [](const BenchMesh& m, Bytes* out) { return psq_encode(m, 16, out); }, psq_decode_arrays});
   // The codec issue's encode criterion: from a processing sequence.
   codecs.push_back({"psq-q16-seq",
                     "the encoder alone: the sequence is recorded in memory first (untimed; its memory counts)",

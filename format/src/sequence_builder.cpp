@@ -259,10 +259,15 @@ Status build_sequence(MeshSource& source, SequenceSink& sink, const BuildOptions
   MeshSchema schema = source.schema();
   schema.vertex_count = MeshSchema::kUnknown;
   schema.triangle_count = MeshSchema::kUnknown;
+  // An empty mesh has the empty box at the origin (so that it can be
+  // quantized too).
+  schema.has_bounds = true;
   if (s.nv > 0) {
-    schema.has_bounds = true;
     std::copy(s.lo, s.lo + 3, schema.bounds_min);
     std::copy(s.hi, s.hi + 3, schema.bounds_max);
+  } else {
+    std::fill(schema.bounds_min, schema.bounds_min + 3, 0.0);
+    std::fill(schema.bounds_max, schema.bounds_max + 3, 0.0);
   }
   // A quarter of the budget for the converter's lookahead (the external
   // sort takes half, its rank array the rest).

@@ -6,6 +6,7 @@
 #include "psq/mesh_formats.h"
 #include "psq/mesh_stats.h"
 #include "psq/ply.h"
+#include "psq/psq_memory.h"
 
 int main(int argc, char** argv) {
   if (argc != 2) return 2;
@@ -35,5 +36,19 @@ int main(int argc, char** argv) {
   }
   std::printf("vertices %llu triangles %llu\n", static_cast<unsigned long long>(stats.result().vertices),
               static_cast<unsigned long long>(stats.result().triangles));
-  return stats.result().vertices == 3 && stats.result().triangles == 1 ? 0 : 1;
+  if (stats.result().vertices != 3 || stats.result().triangles != 1) return 1;
+
+  // The in-memory door: the triangle to .psq bytes and back.
+  const float fp[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+  std::vector<uint8_t> bytes;
+  s = psq::encode_mesh(fp, 3, t, 1, psq::EncodeOptions(), &bytes);
+  psq::MeshBuffers back;
+  if (s.ok()) s = psq::decode_mesh(bytes.data(), bytes.size(), &back);
+  if (!s.ok()) {
+    std::fprintf(stderr, "%s\n", s.to_string().c_str());
+    return 1;
+  }
+  std::printf("in memory: %zu bytes, %zu vertices, %zu triangles\n", bytes.size(), back.positions.size() / 3,
+              back.indices.size() / 3);
+  return back.positions.size() == 9 && back.indices.size() == 3 ? 0 : 1;
 }

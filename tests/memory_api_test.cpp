@@ -1,0 +1,176 @@
+// The in-memory door into the codec (psq/psq_memory.h): arrays to bytes and
+// back, the same mesh up to the order of vertices and triangles.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <map>
+#include <random>
+
+#include "psq/psq_memory.h"
+#include "test_util.h"
+
+namespace psq {
+namespace {
+
+struct Arrays {
+  std::vector<float> positions;
+  std::vector<uint32_t> indices;
+};
+
+Arrays arrays_of(const test::Mesh& m) {
+  Arrays a;
+  for (const auto& p : m.positions)
+    for (double x : p) a.positions.push_back(static_cast<float>(x));
+  for (const auto& t : m.triangles)
+    for (uint32_t v : t) a.indices.push_back(v);
+  return a;
+}
+
+using Corner = std::array<float, 3>;
+using Face = std::array<Corner, 3>;
+
+// The triangles as position triples, each rotated to start at its smallest
+// corner (orientation kept), sorted: the mesh without its numbering.
+// Positions are snapped to `step` (0: exact).
+std::vector<Face> faces_of(const std::vector<float>& positions, const std::vector<uint32_t>& indices, float step) {
+  std::vector<Face> faces;
+  for (size_t t = 0; t + 2 < indices.size(); t += 3) {
+    Face f;
+    for (int k = 0; k < 3; ++k)
+      for (int a = 0; a < 3; ++a) {
+        const float x = positions[3 * indices[t + static_cast<size_t>(k)] + static_cast<size_t>(a)];
+        f[k][a] = step > 0 ? std::round(x / step) * step : x;
+      }
+    std::rotate(f.begin(), std::min_element(f.begin(), f.end()), f.end());
+    faces.push_back(f);
+  }
+  std::sort(faces.begin(), faces.end());
+  return faces;
+}
+
+TEST(MemoryApi, LosslessRoundTripIsTheSameMesh) {
+  test::Mesh m = test::make_sphere(20, 30);
+  const Arrays in = arrays_of(m);
+  EncodeOptions o;
+  o.lossless = true;
+  std::vector<uint8_t> bytes = {0xaa};  // encode_mesh appends
+  Status s = encode_mesh(in.positions.data(), in.positions.size() / 3, in.indices.data(), in.indices.size() / 3, o,
+                         &bytes);
+  ASSERT_TRUE(s.ok()) << s.to_string();
+  ASSERT_EQ(bytes[0], 0xaa);
+  MeshBuffers out;
+  s = decode_mesh(bytes.data() + 1, bytes.size() - 1, &out);
+  ASSERT_TRUE(s.ok()) << s.to_string();
+  EXPECT_EQ(out.positions.size(), in.positions.size());
+  EXPECT_EQ(out.indices.size(), in.indices.size());
+  EXPECT_EQ(faces_of(out.positions, out.indices, 0), faces_of(in.positions, in.indices, 0));
+}
+
+TEST(MemoryApi, QuantizedPositionsAreWithinHalfAStep) {
+  test::Mesh m = test::make_sphere(16, 24);
+  const Arrays in = arrays_of(m);
+  EncodeOptions o;
+  o.bits = 12;
+  std::vector<uint8_t> bytes;
+  ASSERT_TRUE(encode_mesh(in.positions.data(), in.positions.size() / 3, in.indices.data(), in.indices.size() / 3, o,
+                          &bytes)
+                  .ok());
+  MeshBuffers out;
+  ASSERT_TRUE(decode_mesh(bytes.data(), bytes.size(), &out).ok());
+  ASSERT_EQ(out.positions.size(), in.positions.size());
+  // Each decoded vertex is within half a step of an input vertex: match by
+  // nearest (the vertex order differs).
+  const double step = 2.0 / 4095;  // the sphere spans [-1, 1]
+  for (size_t v = 0; v < out.positions.size(); v += 3) {
+    double best = 1e30;
+    for (size_t w = 0; w < in.positions.size(); w += 3) {
+      double d = 0;
+      for (int a = 0; a < 3; ++a)
+        d = std::max(d, std::fabs(static_cast<double>(out.positions[v + a]) - in.positions[w + a]));
+      best = std::min(best, d);
+    }
+    ASSERT_LE(best, step / 2 + 1e-6) << "vertex " << v / 3;
+  }
+}
+
+// A fin (three triangles on one edge) and a bowtie make the converter cut
+// vertices, which re-appear in the stream; decode_mesh merges them back.
+TEST(MemoryApi, NonManifoldVerticesAreMergedBack) {
+  test::Mesh m = test::make_grid(4);
+  const uint32_t a = static_cast<uint32_t>(m.positions.size());
+  m.positions.push_back({0.5, -0.5, 0.7});
+  m.positions.push_back({2.5, 2.5, 1.0});
+  m.positions.push_back({2.5, 1.5, 1.0});
+  m.triangles.push_back({0, 1, a});
+  m.triangles.push_back({6, a + 1, a + 2});
+  const Arrays in = arrays_of(m);
+  EncodeOptions o;
+  o.lossless = true;
+  std::vector<uint8_t> bytes;
+  ASSERT_TRUE(encode_mesh(in.positions.data(), in.positions.size() / 3, in.indices.data(), in.indices.size() / 3, o,
+                          &bytes)
+                  .ok());
+  // The stream holds re-appearances.
+  InputStream stream;
+  stream.open_memory(bytes.data(), bytes.size(), "mem.psq");
+  PsqDecoder decoder;
+  ASSERT_TRUE(decoder.open(&stream).ok());
+  SequenceEvent e;
+  size_t reappearing = 0;
+  for (;;) {
+    ASSERT_TRUE(decoder.next(&e).ok());
+    if (e.kind == SequenceEvent::Kind::kEnd) break;
+    reappearing += e.kind == SequenceEvent::Kind::kVertex && e.vertex.reappears != kNoVertex;
+  }
+  EXPECT_GT(reappearing, 0u);
+  MeshBuffers out;
+  ASSERT_TRUE(decode_mesh(bytes.data(), bytes.size(), &out).ok());
+  EXPECT_EQ(out.positions.size(), in.positions.size());
+  EXPECT_EQ(faces_of(out.positions, out.indices, 0), faces_of(in.positions, in.indices, 0));
+}
+
+TEST(MemoryApi, BadArraysAreRejected) {
+  const std::vector<float> p = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+  const std::vector<uint32_t> bad_index = {0, 1, 3};
+  std::vector<uint8_t> bytes = {1, 2, 3};
+  Status s = encode_mesh(p.data(), 3, bad_index.data(), 1, EncodeOptions(), &bytes);
+  EXPECT_EQ(s.code(), ErrorCode::kBadValue);
+  EXPECT_NE(s.message().find("triangle 0: index 3"), std::string::npos) << s.message();
+  EXPECT_EQ(bytes, (std::vector<uint8_t>{1, 2, 3}));  // untouched
+  std::vector<float> nan = p;
+  nan[4] = std::nanf("");
+  const std::vector<uint32_t> tri = {0, 1, 2};
+  s = encode_mesh(nan.data(), 3, tri.data(), 1, EncodeOptions(), &bytes);
+  EXPECT_EQ(s.code(), ErrorCode::kBadValue);
+  EXPECT_NE(s.message().find("vertex 1: position is not finite"), std::string::npos) << s.message();
+}
+
+TEST(MemoryApi, EmptyMeshRoundTrips) {
+  std::vector<uint8_t> bytes;
+  ASSERT_TRUE(encode_mesh(nullptr, 0, nullptr, 0, EncodeOptions(), &bytes).ok());
+  MeshBuffers out;
+  out.positions = {1, 2, 3};
+  ASSERT_TRUE(decode_mesh(bytes.data(), bytes.size(), &out).ok());
+  EXPECT_TRUE(out.positions.empty());
+  EXPECT_TRUE(out.indices.empty());
+}
+
+TEST(MemoryApi, CorruptStreamsFailWithAnEmptyMesh) {
+  test::Mesh m = test::make_sphere(8, 10);
+  const Arrays in = arrays_of(m);
+  std::vector<uint8_t> bytes;
+  ASSERT_TRUE(encode_mesh(in.positions.data(), in.positions.size() / 3, in.indices.data(), in.indices.size() / 3,
+                          EncodeOptions(), &bytes)
+                  .ok());
+  for (size_t n = 0; n < bytes.size(); n += 7) {
+    MeshBuffers out;
+    Status s = decode_mesh(bytes.data(), n, &out);
+    ASSERT_FALSE(s.ok()) << "cut at " << n;
+    EXPECT_TRUE(out.positions.empty() && out.indices.empty()) << "cut at " << n;
+  }
+}
+
+}  // namespace
+}  // namespace psq
