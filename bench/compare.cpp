@@ -551,7 +551,9 @@ std::vector<Codec> make_codecs() {
                       [bits](const BenchMesh& m, Bytes* out) { return psq_encode(m, bits, true, out); }, psq_decode});
   }
   codecs.push_back({"psq-q16-arrays", "as psq-q16, decoded into vertex and index arrays (decode_mesh)",
-                    [](const BenchMesh& m, Bytes* out) { return psq_encode(m, 16, out); }, psq_decode_arrays});
+                    [](const BenchMesh& m, Bytes* out) { return psq_encode(m, 16, false, out); }, psq_decode_arrays});
+  codecs.push_back({"psq-fast-q16-arrays", "as psq-fast-q16, decoded into vertex and index arrays (decode_mesh)",
+                    [](const BenchMesh& m, Bytes* out) { return psq_encode(m, 16, true, out); }, psq_decode_arrays});
   // The codec issue's encode criterion: from a processing sequence.
   codecs.push_back({"psq-q16-seq",
                     "the encoder alone: the sequence is recorded in memory first (untimed; its memory counts)",
