@@ -437,6 +437,21 @@ Status PsqDecoder::Impl::advance() {
   return Status();
 }
 
+Status PsqDecoder::Impl::decode_into(MeshBuffers* mesh) {
+  direct = mesh;
+  while (!ended) {
+    qhead = qcount = 0;
+    PSQ_RETURN_IF_ERROR(advance());
+    for (int i = 0; i < qcount; ++i) {
+      const SequenceEvent& e = queue[i];
+      if (e.kind == SequenceEvent::Kind::kVertex) direct_vertex(e.vertex);
+      else if (e.kind == SequenceEvent::Kind::kTriangle) direct_triangle(e.triangle.v);
+    }
+  }
+  qhead = qcount = 0;
+  return Status();
+}
+
 Status PsqDecoder::next(SequenceEvent* event) {
   Impl& m = *impl_;
   if (!m.error.ok()) return m.error;

@@ -18,6 +18,7 @@
 #include "properties.h"
 #include "psq/io.h"
 #include "psq/psq_codec.h"
+#include "psq/psq_memory.h"
 #include "psq/range_coder.h"
 #include "rans.h"
 
@@ -150,6 +151,25 @@ struct PsqDecoder::Impl {
   // emit_triangle() for a triangle of the fast profile's common path: no
   // rotation, no border, the masks known from its kind.
   void emit_common(const BTriangle& bt, Op op, uint8_t new_mask, uint8_t leaving, uint8_t entering);
+
+  // Direct output (decode_mesh): the fast profile's common records write
+  // their vertex and triangle here instead of queueing events; the other
+  // records' events are drained into it by decode_into().
+  MeshBuffers* direct = nullptr;
+  std::vector<uint32_t> direct_index;  // dense index -> mesh vertex index
+  PropertyValues direct_values;        // face values not returned
+  void direct_vertex(const SequenceVertex& v) {
+    if (v.reappears != kNoVertex) {
+      direct_index.push_back(direct_index[v.reappears]);
+      return;
+    }
+    direct_index.push_back(static_cast<uint32_t>(direct->positions.size() / 3));
+    for (double x : v.position) direct->positions.push_back(static_cast<float>(x));
+  }
+  void direct_triangle(const uint32_t v[3]) {
+    for (int k = 0; k < 3; ++k) direct->indices.push_back(direct_index[v[k]]);
+  }
+  Status decode_into(MeshBuffers* mesh);
 
   // The fast profile (fast_decoder.cpp).
   bool fast = false;

@@ -157,6 +157,10 @@ Status PsqDecoder::Impl::fast_common(int cls, int bsym, uint32_t gate) {
     ev.vertex.slot = s;
     bt.c[2] = s;
     bt.is_new[2] = true;
+    if (direct) {
+      direct_vertex(ev.vertex);
+      --qcount;
+    }
     if (frans->overran() || fraw->overran())
       return Status(ErrorCode::kTruncated, "record " + std::to_string(record_no) + ": coded data ends early",
                     conn_offset + conn.size());
@@ -196,6 +200,16 @@ Status PsqDecoder::Impl::fast_common(int cls, int bsym, uint32_t gate) {
 
 void PsqDecoder::Impl::emit_common(const BTriangle& bt, Op op, uint8_t new_mask, uint8_t leaving, uint8_t entering) {
   FastBoundary& b = fboundary;
+  if (direct) {
+    const uint32_t v[3] = {b.vertex(bt.c[0]).index, b.vertex(bt.c[1]).index, b.vertex(bt.c[2]).index};
+    direct_triangle(v);
+    props->next_face(&direct_values);  // keeps the property cursor in step
+    ++seen_triangles;
+    ++stats.triangles;
+    for (int k = 0; k < 3; ++k)
+      if (bt.final[k]) b.free_vertex(bt.c[k]);
+    return;
+  }
   SequenceEvent& ev = push();
   ev.kind = SequenceEvent::Kind::kTriangle;
   SequenceTriangle& t = ev.triangle;

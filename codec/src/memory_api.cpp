@@ -4,6 +4,8 @@
 #include <string>
 
 #include "psq/psq_memory.h"
+
+#include "decoder_impl.h"
 #include "psq/sequence_builder.h"
 
 namespace psq {
@@ -117,10 +119,7 @@ Status decode_mesh(const uint8_t* data, size_t size, MeshBuffers* mesh) {
   in.open_memory(data, size, "<memory>");
   PsqDecoder decoder;
   Status s = decoder.open(&in);
-  if (s.ok()) {
-    ArraySink sink(mesh);
-    s = decoder.pump(sink);
-  }
+  if (s.ok()) s = decoder.impl_->decode_into(mesh);
   if (!s.ok()) {
     mesh->positions.clear();
     mesh->indices.clear();
