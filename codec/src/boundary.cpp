@@ -2,10 +2,11 @@
 // section 6.1.
 #include "boundary.h"
 
+#include <algorithm>
+#include <cassert>
+
 #include "coding.h"
 #include "geometry.h"
-
-#include <algorithm>
 
 namespace psq {
 namespace codec {
@@ -473,6 +474,90 @@ PSQ_INLINE bool BasicBoundary<L>::apply_fill(BTriangle& t, int k) {
   reference_ = f;
   finish_triangle(t);
   return true;
+}
+
+// lean_add() and lean_fill(): apply_add() and apply_fill() with the corners
+// of the triangle (q, p, x) known from the gate. The slots are allocated,
+// aged and freed in the same order, so the slot numbers and the ring's
+// ages agree with the encoder's boundary.
+template <bool L>
+uint32_t BasicBoundary<L>::lean_add(uint32_t gate, uint32_t x) {
+  assert(!L);  // no endpoint lists or recency stack to keep
+  const uint32_t p = edges_[gate].org, q = edges_[gate].dst;
+  const uint32_t f1 = alloc_edge();
+  if (f1 == kNone) return kNone;
+  const uint32_t f2 = alloc_edge();
+  if (f2 == kNone) return kNone;
+  BVertex& vp = vertices_[p];
+  BVertex& vq = vertices_[q];
+  BVertex& vx = vertices_[x];
+  BEdge& e1 = edges_[f1];
+  BEdge& e2 = edges_[f2];
+  e1.org = p;
+  e1.dst = x;
+  e2.org = x;
+  e2.dst = q;
+  for (int k = 0; k < 3; ++k) {
+    e1.opp[k] = vq.pos[k];
+    e2.opp[k] = vp.pos[k];
+  }
+  e1.age = entered_++;
+  e2.age = entered_++;
+  // p and q trade the gate for a fresh edge; x has two.
+  vx.open += 2;
+  ++vp.degree;
+  ++vq.degree;
+  ++vx.degree;
+  BEdge& g = edges_[gate];
+  const uint32_t gate_prev = g.prev, gate_next = g.next;
+  g.live = false;
+  --open_edges_;
+  free_edges_.push_back(gate);
+  e1.prev = gate_prev;
+  e1.next = f2;
+  e2.prev = f1;
+  e2.next = gate_next;
+  if (gate_prev != kNone) edges_[gate_prev].next = f1;
+  if (gate_next != kNone) edges_[gate_next].prev = f2;
+  reference_ = f1;
+  return f1;
+}
+
+template <bool L>
+uint32_t BasicBoundary<L>::lean_fill(uint32_t gate, bool left, uint32_t* final) {
+  assert(!L);
+  const uint32_t c = left ? edges_[gate].prev : edges_[gate].next;
+  const uint32_t p = edges_[gate].org, q = edges_[gate].dst;
+  const uint32_t x = left ? edges_[c].org : edges_[c].dst;
+  const uint32_t f = alloc_edge();
+  if (f == kNone) return kNone;
+  // Left: x->q enters, opposite p. Right: p->x enters, opposite q.
+  BEdge& e = edges_[f];
+  e.org = left ? x : p;
+  e.dst = left ? q : x;
+  const BVertex& o = vertices_[left ? p : q];
+  for (int k = 0; k < 3; ++k) e.opp[k] = o.pos[k];
+  e.age = entered_++;
+  ++vertices_[e.org].open;
+  ++vertices_[e.dst].open;
+  const uint32_t before = left ? edges_[c].prev : edges_[gate].prev;
+  const uint32_t after = left ? edges_[gate].next : edges_[c].next;
+  free_edge(gate);
+  free_edge(c);
+  e.prev = before;
+  e.next = after;
+  if (before != kNone) edges_[before].next = f;
+  if (after != kNone) edges_[after].prev = f;
+  reference_ = f;
+  const uint32_t corner[3] = {q, p, x};
+  uint32_t m = 0;
+  for (int k = 0; k < 3; ++k) {
+    BVertex& v = vertices_[corner[k]];
+    ++v.degree;
+    if (v.open == 0) m |= 1u << k;
+  }
+  *final = m;
+  return f;
 }
 
 namespace {

@@ -153,6 +153,18 @@ class BasicBoundary {
   // (linked to the gate) while edge k enters. Same result as apply().
   bool apply_known_add(BTriangle& t) { return apply_add(t); }
   bool apply_known_fill(BTriangle& t, int k) { return apply_fill(t, k); }
+  // The same two steps without a BTriangle, for the fast decoder's loop
+  // into arrays. lean_add(): an add of new vertex slot x on `gate` (p->q);
+  // p->x and x->q enter (in that order), the gate closes. Returns the slot
+  // of p->x (x->q is its `next`), or kNone when an edge would exceed the
+  // limit. lean_fill(): a fill on `gate` whose third vertex x is the origin
+  // of the gate's `prev` (left) or the end of its `next` (right), which the
+  // triangle completes; x->q (left) or p->x (right) enters. Returns the
+  // entering edge's slot, or kNone at the limit, and sets *final to the
+  // corners (bit k for corner k of q, p, x) whose vertex has no open edge
+  // left.
+  uint32_t lean_add(uint32_t gate, uint32_t x);
+  uint32_t lean_fill(uint32_t gate, bool left, uint32_t* final);
 
   // The gate reference after the last apply() (spec 6.2.1): the first
   // entering edge of the last triangle in edge order 1, 2, 0, or kNone.

@@ -178,24 +178,29 @@ Status PsqDecoder::Impl::new_vertex(Dec& dec, const int64_t pred[3], int kind, c
   return finish_vertex(pos, v);
 }
 
-Status PsqDecoder::Impl::finish_vertex(const int64_t pos[3], SequenceVertex& v) {
+const char* PsqDecoder::Impl::position_of(const int64_t pos[3], double out[3]) const {
   const bool is_float = header.schema.position_type == ScalarType::kFloat32;
   for (int i = 0; i < 3; ++i) {
     double x;
     if (!header.lossless) {
-      if (pos[i] < 0 || pos[i] > grid_max) return corrupt("position outside the quantization grid");
+      if (pos[i] < 0 || pos[i] > grid_max) return "position outside the quantization grid";
       x = header.origin[i] + static_cast<double>(pos[i]) * header.step;
       if (is_float) x = round_to_float(x);
     } else if (is_float) {
-      if (pos[i] < -(int64_t{1} << 31) || pos[i] >= (int64_t{1} << 31)) return corrupt("position is not a float");
+      if (pos[i] < -(int64_t{1} << 31) || pos[i] >= (int64_t{1} << 31)) return "position is not a float";
       x = static_cast<double>(float_from_ordered(pos[i]));
     } else {
       x = double_from_ordered(pos[i]);
     }
-    if (!std::isfinite(x)) return corrupt("position is not finite");
-    v.position[i] = x;
-    last_pos[i] = pos[i];
+    if (!std::isfinite(x)) return "position is not finite";
+    out[i] = x;
   }
+  return nullptr;
+}
+
+Status PsqDecoder::Impl::finish_vertex(const int64_t pos[3], SequenceVertex& v) {
+  if (const char* why = position_of(pos, v.position)) return corrupt(why);
+  for (int i = 0; i < 3; ++i) last_pos[i] = pos[i];
   props->next_vertex(&v.values);
   ++seen_vertices;
   ++next_out;
@@ -440,6 +445,10 @@ Status PsqDecoder::Impl::advance() {
 Status PsqDecoder::Impl::decode_into(MeshBuffers* mesh) {
   direct = mesh;
   while (!ended) {
+    if (fast && records_left > 0 && props->empty()) {
+      PSQ_RETURN_IF_ERROR(fast_direct_records());
+      continue;
+    }
     qhead = qcount = 0;
     PSQ_RETURN_IF_ERROR(advance());
     for (int i = 0; i < qcount; ++i) {

@@ -146,6 +146,9 @@ struct PsqDecoder::Impl {
   // counts; the triangle event of a record (spec 6.2.3, 6.4) and the
   // finalizations, from a BTriangle that `b` applied.
   Status finish_vertex(const int64_t pos[3], SequenceVertex& v);
+  // The position of coded coordinates `pos` (spec 7.1, 7.2), or the reason
+  // they are not one.
+  const char* position_of(const int64_t pos[3], double x[3]) const;
   template <class B>
   void emit_triangle(B& b, const BTriangle& bt, Op op, uint32_t r, uint8_t cut);
   // emit_triangle() for a triangle of the fast profile's common path: no
@@ -187,8 +190,15 @@ struct PsqDecoder::Impl {
   Status fast_open_chunk();
   // At the chunk's end: every byte used, the rANS state back at its start.
   Status fast_close_chunk();
-  Status decode_record_fast();
+  // The next record; with `cls` >= 0 its class is decoded already, and
+  // with `bsym` >= 0 also its gate and B symbol (a gate record).
+  Status decode_record_fast(int cls = -1, uint32_t gate = kNone, int bsym = -1);
   Status fast_common(int cls, int bsym, uint32_t gate);
+  // decode_mesh's loop over the rest of a fast chunk's records, when the
+  // stream has no properties: adds and fills write the arrays directly,
+  // other records go through decode_record_fast() and their events are
+  // drained into the arrays.
+  Status fast_direct_records();
   bool fast_residual(int table, int64_t* r, int* k);
   // A new vertex's event: its index and, when it re-appears, the distance.
   Status fast_vertex_begin(bool reappears, SequenceEvent* ev);

@@ -242,11 +242,11 @@ void PsqDecoder::Impl::emit_common(const BTriangle& bt, Op op, uint8_t new_mask,
   }
 }
 
-Status PsqDecoder::Impl::decode_record_fast() {
+Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
   RansDecoder& d = *frans;
   RawReader& bits = *fraw;
   FastBoundary& b = fboundary;
-  const int cls = d.decode(*ft[kFastTableA + fast_context]);
+  if (cls < 0) cls = d.decode(*ft[kFastTableA + fast_context]);
   if (cls >= kFastClasses) return corrupt("record class " + std::to_string(cls));
   const uint32_t R = b.reference();
   if (cls == kFastIsolated) {
@@ -266,9 +266,7 @@ Status PsqDecoder::Impl::decode_record_fast() {
   }
   if (seen_triangles >= chunk_triangles) return corrupt("more triangles than the chunk declares");
   // A gate record: its gate and B symbol first, for the common path.
-  uint32_t gate = kNone;
-  int bsym = -1;
-  if (cls <= kFastGateFar) {
+  if (cls <= kFastGateFar && bsym < 0) {
     if (cls == kFastGateFar) {
       const int rank = d.decode(*ft[kFastTableRank + (R == kNone ? 1 : 0)]);
       if (rank >= kFastRanks) return corrupt("far gate rank " + std::to_string(rank));
@@ -476,6 +474,151 @@ Status PsqDecoder::Impl::decode_record_fast() {
   }
   last_op = static_cast<int>(op);
   emit_triangle(b, bt, op, r, cut);
+  return Status();
+}
+
+}  // namespace psq
+
+namespace psq {
+
+Status PsqDecoder::Impl::fast_direct_records() {
+  FastBoundary& b = fboundary;
+  RansDecoder& d = *frans;
+  RawReader& bits = *fraw;
+  MeshBuffers& mesh = *direct;
+  std::vector<float>& positions = mesh.positions;
+  std::vector<uint32_t>& indices = mesh.indices;
+  // The arrays grow by the chunk's declared counts (geometrically, and at
+  // most by what its coded bytes could hold at one bit per element, so
+  // that a hostile count allocates nothing on its own).
+  const uint64_t cap = uint64_t{8} * conn.size() + 64;
+  const size_t want_i = indices.size() + 3 * static_cast<size_t>(std::min<uint64_t>(chunk_triangles, cap));
+  const size_t want_p = positions.size() + 3 * static_cast<size_t>(std::min<uint64_t>(chunk_vertices, cap));
+  if (want_i > indices.capacity()) indices.reserve(std::max(want_i, 2 * indices.capacity()));
+  if (want_p > positions.capacity()) positions.reserve(std::max(want_p, 2 * positions.capacity()));
+  if (direct_index.size() + want_p / 3 > direct_index.capacity())
+    direct_index.reserve(std::max(direct_index.size() + want_p / 3, 2 * direct_index.capacity()));
+  const bool rotation = header.rotation;
+  while (records_left > 0) {
+    const int cls = d.decode(*ft[kFastTableA + fast_context]);
+    const uint32_t R = b.reference();
+    int done = 0;  // 1: the record was decoded below
+    if (cls <= kFastGatePrev && R != kNone && seen_triangles < chunk_triangles) {
+      const uint32_t gate = cls == kFastGateR ? R : cls == kFastGateNext ? b.edge(R).next : b.edge(R).prev;
+      if (gate == kNone) return corrupt("gate offset leaves the boundary");
+      ++stats.gates[cls == kFastGateR ? 0 : 1];
+      const BEdge& g = b.edge(gate);
+      const uint32_t p = g.org, q = g.dst;
+      const int bsym = d.decode(*ft[kFastTableB + third_context(b.vertex(p).degree, b.vertex(q).degree)]);
+      if (bsym >= kFastBSymbols) return corrupt("third-vertex symbol " + std::to_string(bsym));
+      if (!rotation && bsym == 0) {
+        // An add (fast_common): the new vertex, then the triangle.
+        fast_context = fast_a_context_gate(cls, kFastNew);
+        if (seen_vertices >= chunk_vertices) return corrupt("more vertices than the chunk declares");
+        if (next_out >= 0xffffffffull) return Status(ErrorCode::kLimit, "more than 4294967295 vertices", conn_offset);
+        const uint32_t mask = prediction_choices(b, gate);
+        int choice = kChoiceGate;
+        if (mask != 0) {
+          choice = d.decode(*ft[fast_choice_table(mask, fast_choice)]);
+          if (choice >= kChoices || (choice != kChoiceGate && !(mask & (1u << (choice_side(choice) - 1)))))
+            return corrupt("prediction choice " + std::to_string(choice));
+          fast_choice = choice;
+        }
+        ++stats.predictions[choice];
+        const Prediction pr = predict_new_vertex(b, gate, 0, last_pos, nullptr, nullptr, choice);
+        int64_t pos[3];
+        int lengths[3] = {0, 0, 0};
+        for (int i = 0; i < 3; ++i) {
+          int64_t r;
+          const int c = length_context(pr.kind, i, pr.extent[i], std::max(lengths[0], lengths[1]));
+          if (!fast_residual(fast_length_table(pr.kind, i, c), &r, &lengths[i])) return corrupt("bad residual");
+          pos[i] = wrap_add(pr.pos[i], r);
+        }
+        double x[3];
+        if (const char* why = position_of(pos, x)) return corrupt(why);
+        const uint32_t index = static_cast<uint32_t>(next_out);
+        for (int i = 0; i < 3; ++i) last_pos[i] = pos[i];
+        ++seen_vertices;
+        ++next_out;
+        ++stats.vertices;
+        direct_index.push_back(static_cast<uint32_t>(positions.size() / 3));
+        for (int i = 0; i < 3; ++i) positions.push_back(static_cast<float>(x[i]));
+        const uint32_t s = b.new_vertex(index, 0, pos);
+        if (s == kNone) return Status(ErrorCode::kLimit, "more active vertices than the header's boundary limit", conn_offset);
+        fneighbors.vertex_begins(s);
+        if (d.overran() || bits.overran())
+          return Status(ErrorCode::kTruncated, "record " + std::to_string(record_no) + ": coded data ends early",
+                        conn_offset + conn.size());
+        const uint32_t f1 = b.lean_add(gate, s);
+        if (f1 == kNone) return Status(ErrorCode::kLimit, "more open edges than the header's boundary limit", conn_offset);
+        ring.push(b, f1);
+        ring.push(b, b.edge(f1).next);
+        fneighbors.insert(p, s);
+        fneighbors.insert(s, q);
+        indices.push_back(direct_index[b.vertex(q).index]);
+        indices.push_back(direct_index[b.vertex(p).index]);
+        indices.push_back(direct_index[index]);
+        ++seen_triangles;
+        ++stats.triangles;
+        last_op = static_cast<int>(Op::kAdd);
+        done = 1;
+      } else if (!rotation && (bsym == 27 || bsym == 30)) {
+        // A fill on the gate's neighbour (fast_common).
+        const bool left = bsym == 27;
+        fast_context = fast_a_context_gate(cls, left ? kFastLeft : kFastRight);
+        const uint32_t c = left ? g.prev : g.next;
+        if (c == kNone) return corrupt(left ? "no boundary edge before the gate" : "no boundary edge after the gate");
+        const uint32_t x = left ? b.edge(c).org : b.edge(c).dst;
+        if (x == p || x == q) return corrupt("triangle repeats a vertex");
+        const uint32_t from = left ? x : p, to = left ? q : x;  // the entering edge
+        if (fneighbors.contains(from, to))
+          return corrupt("an entering edge is open already, completes an edge the record does not name, or is dead");
+        if (d.overran() || bits.overran())
+          return Status(ErrorCode::kTruncated, "record " + std::to_string(record_no) + ": coded data ends early",
+                        conn_offset + conn.size());
+        uint32_t final;
+        const uint32_t f = b.lean_fill(gate, left, &final);
+        if (f == kNone) return Status(ErrorCode::kLimit, "more open edges than the header's boundary limit", conn_offset);
+        ring.push(b, f);
+        fneighbors.insert(from, to);
+        indices.push_back(direct_index[b.vertex(q).index]);
+        indices.push_back(direct_index[b.vertex(p).index]);
+        indices.push_back(direct_index[b.vertex(x).index]);
+        ++seen_triangles;
+        ++stats.triangles;
+        last_op = static_cast<int>(Op::kFill);
+        if (final) {
+          const uint32_t corner[3] = {q, p, x};
+          for (int k = 0; k < 3; ++k)
+            if (final >> k & 1) b.free_vertex(corner[k]);
+        }
+        done = 1;
+      } else {
+        qhead = qcount = 0;
+        PSQ_RETURN_IF_ERROR(decode_record_fast(cls, gate, bsym));
+      }
+    } else {
+      qhead = qcount = 0;
+      PSQ_RETURN_IF_ERROR(decode_record_fast(cls));
+    }
+    if (!done) {
+      for (int i = 0; i < qcount; ++i) {
+        const SequenceEvent& e = queue[i];
+        if (e.kind == SequenceEvent::Kind::kVertex) direct_vertex(e.vertex);
+        else if (e.kind == SequenceEvent::Kind::kTriangle) direct_triangle(e.triangle.v);
+      }
+      qhead = qcount = 0;
+    }
+    // advance()'s bookkeeping.
+    ++record_no;
+    stats.max_active_vertices = std::max(stats.max_active_vertices, b.active_vertices());
+    stats.max_open_edges = std::max(stats.max_open_edges, b.open_edges());
+    if (--records_left == 0) {
+      PSQ_RETURN_IF_ERROR(fast_close_chunk());
+      if (seen_vertices != chunk_vertices || seen_triangles != chunk_triangles)
+        return Status(ErrorCode::kBadHeader, "chunk declares other vertex or triangle counts than it holds", chunk_offset);
+    }
+  }
   return Status();
 }
 

@@ -17,7 +17,9 @@
 #ifndef PSQ_CODEC_NEIGHBORS_H_
 #define PSQ_CODEC_NEIGHBORS_H_
 
+#include <algorithm>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 namespace psq {
@@ -27,35 +29,56 @@ class Neighbors {
  public:
   // Vertex slot `s` now holds a new vertex, with no neighbours yet.
   void vertex_begins(uint32_t s) {
-    if (s >= slots_.size()) slots_.resize(s + 1 > 2 * slots_.size() ? s + 1 : 2 * slots_.size());
-    Slot& v = slots_[s];
-    ++v.gen;
-    v.list.clear();
+    if (s >= gen_.size()) grow(s);
+    ++gen_[s];
+    count_[s] = 0;
+    if (s < spill_.size()) spill_[s].clear();
   }
   // An edge joins the vertices in slots a and b.
   void insert(uint32_t a, uint32_t b) {
-    Slot& va = slots_[a];
-    Slot& vb = slots_[b];
-    va.list.push_back(uint64_t{b} << 32 | vb.gen);
-    vb.list.push_back(uint64_t{a} << 32 | va.gen);
+    add(a, uint64_t{b} << 32 | gen_[b]);
+    add(b, uint64_t{a} << 32 | gen_[a]);
   }
   // Whether an edge joins the vertices now in slots a and b.
   bool contains(uint32_t a, uint32_t b) const {
-    const Slot& va = slots_[a];
-    const Slot& vb = slots_[b];
-    const std::vector<uint64_t>& list = va.list.size() <= vb.list.size() ? va.list : vb.list;
-    const uint64_t want = va.list.size() <= vb.list.size() ? (uint64_t{b} << 32 | vb.gen) : (uint64_t{a} << 32 | va.gen);
-    for (uint64_t x : list)
-      if (x == want) return true;
+    // Scan the shorter list for the other vertex as it is now.
+    if (count_[b] < count_[a]) std::swap(a, b);
+    const uint64_t want = uint64_t{b} << 32 | gen_[b];
+    const uint32_t n = count_[a];
+    const uint64_t* in = &inline_[size_t{a} * kInline];
+    for (uint32_t i = 0; i < n && i < kInline; ++i)
+      if (in[i] == want) return true;
+    if (n > kInline)
+      for (uint64_t x : spill_[a])
+        if (x == want) return true;
     return false;
   }
 
  private:
-  struct Slot {
-    uint32_t gen = 0;
-    std::vector<uint64_t> list;  // neighbours: slot << 32 | that slot's generation then
-  };
-  std::vector<Slot> slots_;
+  // Most active vertices have at most this many neighbours: they live in
+  // one flat array; the rest of a longer list spills into a vector.
+  static constexpr uint32_t kInline = 8;
+
+  void add(uint32_t s, uint64_t entry) {
+    const uint32_t n = count_[s]++;
+    if (n < kInline) {
+      inline_[size_t{s} * kInline + n] = entry;
+      return;
+    }
+    if (s >= spill_.size()) spill_.resize(gen_.size());
+    spill_[s].push_back(entry);
+  }
+  void grow(uint32_t s) {
+    const size_t n = std::max<size_t>(size_t{s} + 1, 2 * gen_.size());
+    gen_.resize(n, 0);
+    count_.resize(n, 0);
+    inline_.resize(n * kInline);
+  }
+
+  std::vector<uint32_t> gen_;    // per slot: bumped when a new vertex takes it
+  std::vector<uint32_t> count_;  // per slot: neighbours listed
+  std::vector<uint64_t> inline_;  // per slot, kInline entries: slot << 32 | that slot's generation then
+  std::vector<std::vector<uint64_t>> spill_;  // per slot: entries beyond kInline
 };
 
 }  // namespace codec
