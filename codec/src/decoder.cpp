@@ -458,6 +458,8 @@ Status PsqDecoder::Impl::decode_into(MeshBuffers* mesh) {
     }
   }
   qhead = qcount = 0;
+  mesh->positions.resize(direct_np);
+  mesh->indices.resize(direct_ni);
   return Status();
 }
 

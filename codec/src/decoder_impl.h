@@ -161,16 +161,32 @@ struct PsqDecoder::Impl {
   MeshBuffers* direct = nullptr;
   std::vector<uint32_t> direct_index;  // dense index -> mesh vertex index
   PropertyValues direct_values;        // face values not returned
+  // The arrays are sized ahead and written through pointers; these are the
+  // lengths in use (decode_into() trims the arrays to them at the end).
+  size_t direct_np = 0, direct_ni = 0, direct_nv = 0;  // positions, indices, direct_index
+  // Room for n more elements after the `used` ones of v (growing it
+  // geometrically).
+  template <class T>
+  static T* direct_room(std::vector<T>& v, size_t used, size_t n) {
+    if (used + n > v.size()) v.resize(std::max(used + n, 2 * v.size()));
+    return v.data() + used;
+  }
   void direct_vertex(const SequenceVertex& v) {
+    uint32_t* di = direct_room(direct_index, direct_nv, 1);
+    ++direct_nv;
     if (v.reappears != kNoVertex) {
-      direct_index.push_back(direct_index[v.reappears]);
+      *di = direct_index[v.reappears];
       return;
     }
-    direct_index.push_back(static_cast<uint32_t>(direct->positions.size() / 3));
-    for (double x : v.position) direct->positions.push_back(static_cast<float>(x));
+    *di = static_cast<uint32_t>(direct_np / 3);
+    float* p = direct_room(direct->positions, direct_np, 3);
+    for (int i = 0; i < 3; ++i) p[i] = static_cast<float>(v.position[i]);
+    direct_np += 3;
   }
   void direct_triangle(const uint32_t v[3]) {
-    for (int k = 0; k < 3; ++k) direct->indices.push_back(direct_index[v[k]]);
+    uint32_t* t = direct_room(direct->indices, direct_ni, 3);
+    for (int k = 0; k < 3; ++k) t[k] = direct_index[v[k]];
+    direct_ni += 3;
   }
   Status decode_into(MeshBuffers* mesh);
 

@@ -122,6 +122,16 @@ inline int fast_table_size(int table) {
   return 3;
 }
 
+// Whether prediction choice `choice` (any decoded symbol) may follow the
+// neighbour mask `mask` (1..3, prediction_choices()): the gate always, a
+// side's choices when that neighbour exists. One table test, no branch on
+// the choice itself.
+inline bool fast_choice_allowed(uint32_t mask, int choice) {
+  // Bit c of entry m: choice c allowed with mask m (choices 1 and 3 need
+  // the edge before, 2 and 4 the one after).
+  static constexpr uint32_t kAllowed[4] = {0x01, 0x0b, 0x15, 0x1f};
+  return static_cast<uint32_t>(choice) < 32 && ((kAllowed[mask & 3] >> choice) & 1);
+}
 inline int fast_length_table(int kind, int axis, int context) {
   return kFastTableLength + (kind * 3 + axis) * kLengthContexts + context;
 }

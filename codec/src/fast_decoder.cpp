@@ -60,31 +60,54 @@ Status PsqDecoder::Impl::fast_close_chunk() {
   return Status();
 }
 
+namespace {
+
+// What a length symbol below the escape fixes of a residual (draft section
+// 6): the magnitude's leading bits, how many low bits follow raw, and how
+// many raw bits to read (those and the sign, none for a zero).
+struct LengthCode {
+  uint32_t lead;
+  uint8_t low_bits;
+  uint8_t raw_bits;
+  uint8_t length;
+};
+
+struct LengthCodes {
+  LengthCode c[kFastLengthEscape];
+  LengthCodes() {
+    for (int s = 0; s < kFastLengthEscape; ++s) {
+      LengthCode& e = c[s];
+      const int len = s < 2 ? s : (s + 2) >> 1;
+      e.length = static_cast<uint8_t>(len);
+      e.low_bits = static_cast<uint8_t>(len >= 2 ? len - 2 : 0);
+      e.raw_bits = static_cast<uint8_t>(len == 0 ? 0 : e.low_bits + 1);
+      e.lead = len == 0 ? 0 : len == 1 ? 1 : (3u - static_cast<uint32_t>(~s & 1)) << (len - 2);
+    }
+  }
+};
+const LengthCodes kLengthCodes;
+
+}  // namespace
+
 PSQ_INLINE bool PsqDecoder::Impl::fast_residual(int table, int64_t* r, int* k) {
   const int s = frans->decode(*ft[table]);
-  if (s >= kFastLengthSymbols) return false;
-  int len;
-  uint64_t second = 0;
-  if (s < 2) {
-    len = s;
-  } else if (s < kFastLengthEscape) {
-    len = (s + 2) >> 1;
-    second = static_cast<uint64_t>(s & 1);
-  } else {
-    len = 33 + static_cast<int>(fraw->get(5));
-    second = fraw->get(1);
-  }
-  *k = len;
-  if (len == 0) {
-    *r = 0;
+  if (s < kFastLengthEscape) {
+    // Without branches on the symbol: the table gives the leading bits,
+    // and the raw bits the low ones and the sign (zero reads none).
+    const LengthCode& e = kLengthCodes.c[s];
+    *k = e.length;
+    const uint32_t v = fraw->get(e.raw_bits);
+    const uint64_t mag = e.lead | (v & ((uint32_t{1} << e.low_bits) - 1));
+    const uint64_t neg = 0 - static_cast<uint64_t>((v >> e.low_bits) & 1);
+    *r = static_cast<int64_t>((mag ^ neg) - neg);
     return true;
   }
-  uint64_t mag = uint64_t{1} << (len - 1);
-  if (len >= 2) mag |= second << (len - 2);
-  const int low_bits = len >= 2 ? len - 2 : 0;
-  const uint64_t v = get_raw(*fraw, low_bits + 1);
-  mag |= v & ((uint64_t{1} << low_bits) - 1);
-  if ((v >> low_bits) == 0) {
+  if (s > kFastLengthEscape) return false;
+  const int len = 33 + static_cast<int>(fraw->get(5));
+  const uint64_t second = fraw->get(1);
+  *k = len;
+  const uint64_t mag = uint64_t{1} << (len - 1) | second << (len - 2) | get_raw(*fraw, len - 2);
+  if (fraw->get(1) == 0) {
     if (mag >= uint64_t{1} << 63) return false;  // +2^63 is not an i64 (spec 5.6)
     *r = static_cast<int64_t>(mag);
   } else {
@@ -143,7 +166,7 @@ Status PsqDecoder::Impl::fast_common(int cls, int bsym, uint32_t gate) {
     int choice = kChoiceGate;
     if (mask != 0) {
       choice = frans->decode(*ft[fast_choice_table(mask, fast_choice)]);
-      if (choice >= kChoices || (choice != kChoiceGate && !(mask & (1u << (choice_side(choice) - 1)))))
+      if (!fast_choice_allowed(mask, choice))
         return corrupt("prediction choice " + std::to_string(choice));
       fast_choice = choice;
     }
@@ -422,7 +445,7 @@ Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
       const uint32_t mask = choice_allowed ? prediction_choices(b, gate) : 0;
       if (mask != 0) {
         choice = d.decode(*ft[fast_choice_table(mask, fast_choice)]);
-        if (choice >= kChoices || (choice != kChoiceGate && !(mask & (1u << (choice_side(choice) - 1)))))
+        if (!fast_choice_allowed(mask, choice))
           return corrupt("prediction choice " + std::to_string(choice));
         fast_choice = choice;
       }
@@ -486,18 +509,13 @@ Status PsqDecoder::Impl::fast_direct_records() {
   RansDecoder& d = *frans;
   RawReader& bits = *fraw;
   MeshBuffers& mesh = *direct;
-  std::vector<float>& positions = mesh.positions;
-  std::vector<uint32_t>& indices = mesh.indices;
-  // The arrays grow by the chunk's declared counts (geometrically, and at
-  // most by what its coded bytes could hold at one bit per element, so
-  // that a hostile count allocates nothing on its own).
-  const uint64_t cap = uint64_t{8} * conn.size() + 64;
-  const size_t want_i = indices.size() + 3 * static_cast<size_t>(std::min<uint64_t>(chunk_triangles, cap));
-  const size_t want_p = positions.size() + 3 * static_cast<size_t>(std::min<uint64_t>(chunk_vertices, cap));
-  if (want_i > indices.capacity()) indices.reserve(std::max(want_i, 2 * indices.capacity()));
-  if (want_p > positions.capacity()) positions.reserve(std::max(want_p, 2 * positions.capacity()));
-  if (direct_index.size() + want_p / 3 > direct_index.capacity())
-    direct_index.reserve(std::max(direct_index.size() + want_p / 3, 2 * direct_index.capacity()));
+  // Room for the chunk's declared counts, but at most what its coded bytes
+  // could hold at four bits per element, so that a hostile count allocates
+  // nothing on its own.
+  const uint64_t cap = uint64_t{2} * conn.size() + 64;
+  direct_room(mesh.indices, direct_ni, 3 * static_cast<size_t>(std::min<uint64_t>(chunk_triangles, cap)));
+  direct_room(mesh.positions, direct_np, 3 * static_cast<size_t>(std::min<uint64_t>(chunk_vertices, cap)));
+  direct_room(direct_index, direct_nv, static_cast<size_t>(std::min<uint64_t>(chunk_vertices, cap)));
   const bool rotation = header.rotation;
   while (records_left > 0) {
     const int cls = d.decode(*ft[kFastTableA + fast_context]);
@@ -520,7 +538,7 @@ Status PsqDecoder::Impl::fast_direct_records() {
         int choice = kChoiceGate;
         if (mask != 0) {
           choice = d.decode(*ft[fast_choice_table(mask, fast_choice)]);
-          if (choice >= kChoices || (choice != kChoiceGate && !(mask & (1u << (choice_side(choice) - 1)))))
+          if (!fast_choice_allowed(mask, choice))
             return corrupt("prediction choice " + std::to_string(choice));
           fast_choice = choice;
         }
@@ -541,8 +559,10 @@ Status PsqDecoder::Impl::fast_direct_records() {
         ++seen_vertices;
         ++next_out;
         ++stats.vertices;
-        direct_index.push_back(static_cast<uint32_t>(positions.size() / 3));
-        for (int i = 0; i < 3; ++i) positions.push_back(static_cast<float>(x[i]));
+        *direct_room(direct_index, direct_nv++, 1) = static_cast<uint32_t>(direct_np / 3);
+        float* xyz = direct_room(mesh.positions, direct_np, 3);
+        for (int i = 0; i < 3; ++i) xyz[i] = static_cast<float>(x[i]);
+        direct_np += 3;
         const uint32_t s = b.new_vertex(index, 0, pos);
         if (s == kNone) return Status(ErrorCode::kLimit, "more active vertices than the header's boundary limit", conn_offset);
         fneighbors.vertex_begins(s);
@@ -555,9 +575,11 @@ Status PsqDecoder::Impl::fast_direct_records() {
         ring.push(b, b.edge(f1).next);
         fneighbors.insert(p, s);
         fneighbors.insert(s, q);
-        indices.push_back(direct_index[b.vertex(q).index]);
-        indices.push_back(direct_index[b.vertex(p).index]);
-        indices.push_back(direct_index[index]);
+        uint32_t* t = direct_room(mesh.indices, direct_ni, 3);
+        t[0] = direct_index[b.vertex(q).index];
+        t[1] = direct_index[b.vertex(p).index];
+        t[2] = direct_index[index];
+        direct_ni += 3;
         ++seen_triangles;
         ++stats.triangles;
         last_op = static_cast<int>(Op::kAdd);
@@ -581,9 +603,11 @@ Status PsqDecoder::Impl::fast_direct_records() {
         if (f == kNone) return Status(ErrorCode::kLimit, "more open edges than the header's boundary limit", conn_offset);
         ring.push(b, f);
         fneighbors.insert(from, to);
-        indices.push_back(direct_index[b.vertex(q).index]);
-        indices.push_back(direct_index[b.vertex(p).index]);
-        indices.push_back(direct_index[b.vertex(x).index]);
+        uint32_t* t = direct_room(mesh.indices, direct_ni, 3);
+        t[0] = direct_index[b.vertex(q).index];
+        t[1] = direct_index[b.vertex(p).index];
+        t[2] = direct_index[b.vertex(x).index];
+        direct_ni += 3;
         ++seen_triangles;
         ++stats.triangles;
         last_op = static_cast<int>(Op::kFill);

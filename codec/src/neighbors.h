@@ -29,26 +29,33 @@ class Neighbors {
  public:
   // Vertex slot `s` now holds a new vertex, with no neighbours yet.
   void vertex_begins(uint32_t s) {
-    if (s >= gen_.size()) grow(s);
-    ++gen_[s];
-    count_[s] = 0;
-    if (s < spill_.size()) spill_[s].clear();
+    if (s >= slots_.size()) grow(s);
+    Slot& v = slots_[s];
+    ++v.gen;
+    if (v.count > kInline) spill_[s].clear();
+    v.count = 0;
   }
   // An edge joins the vertices in slots a and b.
-  void insert(uint32_t a, uint32_t b) {
-    add(a, uint64_t{b} << 32 | gen_[b]);
-    add(b, uint64_t{a} << 32 | gen_[a]);
+  __attribute__((always_inline)) void insert(uint32_t a, uint32_t b) {
+    Slot* slots = slots_.data();
+    Slot& va = slots[a];
+    Slot& vb = slots[b];
+    const uint64_t ea = uint64_t{a} << 32 | va.gen, eb = uint64_t{b} << 32 | vb.gen;
+    if (va.count < kInline) va.e[va.count++] = eb;
+    else spill(a, eb);
+    if (vb.count < kInline) vb.e[vb.count++] = ea;
+    else spill(b, ea);
   }
   // Whether an edge joins the vertices now in slots a and b.
   bool contains(uint32_t a, uint32_t b) const {
     // Scan the shorter list for the other vertex as it is now.
-    if (count_[b] < count_[a]) std::swap(a, b);
-    const uint64_t want = uint64_t{b} << 32 | gen_[b];
-    const uint32_t n = count_[a];
-    const uint64_t* in = &inline_[size_t{a} * kInline];
-    for (uint32_t i = 0; i < n && i < kInline; ++i)
-      if (in[i] == want) return true;
-    if (n > kInline)
+    if (slots_[b].count < slots_[a].count) std::swap(a, b);
+    const Slot& va = slots_[a];
+    const uint64_t want = uint64_t{b} << 32 | slots_[b].gen;
+    const uint32_t n = va.count < kInline ? va.count : kInline;
+    for (uint32_t i = 0; i < n; ++i)
+      if (va.e[i] == want) return true;
+    if (va.count > kInline)
       for (uint64_t x : spill_[a])
         if (x == want) return true;
     return false;
@@ -56,28 +63,23 @@ class Neighbors {
 
  private:
   // Most active vertices have at most this many neighbours: they live in
-  // one flat array; the rest of a longer list spills into a vector.
-  static constexpr uint32_t kInline = 8;
+  // the slot; the rest of a longer list spills into a vector.
+  static constexpr uint32_t kInline = 10;
 
-  void add(uint32_t s, uint64_t entry) {
-    const uint32_t n = count_[s]++;
-    if (n < kInline) {
-      inline_[size_t{s} * kInline + n] = entry;
-      return;
-    }
-    if (s >= spill_.size()) spill_.resize(gen_.size());
+  struct Slot {
+    uint32_t gen = 0;    // bumped when a new vertex takes the slot
+    uint32_t count = 0;  // neighbours listed
+    uint64_t e[kInline];  // the first ones: slot << 32 | that slot's generation then
+  };
+
+  __attribute__((noinline)) void spill(uint32_t s, uint64_t entry) {
+    if (s >= spill_.size()) spill_.resize(slots_.size());
     spill_[s].push_back(entry);
+    ++slots_[s].count;
   }
-  void grow(uint32_t s) {
-    const size_t n = std::max<size_t>(size_t{s} + 1, 2 * gen_.size());
-    gen_.resize(n, 0);
-    count_.resize(n, 0);
-    inline_.resize(n * kInline);
-  }
+  void grow(uint32_t s) { slots_.resize(std::max<size_t>(size_t{s} + 1, 2 * slots_.size())); }
 
-  std::vector<uint32_t> gen_;    // per slot: bumped when a new vertex takes it
-  std::vector<uint32_t> count_;  // per slot: neighbours listed
-  std::vector<uint64_t> inline_;  // per slot, kInline entries: slot << 32 | that slot's generation then
+  std::vector<Slot> slots_;
   std::vector<std::vector<uint64_t>> spill_;  // per slot: entries beyond kInline
 };
 

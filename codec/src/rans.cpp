@@ -97,17 +97,17 @@ bool RansTable::read(RawReader& in, int size) {
 
 void RansTable::set_absent() {
   size_ = 0;
-  dec_.resize(kRansScale);
-  for (uint32_t k = 0; k < kRansScale; ++k) dec_[k] = static_cast<uint32_t>(kRansAbsent) | kRansScale << 7 | k << 19;
+  for (uint32_t k = 0; k < kRansScale; ++k) sym_[k] = static_cast<uint8_t>(kRansAbsent);
+  fc_[kRansAbsent] = kRansScale;  // the state stays as it is
 }
 
 void RansTable::finish() {
   cum_[0] = 0;
   for (int s = 0; s < size_; ++s) cum_[s + 1] = cum_[s] + freq_[s];
-  dec_.resize(kRansScale);
-  for (int s = 0; s < size_; ++s)
-    for (uint32_t k = 0; k < freq_[s]; ++k)
-      dec_[cum_[s] + k] = static_cast<uint32_t>(s) | freq_[s] << 7 | k << 19;
+  for (int s = 0; s < size_; ++s) {
+    fc_[s] = freq_[s] | cum_[s] << 16;
+    for (uint32_t k = 0; k < freq_[s]; ++k) sym_[cum_[s] + k] = static_cast<uint8_t>(s);
+  }
 }
 
 void rans_encode(const std::vector<RansSymbol>& symbols, const RansTable* tables, std::vector<uint8_t>* out) {

@@ -73,10 +73,18 @@ class RansTable {
   bool empty() const { return size_ == 0; }
   uint32_t freq(int s) const { return freq_[s]; }
   uint32_t cum(int s) const { return cum_[s]; }
-  // The decoding entry of a state's low kRansScaleBits bits: the symbol
-  // (bits 0..6), its frequency (bits 7..18) and the slot's offset within
-  // the symbol's range (bits 19..29).
-  uint32_t entry(uint32_t slot) const { return dec_[slot]; }
+  // The symbol of a state's low kRansScaleBits bits, and that symbol's
+  // frequency (bits 0..15) and cumulative frequency (bits 16..31); an
+  // absent table's symbol kRansAbsent has frequency kRansScale at 0.
+  uint32_t symbol_at(uint32_t slot) const { return sym_[slot]; }
+  uint32_t freq_cum(uint32_t s) const { return fc_[s]; }
+  // The decoding entry of slot `slot`, as one number: the symbol (bits
+  // 0..6), its frequency (bits 7..18) and the slot's offset within the
+  // symbol's range (bits 19..29).
+  uint32_t entry(uint32_t slot) const {
+    const uint32_t s = sym_[slot], fc = fc_[s];
+    return s | (fc & 0xffffu) << 7 | (slot - (fc >> 16)) << 19;
+  }
 
  private:
   void finish();  // cumulative frequencies and decoding entries from freq_
@@ -84,7 +92,11 @@ class RansTable {
   int size_ = 0;
   uint32_t freq_[kRansMaxSymbols] = {};
   uint32_t cum_[kRansMaxSymbols + 1] = {};
-  std::vector<uint32_t> dec_;
+  // Decoding: a byte per slot (2 KiB, a quarter of a table of whole
+  // entries, so that a chunk's tables stay in the cache) and the
+  // frequencies beside it.
+  uint32_t fc_[kRansAbsent + 1] = {};
+  uint8_t sym_[kRansScale] = {};
 };
 
 // A symbol to code: its table (an index into the caller's tables) and value.
@@ -106,10 +118,12 @@ class RansDecoder {
 
   // The next symbol, coded with table `t` (built, read or absent).
   __attribute__((always_inline)) int decode(const RansTable& t) {
-    const uint32_t e = t.entry(x_ & (kRansScale - 1));
-    x_ = ((e >> 7) & 0xfffu) * (x_ >> kRansScaleBits) + (e >> 19);
+    const uint32_t slot = x_ & (kRansScale - 1);
+    const uint32_t s = t.symbol_at(slot);
+    const uint32_t fc = t.freq_cum(s);
+    x_ = (fc & 0xffffu) * (x_ >> kRansScaleBits) + slot - (fc >> 16);
     if (x_ < kRansLow) x_ = x_ << 16 | next_word();
-    return static_cast<int>(e & 0x7fu);
+    return static_cast<int>(s);
   }
 
   // True when decoding needed bytes past the end: truncated or corrupt.
