@@ -143,7 +143,7 @@ struct PsqEncoder::Impl {
   // Codes residual r with length table `table`; returns its bit length.
   int fast_residual(int table, int64_t r);
   void fast_vertex(const PendingVertex& v, const int64_t pred[3], int kind, const int extent[3]);
-  float fast_cost(int table, int symbol) const;
+  int64_t fast_cost(int table, int symbol) const;  // in 1/65536 bits
   int fast_choose_prediction(uint32_t gate, uint32_t mask, const int64_t pos[3], Prediction* pred);
   // The fast profile's record section of the open chunk (draft section 2).
   void fast_section(std::vector<uint8_t>* section);

@@ -60,12 +60,48 @@ void PsqEncoder::Impl::fast_vertex(const PendingVertex& v, const int64_t pred[3]
   for (int i = 0; i < 3; ++i) last_pos[i] = v.pos[i];
 }
 
-float PsqEncoder::Impl::fast_cost(int table, int symbol) const {
+namespace {
+
+// log2 in 1/65536 bits by integer arithmetic only, so that the encoder's
+// choices, and so its bytes, are the same on every machine (a libm's
+// log2 may round differently). The fraction comes from the top 8 bits
+// below the leading one: within 0.006 bits, enough to rank predictions.
+struct Log2Table {
+  uint32_t frac[256];
+  Log2Table() {
+    for (uint32_t i = 0; i < 256; ++i) {
+      // m = (256 + i) / 256 in Q31; square it 16 times, taking a bit of
+      // the logarithm each time the square reaches 2.
+      uint64_t m = uint64_t{256 + i} << 23;
+      uint32_t f = 0;
+      for (int b = 15; b >= 0; --b) {
+        m = (m * m) >> 31;
+        if (m >= uint64_t{1} << 32) {
+          m >>= 1;
+          f |= 1u << b;
+        }
+      }
+      frac[i] = f;
+    }
+  }
+};
+const Log2Table kLog2;
+
+int64_t fixed_log2(uint64_t x) {  // x >= 1
+  const int msb = 63 - __builtin_clzll(x);
+  const uint32_t top = static_cast<uint32_t>(msb >= 8 ? x >> (msb - 8) : x << (8 - msb)) & 255u;
+  return int64_t{msb} * 65536 + kLog2.frac[top];
+}
+
+}  // namespace
+
+int64_t PsqEncoder::Impl::fast_cost(int table, int symbol) const {
   // The symbol's cost under the running counts, with half a count for
-  // every symbol of the alphabet so that unseen symbols cost finitely.
-  const float n = static_cast<float>(fast_count[static_cast<size_t>(table) * 128 + static_cast<size_t>(symbol)]) + 0.5f;
-  const float total = static_cast<float>(fast_total[table]) + 0.5f * static_cast<float>(fast_table_size(table));
-  return std::log2(total) - std::log2(n);
+  // every symbol of the alphabet so that unseen symbols cost finitely
+  // (counts doubled to stay integers), in 1/65536 bits.
+  const uint64_t n = 2 * uint64_t{fast_count[static_cast<size_t>(table) * 128 + static_cast<size_t>(symbol)]} + 1;
+  const uint64_t total = 2 * uint64_t{fast_total[table]} + static_cast<uint64_t>(fast_table_size(table));
+  return fixed_log2(total) - fixed_log2(n);
 }
 
 // Spec 7.3 leaves the choice to the encoder; this one takes the cheapest
@@ -75,7 +111,7 @@ float PsqEncoder::Impl::fast_cost(int table, int symbol) const {
 // format 7). Ties go to the lower choice.
 int PsqEncoder::Impl::fast_choose_prediction(uint32_t gate, uint32_t mask, const int64_t pos[3], Prediction* pred) {
   int best = kChoiceGate;
-  float best_cost = 0;
+  int64_t best_cost = 0;
   int rough_gate = 0;
   for (int ch = kChoiceGate; ch < kChoices; ++ch) {
     if (ch != kChoiceGate && !(mask & (1u << (choice_side(ch) - 1)))) continue;
@@ -84,14 +120,14 @@ int PsqEncoder::Impl::fast_choose_prediction(uint32_t gate, uint32_t mask, const
     for (int a = 0; a < 3; ++a) rough += bit_length64(coord_distance(pos[a], pr.pos[a]));
     if (ch == kChoiceGate) rough_gate = rough;
     else if (rough > rough_gate) continue;
-    float c = fast_cost(fast_choice_table(mask, fast_choice), ch);
+    int64_t c = fast_cost(fast_choice_table(mask, fast_choice), ch);
     int lengths[3] = {0, 0, 0};
     for (int a = 0; a < 3; ++a) {
       const int lc = length_context(pr.kind, a, pr.extent[a], std::max(lengths[0], lengths[1]));
       const int64_t r = wrap_sub(pos[a], pr.pos[a]);
       const uint64_t mag = r < 0 ? 0 - static_cast<uint64_t>(r) : static_cast<uint64_t>(r);
       const int k = bit_length64(mag);
-      c += fast_cost(fast_length_table(pr.kind, a, lc), fast_length_symbol(k, mag)) + (k >= 2 ? k - 1 : k);
+      c += fast_cost(fast_length_table(pr.kind, a, lc), fast_length_symbol(k, mag)) + int64_t{k >= 2 ? k - 1 : k} * 65536;
       lengths[a] = k;
     }
     if (ch == kChoiceGate || c < best_cost) {
