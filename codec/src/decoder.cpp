@@ -10,6 +10,7 @@
 #include "geometry.h"
 #include "properties.h"
 #include "psq/psq_codec.h"
+#include "psq/psq_memory.h"
 
 namespace psq {
 
@@ -127,6 +128,9 @@ struct PsqDecoder::Impl {
   SequenceEvent& push() { return queue[qcount++]; }
   // Decodes the next record (or chunk, or the end) into the queue.
   Status advance();
+  // decode_mesh(): every record, its events straight into `mesh` (the
+  // vertices that re-appear merged back), without pump()'s sink calls.
+  Status decode_into(MeshBuffers* mesh);
 };
 
 Status PsqDecoder::Impl::open(InputStream* stream) {
@@ -531,6 +535,47 @@ Status PsqDecoder::Impl::advance() {
       return Status(ErrorCode::kBadHeader, "chunk declares other vertex or triangle counts than it holds", chunk_offset);
   }
   return Status();
+}
+
+Status PsqDecoder::Impl::decode_into(MeshBuffers* mesh) {
+  std::vector<uint32_t> mesh_index;  // by dense index
+  while (!ended) {
+    qhead = qcount = 0;
+    PSQ_RETURN_IF_ERROR(advance());
+    for (int i = 0; i < qcount; ++i) {
+      const SequenceEvent& e = queue[i];
+      if (e.kind == SequenceEvent::Kind::kVertex) {
+        // Dense indices come in order, and a re-appearance names an earlier
+        // one (the decoder checks both).
+        if (e.vertex.reappears != kNoVertex) {
+          mesh_index.push_back(mesh_index[e.vertex.reappears]);
+          continue;
+        }
+        mesh_index.push_back(static_cast<uint32_t>(mesh->positions.size() / 3));
+        for (double x : e.vertex.position) mesh->positions.push_back(static_cast<float>(x));
+      } else if (e.kind == SequenceEvent::Kind::kTriangle) {
+        for (uint32_t v : e.triangle.v) mesh->indices.push_back(mesh_index[v]);
+      }
+    }
+  }
+  qhead = qcount = 0;
+  return Status();
+}
+
+// psq/psq_memory.h
+Status decode_mesh(const uint8_t* data, size_t size, MeshBuffers* mesh) {
+  mesh->positions.clear();
+  mesh->indices.clear();
+  InputStream in;
+  in.open_memory(data, size, "<memory>");
+  PsqDecoder decoder;
+  Status s = decoder.open(&in);
+  if (s.ok()) s = decoder.impl_->decode_into(mesh);
+  if (!s.ok()) {
+    mesh->positions.clear();
+    mesh->indices.clear();
+  }
+  return s;
 }
 
 Status PsqDecoder::next(SequenceEvent* event) {

@@ -158,6 +158,8 @@ struct PsqHeader {
   MeshSchema schema;
 };
 
+struct MeshBuffers;  // psq/psq_memory.h
+
 class PsqDecoder : public SequenceSource {
  public:
   PsqDecoder();
@@ -186,6 +188,8 @@ class PsqDecoder : public SequenceSource {
   const PsqStats& stats() const;
 
  private:
+  // decode_mesh() (psq/psq_memory.h) drives the decoder without pump().
+  friend Status decode_mesh(const uint8_t* data, size_t size, MeshBuffers* mesh);
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
