@@ -83,5 +83,4 @@ Status encode_mesh(const float* positions, size_t vertex_count, const uint32_t* 
   return Status();
 }
 
-
 }  // namespace psq
