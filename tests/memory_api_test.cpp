@@ -288,7 +288,7 @@ TEST_P(MemoryApiProfiles, FlippedBitsAgreeWithTheEvents) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Profiles, MemoryApiProfiles, ::testing::Values(false, true),
-                         [](const ::testing::TestParamInfo<bool>& info) { return info.param ? "Fast" : "Compact"; });
+                         [](const ::testing::TestParamInfo<bool>& p) { return p.param ? "Fast" : "Compact"; });
 
 }  // namespace
 }  // namespace psq

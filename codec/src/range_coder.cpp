@@ -2,7 +2,7 @@
 // the style of Martin (1979), with 32-bit range, bottom renormalisation by
 // bytes and carry propagation through a cached byte and a run of 0xff bytes
 // (the scheme of Subbotin's and LZMA's coders); 16-bit adaptive bit models
-// whose update rate slows as they learn (adapt_shift); integers as bit length + sign + low bits as in
+// whose update rate slows as they learn (adapt_step); integers as bit length + sign + low bits as in
 // LASzip's integer coder (Isenburg, "LASzip: lossless compression of LiDAR
 // data", 2013).
 #include "psq/range_coder.h"

@@ -50,8 +50,6 @@ inline AdaptStep adapt_step(uint16_t n) {
       {5, 25}, {5, 26}, {5, 27}, {5, 28}, {5, 29}, {5, 30}, {6, 30}};
   return kStep[n];
 }
-// The adaptation shift after n updates.
-inline int adapt_shift(uint16_t n) { return adapt_step(n).shift; }
 
 // An adaptive model for symbols of `bits` bits (1..16): a binary tree of
 // BitModels, most significant bit first.
