@@ -215,7 +215,7 @@ struct PsqDecoder::Impl {
   // other records go through decode_record_fast() and their events are
   // drained into the arrays.
   Status fast_direct_records();
-  bool fast_residual(int table, int64_t* r, int* k);
+  bool fast_residual(RansDecoder& d, RawReader& raw, int table, int64_t* r, int* k);
   // A new vertex's event: its index and, when it re-appears, the distance.
   Status fast_vertex_begin(bool reappears, SequenceEvent* ev);
   // Then its residuals against `pred`, and its position.

@@ -89,25 +89,25 @@ const LengthCodes kLengthCodes;
 
 }  // namespace
 
-PSQ_INLINE bool PsqDecoder::Impl::fast_residual(int table, int64_t* r, int* k) {
-  const int s = frans->decode(*ft[table]);
+PSQ_INLINE bool PsqDecoder::Impl::fast_residual(RansDecoder& d, RawReader& rawbits, int table, int64_t* r, int* k) {
+  const int s = d.decode(*ft[table]);
   if (s < kFastLengthEscape) {
     // Without branches on the symbol: the table gives the leading bits,
     // and the raw bits the low ones and the sign (zero reads none).
     const LengthCode& e = kLengthCodes.c[s];
     *k = e.length;
-    const uint32_t v = fraw->get(e.raw_bits);
+    const uint32_t v = rawbits.get(e.raw_bits);
     const uint64_t mag = e.lead | (v & ((uint32_t{1} << e.low_bits) - 1));
     const uint64_t neg = 0 - static_cast<uint64_t>((v >> e.low_bits) & 1);
     *r = static_cast<int64_t>((mag ^ neg) - neg);
     return true;
   }
   if (s > kFastLengthEscape) return false;
-  const int len = 33 + static_cast<int>(fraw->get(5));
-  const uint64_t second = fraw->get(1);
+  const int len = 33 + static_cast<int>(rawbits.get(5));
+  const uint64_t second = rawbits.get(1);
   *k = len;
-  const uint64_t mag = uint64_t{1} << (len - 1) | second << (len - 2) | get_raw(*fraw, len - 2);
-  if (fraw->get(1) == 0) {
+  const uint64_t mag = uint64_t{1} << (len - 1) | second << (len - 2) | get_raw(rawbits, len - 2);
+  if (rawbits.get(1) == 0) {
     if (mag >= uint64_t{1} << 63) return false;  // +2^63 is not an i64 (spec 5.6)
     *r = static_cast<int64_t>(mag);
   } else {
@@ -127,7 +127,7 @@ Status PsqDecoder::Impl::fast_vertex_begin(bool reappears, SequenceEvent* ev) {
   if (reappears) {
     int64_t d;
     int length;
-    if (!fast_residual(kFastTableDistance, &d, &length) || d < 0 || static_cast<uint64_t>(d) >= next_out)
+    if (!fast_residual(*frans, *fraw, kFastTableDistance, &d, &length) || d < 0 || static_cast<uint64_t>(d) >= next_out)
       return corrupt("re-appearance of a vertex that does not exist");
     v.reappears = static_cast<uint32_t>(next_out - 1 - static_cast<uint64_t>(d));
   }
@@ -140,7 +140,7 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_vertex_position(const int64_t pred[3], 
   for (int i = 0; i < 3; ++i) {
     int64_t r;
     const int c = length_context(kind, i, extent[i], std::max(lengths[0], lengths[1]));
-    if (!fast_residual(fast_length_table(kind, i, c), &r, &lengths[i])) return corrupt("bad residual");
+    if (!fast_residual(*frans, *fraw, fast_length_table(kind, i, c), &r, &lengths[i])) return corrupt("bad residual");
     pos[i] = wrap_add(pred[i], r);
   }
   return finish_vertex(pos, ev->vertex);
@@ -506,8 +506,12 @@ namespace psq {
 
 Status PsqDecoder::Impl::fast_direct_records() {
   FastBoundary& b = fboundary;
-  RansDecoder& d = *frans;
-  RawReader& bits = *fraw;
+  // The coders' states live in locals for the loop, so that the compiler
+  // can keep them in registers: as members they would be reloaded after
+  // every store to the output arrays, which might alias them. They go back
+  // to the members around every call that decodes through the members.
+  RansDecoder d = *frans;
+  RawReader bits = *fraw;
   MeshBuffers& mesh = *direct;
   // Room for the chunk's declared counts, but at most what its coded bytes
   // could hold at four bits per element, so that a hostile count allocates
@@ -549,7 +553,7 @@ Status PsqDecoder::Impl::fast_direct_records() {
         for (int i = 0; i < 3; ++i) {
           int64_t r;
           const int c = length_context(pr.kind, i, pr.extent[i], std::max(lengths[0], lengths[1]));
-          if (!fast_residual(fast_length_table(pr.kind, i, c), &r, &lengths[i])) return corrupt("bad residual");
+          if (!fast_residual(d, bits, fast_length_table(pr.kind, i, c), &r, &lengths[i])) return corrupt("bad residual");
           pos[i] = wrap_add(pr.pos[i], r);
         }
         double x[3];
@@ -619,11 +623,19 @@ Status PsqDecoder::Impl::fast_direct_records() {
         done = 1;
       } else {
         qhead = qcount = 0;
+        *frans = d;
+        *fraw = bits;
         PSQ_RETURN_IF_ERROR(decode_record_fast(cls, gate, bsym));
+        d = *frans;
+        bits = *fraw;
       }
     } else {
       qhead = qcount = 0;
+      *frans = d;
+      *fraw = bits;
       PSQ_RETURN_IF_ERROR(decode_record_fast(cls));
+      d = *frans;
+      bits = *fraw;
     }
     if (!done) {
       for (int i = 0; i < qcount; ++i) {
@@ -638,6 +650,8 @@ Status PsqDecoder::Impl::fast_direct_records() {
     stats.max_active_vertices = std::max(stats.max_active_vertices, b.active_vertices());
     stats.max_open_edges = std::max(stats.max_open_edges, b.open_edges());
     if (--records_left == 0) {
+      *frans = d;
+      *fraw = bits;
       PSQ_RETURN_IF_ERROR(fast_close_chunk());
       if (seen_vertices != chunk_vertices || seen_triangles != chunk_triangles)
         return Status(ErrorCode::kBadHeader, "chunk declares other vertex or triangle counts than it holds", chunk_offset);

@@ -111,20 +111,23 @@ void RansTable::finish() {
 }
 
 void rans_encode(const std::vector<RansSymbol>& symbols, const RansTable* tables, std::vector<uint8_t>* out) {
-  uint32_t x = kRansLow;
+  // Symbol i goes through state i mod 2, as the decoder alternates.
+  uint32_t x[2] = {kRansLow, kRansLow};
   std::vector<uint16_t> words;
   for (size_t i = symbols.size(); i-- > 0;) {
+    uint32_t& xi = x[i & 1];
     const RansTable& t = tables[symbols[i].table];
     const uint32_t f = t.freq(symbols[i].symbol), c = t.cum(symbols[i].symbol);
     // One renormalization step keeps the next state below 2^32 (x < 2^21 f).
     const uint64_t x_max = (uint64_t{kRansLow >> kRansScaleBits} << 16) * f;
-    if (x >= x_max) {
-      words.push_back(static_cast<uint16_t>(x));
-      x >>= 16;
+    if (xi >= x_max) {
+      words.push_back(static_cast<uint16_t>(xi));
+      xi >>= 16;
     }
-    x = ((x / f) << kRansScaleBits) + (x % f) + c;
+    xi = ((xi / f) << kRansScaleBits) + (xi % f) + c;
   }
-  for (int i = 0; i < 4; ++i) out->push_back(static_cast<uint8_t>(x >> (8 * i)));
+  for (int k = 0; k < 2; ++k)
+    for (int i = 0; i < 4; ++i) out->push_back(static_cast<uint8_t>(x[k] >> (8 * i)));
   for (size_t i = words.size(); i-- > 0;) {
     out->push_back(static_cast<uint8_t>(words[i]));
     out->push_back(static_cast<uint8_t>(words[i] >> 8));
@@ -132,14 +135,15 @@ void rans_encode(const std::vector<RansSymbol>& symbols, const RansTable* tables
 }
 
 RansDecoder::RansDecoder(const uint8_t* data, size_t size) : data_(data), size_(size) {
-  if (size < 4) {
+  if (size < 8) {
     overran_ = true;
     pos_ = size;
-    x_ = kRansLow;
+    x_ = y_ = kRansLow;
     return;
   }
   x_ = data[0] | uint32_t{data[1]} << 8 | uint32_t{data[2]} << 16 | uint32_t{data[3]} << 24;
-  pos_ = 4;
+  y_ = data[4] | uint32_t{data[5]} << 8 | uint32_t{data[6]} << 16 | uint32_t{data[7]} << 24;
+  pos_ = 8;
 }
 
 std::vector<uint8_t> RawWriter::finish() {

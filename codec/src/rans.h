@@ -2,9 +2,11 @@
 // coder of the fast profile (work in progress on branch fast-profile; the
 // spec section is still to be written).
 //
-// rANS (Duda, "Asymmetric numeral systems", 2013) with a 32-bit state kept
+// rANS (Duda, "Asymmetric numeral systems", 2013) with 32-bit states kept
 // in [2^16, 2^32) and renormalized by 16-bit words, in the style of
-// Giesen's rans_word. Each context has a frequency table of total
+// Giesen's rans_word; two states take turns, symbol i using state i mod 2
+// (Giesen's interleaving), so that decoding one symbol need not wait for
+// the state the symbol before produced. Each context has a frequency table of total
 // 2^kRansScaleBits, fixed for a chunk and sent in it (RansTable::write), so
 // decoding a symbol is one table lookup, one multiplication and a
 // renormalization test: no model update. That is what makes the fast
@@ -28,7 +30,7 @@
 namespace psq {
 namespace codec {
 
-constexpr int kRansScaleBits = 11;
+constexpr int kRansScaleBits = 10;
 constexpr uint32_t kRansScale = 1u << kRansScaleBits;
 constexpr uint32_t kRansLow = 1u << 16;  // the state's lower bound
 // The largest alphabet of a table: symbols are 0..kRansMaxSymbols - 1.
@@ -59,7 +61,7 @@ class RansTable {
   void write(RawWriter& out) const;
   // Reads a table of `size` symbols as write() wrote it. Returns false when
   // the frequencies are not a valid table: no present symbol, a gamma code
-  // longer than 12 bits, or explicit frequencies that leave nothing for
+  // of more than kRansScaleBits - 1 leading zeros, or explicit frequencies that leave nothing for
   // the last present symbol. The reader's own overrun flag tells whether
   // the bits ran out.
   bool read(RawReader& in, int size);
@@ -92,7 +94,7 @@ class RansTable {
   int size_ = 0;
   uint32_t freq_[kRansMaxSymbols] = {};
   uint32_t cum_[kRansMaxSymbols + 1] = {};
-  // Decoding: a byte per slot (2 KiB, a quarter of a table of whole
+  // Decoding: a byte per slot (1 KiB, a quarter of a table of whole
   // entries, so that a chunk's tables stay in the cache) and the
   // frequencies beside it.
   uint32_t fc_[kRansAbsent + 1] = {};
@@ -106,9 +108,10 @@ struct RansSymbol {
 };
 
 // Codes `symbols` with `tables` (each symbol's table must give it a nonzero
-// frequency) and appends the bytes to `out`: the final state as 4 bytes,
-// then the renormalization words, little-endian, in the order the decoder
-// reads them.
+// frequency), symbol i with state i mod 2, and appends the bytes to `out`:
+// the final states of symbols 0 and 1 as 4 bytes each, then the
+// renormalization words, all little-endian, in the order the decoder reads
+// them.
 void rans_encode(const std::vector<RansSymbol>& symbols, const RansTable* tables, std::vector<uint8_t>* out);
 
 class RansDecoder {
@@ -117,12 +120,17 @@ class RansDecoder {
   RansDecoder(const uint8_t* data, size_t size);
 
   // The next symbol, coded with table `t` (built, read or absent).
+  // Symbols alternate between two states, so that the decoding of one
+  // does not wait for the state that the one before produced.
   __attribute__((always_inline)) int decode(const RansTable& t) {
-    const uint32_t slot = x_ & (kRansScale - 1);
+    uint32_t x = x_;
+    const uint32_t slot = x & (kRansScale - 1);
     const uint32_t s = t.symbol_at(slot);
     const uint32_t fc = t.freq_cum(s);
-    x_ = (fc & 0xffffu) * (x_ >> kRansScaleBits) + slot - (fc >> 16);
-    if (x_ < kRansLow) x_ = x_ << 16 | next_word();
+    x = (fc & 0xffffu) * (x >> kRansScaleBits) + slot - (fc >> 16);
+    if (x < kRansLow) x = x << 16 | next_word();
+    x_ = y_;
+    y_ = x;
     return static_cast<int>(s);
   }
 
@@ -130,7 +138,7 @@ class RansDecoder {
   bool overran() const { return overran_; }
   // True when every byte was read and the state is back where the encoder
   // started (2^16): the end of a correctly decoded stream.
-  bool at_clean_end() const { return !overran_ && pos_ == size_ && x_ == kRansLow; }
+  bool at_clean_end() const { return !overran_ && pos_ == size_ && x_ == kRansLow && y_ == kRansLow; }
 
  private:
   uint32_t next_word() {
@@ -147,7 +155,8 @@ class RansDecoder {
   const uint8_t* data_;
   size_t size_;
   size_t pos_ = 0;
-  uint32_t x_ = 0;
+  uint32_t x_ = 0;  // the state of the next symbol
+  uint32_t y_ = 0;  // the state of the symbol after it
   bool overran_ = false;
 };
 
