@@ -147,14 +147,9 @@ class BasicBoundary {
   // relinks the loops and updates degrees and open counts. Fills t.eslot and
   // t.final. Returns false when an entering edge would exceed the limit.
   bool apply(BTriangle& t);
-  // apply() for triangles whose kind the caller knows (the fast profile's
-  // decoder): an add on gate t.completes[0] whose edges 1 and 2 enter, and
-  // a fill whose edge 3 - k completes the gate's neighbour on that side
-  // (linked to the gate) while edge k enters. Same result as apply().
-  bool apply_known_add(BTriangle& t) { return apply_add(t); }
-  bool apply_known_fill(BTriangle& t, int k) { return apply_fill(t, k); }
-  // The same two steps without a BTriangle, for the fast decoder's loop
-  // into arrays. lean_add(): an add of new vertex slot x on `gate` (p->q);
+  // apply() for the two triangles whose kind the fast profile's decoder
+  // knows, without a BTriangle (same slots, links and ages as apply()).
+  // lean_add(): an add of new vertex slot x on `gate` (p->q);
   // p->x and x->q enter (in that order), the gate closes. Returns the slot
   // of p->x (x->q is its `next`), or kNone when an edge would exceed the
   // limit. lean_fill(): a fill on `gate` whose third vertex x is the origin

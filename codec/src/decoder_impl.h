@@ -153,7 +153,10 @@ struct PsqDecoder::Impl {
   void emit_triangle(B& b, const BTriangle& bt, Op op, uint32_t r, uint8_t cut);
   // emit_triangle() for a triangle of the fast profile's common path: no
   // rotation, no border, the masks known from its kind.
-  void emit_common(const BTriangle& bt, Op op, uint8_t new_mask, uint8_t leaving, uint8_t entering);
+  // The triangle event of a common record (fast_common), and the
+  // finalizations of the corners in final_mask, whose slots it frees.
+  void push_triangle(Op op, const uint32_t corner[3], const uint32_t eslot[3], uint8_t new_mask, uint8_t final_mask,
+                     uint8_t leaving, uint8_t entering);
 
   // Direct output (decode_mesh): the fast profile's common records write
   // their vertex and triangle here instead of queueing events; the other
@@ -209,7 +212,8 @@ struct PsqDecoder::Impl {
   // The next record; with `cls` >= 0 its class is decoded already, and
   // with `bsym` >= 0 also its gate and B symbol (a gate record).
   Status decode_record_fast(int cls = -1, uint32_t gate = kNone, int bsym = -1);
-  Status fast_common(int cls, int bsym, uint32_t gate);
+  template <bool kDirect>
+  Status fast_common(RansDecoder& d, RawReader& bits, int cls, int bsym, uint32_t gate);
   // decode_mesh's loop over the rest of a fast chunk's records, when the
   // stream has no properties: adds and fills write the arrays directly,
   // other records go through decode_record_fast() and their events are

@@ -551,9 +551,20 @@ Status PsqEncoder::Impl::after_record() {
   ++chunk_records;
   stats.max_active_vertices = std::max(stats.max_active_vertices, boundary.active_vertices());
   stats.max_open_edges = std::max(stats.max_open_edges, boundary.open_edges());
-  // The fast profile codes a chunk at its end: estimate 4 bits a symbol.
+  // The fast profile codes a chunk at its end: estimate 4 bits a symbol
+  // for the target size. The limit of a chunk's coded records (spec 10)
+  // must hold whatever the symbols cost: no symbol costs more than
+  // kRansScaleBits bits (its frequency is at least 1), and the tables at
+  // most a presence bit and a gamma code per symbol.
   const size_t coded = fast ? fast_raw.bits() / 8 + fast_symbols.size() / 2 : records.size();
-  if (coded >= opt.chunk_bytes || props->raw_size() >= kChunkPropertyTarget ||
+  bool full = false;
+  if (fast) {
+    constexpr size_t kTableBound = size_t{kFastTables} * (1 + kRansMaxSymbols * (2 * kRansScaleBits)) / 8 + 64;
+    constexpr size_t kRecordBound = 4096;  // one more record, with room to spare
+    const size_t bound = fast_raw.bits() / 8 + fast_symbols.size() * kRansScaleBits / 8 + 8 + kTableBound;
+    full = bound + kRecordBound >= kMaxRecordBytes;
+  }
+  if (coded >= opt.chunk_bytes || full || props->raw_size() >= kChunkPropertyTarget ||
       chunk_records >= kMaxChunkRecords)
     return close_chunk();
   return Status();

@@ -147,53 +147,84 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_vertex_position(const int64_t pred[3], 
 }
 
 // The common records: an add, or a fill on the gate's neighbour, every
-// new edge entering, no rotation (B symbols 0, 27 and 30). The general
-// path below would do the same in more steps.
-Status PsqDecoder::Impl::fast_common(int cls, int bsym, uint32_t gate) {
+// new edge entering, no rotation (B symbols 0, 27 and 30; spec 13.7), after
+// their class and B symbol. The general path (decode_record_fast) would do
+// the same in more steps. kDirect: decode_mesh's loop, which writes the
+// arrays itself (a stream without properties); otherwise the record's
+// events are queued.
+template <bool kDirect>
+PSQ_INLINE Status PsqDecoder::Impl::fast_common(RansDecoder& d, RawReader& bits, int cls, int bsym, uint32_t gate) {
   FastBoundary& b = fboundary;
   const BEdge& g = b.edge(gate);
-  BTriangle bt;
-  bt.c[0] = g.dst;
-  bt.c[1] = g.org;
-  bt.gate = gate;
-  bt.completes[0] = gate;
-  bt.state[0] = EdgeState::kCompletes;
+  const uint32_t p = g.org, q = g.dst;
   if (bsym == 0) {
+    // An add: the new vertex x, then the triangle (q, p, x).
     fast_context = fast_a_context_gate(cls, kFastNew);
-    SequenceEvent& ev = push();
-    PSQ_RETURN_IF_ERROR(fast_vertex_begin(false, &ev));
+    if (seen_vertices >= chunk_vertices) return corrupt("more vertices than the chunk declares");
+    if (next_out >= 0xffffffffull) return Status(ErrorCode::kLimit, "more than 4294967295 vertices", conn_offset);
     const uint32_t mask = prediction_choices(b, gate);
     int choice = kChoiceGate;
     if (mask != 0) {
-      choice = frans->decode(*ft[fast_choice_table(mask, fast_choice)]);
-      if (!fast_choice_allowed(mask, choice))
-        return corrupt("prediction choice " + std::to_string(choice));
+      choice = d.decode(*ft[fast_choice_table(mask, fast_choice)]);
+      if (!fast_choice_allowed(mask, choice)) return corrupt("prediction choice " + std::to_string(choice));
       fast_choice = choice;
     }
     ++stats.predictions[choice];
     const Prediction pr = predict_new_vertex(b, gate, 0, last_pos, nullptr, nullptr, choice);
     int64_t pos[3];
-    PSQ_RETURN_IF_ERROR(fast_vertex_position(pr.pos, pr.kind, pr.extent, pos, &ev));
-    const uint32_t s = b.new_vertex(ev.vertex.index, 0, pos);
+    int lengths[3] = {0, 0, 0};
+    for (int i = 0; i < 3; ++i) {
+      int64_t r;
+      const int c = length_context(pr.kind, i, pr.extent[i], std::max(lengths[0], lengths[1]));
+      if (!fast_residual(d, bits, fast_length_table(pr.kind, i, c), &r, &lengths[i])) return corrupt("bad residual");
+      pos[i] = wrap_add(pr.pos[i], r);
+    }
+    double xyz[3];
+    if (const char* why = position_of(pos, xyz)) return corrupt(why);
+    const uint32_t index = static_cast<uint32_t>(next_out);
+    for (int i = 0; i < 3; ++i) last_pos[i] = pos[i];
+    ++seen_vertices;
+    ++next_out;
+    ++stats.vertices;
+    const uint32_t s = b.new_vertex(index, 0, pos);
     if (s == kNone) return Status(ErrorCode::kLimit, "more active vertices than the header's boundary limit", conn_offset);
     fneighbors.vertex_begins(s);
-    ev.vertex.slot = s;
-    bt.c[2] = s;
-    bt.is_new[2] = true;
-    if (direct) {
-      direct_vertex(ev.vertex);
-      --qcount;
-    }
-    if (frans->overran() || fraw->overran())
+    if (d.overran() || bits.overran())
       return Status(ErrorCode::kTruncated, "record " + std::to_string(record_no) + ": coded data ends early",
                     conn_offset + conn.size());
-    if (!b.apply_known_add(bt)) return Status(ErrorCode::kLimit, "more open edges than the header's boundary limit", conn_offset);
-    ring.push(b, bt.eslot[1]);
-    ring.push(b, bt.eslot[2]);
-    fneighbors.insert(bt.c[1], bt.c[2]);
-    fneighbors.insert(bt.c[2], bt.c[0]);
+    const uint32_t f1 = b.lean_add(gate, s);
+    if (f1 == kNone) return Status(ErrorCode::kLimit, "more open edges than the header's boundary limit", conn_offset);
+    const uint32_t f2 = b.edge(f1).next;
+    ring.push(b, f1);
+    ring.push(b, f2);
+    fneighbors.insert(p, s);
+    fneighbors.insert(s, q);
     last_op = static_cast<int>(Op::kAdd);
-    emit_common(bt, Op::kAdd, 4, 1, 6);
+    ++seen_triangles;
+    ++stats.triangles;
+    if (kDirect) {
+      MeshBuffers& mesh = *direct;
+      *direct_room(direct_index, direct_nv++, 1) = static_cast<uint32_t>(direct_np / 3);
+      float* out = direct_room(mesh.positions, direct_np, 3);
+      for (int i = 0; i < 3; ++i) out[i] = static_cast<float>(xyz[i]);
+      direct_np += 3;
+      uint32_t* t = direct_room(mesh.indices, direct_ni, 3);
+      t[0] = direct_index[b.vertex(q).index];
+      t[1] = direct_index[b.vertex(p).index];
+      t[2] = direct_index[index];
+      direct_ni += 3;
+      return Status();
+    }
+    SequenceEvent& ev = push();
+    ev.kind = SequenceEvent::Kind::kVertex;
+    SequenceVertex& v = ev.vertex;
+    v.index = index;
+    v.slot = s;
+    v.reappears = kNoVertex;
+    for (int i = 0; i < 3; ++i) v.position[i] = xyz[i];
+    props->next_vertex(&v.values);
+    const uint32_t corner[3] = {q, p, s}, eslot[3] = {gate, f1, f2};
+    push_triangle(Op::kAdd, corner, eslot, 4, 0, 1, 6);
     return Status();
   }
   // A fill: "left" (x starts the edge before the gate; edge 1 completes
@@ -203,46 +234,54 @@ Status PsqDecoder::Impl::fast_common(int cls, int bsym, uint32_t gate) {
   const uint32_t c = left ? g.prev : g.next;
   if (c == kNone) return corrupt(left ? "no boundary edge before the gate" : "no boundary edge after the gate");
   const uint32_t x = left ? b.edge(c).org : b.edge(c).dst;
-  if (x == bt.c[0] || x == bt.c[1]) return corrupt("triangle repeats a vertex");
-  bt.c[2] = x;
-  const int enters = left ? 2 : 1, completes = 3 - enters;
-  if (fneighbors.contains(bt.c[enters], bt.c[(enters + 1) % 3]))
+  if (x == p || x == q) return corrupt("triangle repeats a vertex");
+  const uint32_t from = left ? x : p, to = left ? q : x;  // the entering edge
+  if (fneighbors.contains(from, to))
     return corrupt("an entering edge is open already, completes an edge the record does not name, or is dead");
-  bt.completes[completes] = c;
-  bt.state[completes] = EdgeState::kCompletes;
-  if (frans->overran() || fraw->overran())
+  if (d.overran() || bits.overran())
     return Status(ErrorCode::kTruncated, "record " + std::to_string(record_no) + ": coded data ends early",
                   conn_offset + conn.size());
-  if (!b.apply_known_fill(bt, enters)) return Status(ErrorCode::kLimit, "more open edges than the header's boundary limit", conn_offset);
-  ring.push(b, bt.eslot[enters]);
-  fneighbors.insert(bt.c[enters], bt.c[(enters + 1) % 3]);
+  uint32_t final;
+  const uint32_t f = b.lean_fill(gate, left, &final);
+  if (f == kNone) return Status(ErrorCode::kLimit, "more open edges than the header's boundary limit", conn_offset);
+  ring.push(b, f);
+  fneighbors.insert(from, to);
   last_op = static_cast<int>(Op::kFill);
-  emit_common(bt, Op::kFill, 0, static_cast<uint8_t>(1 | 1 << completes), static_cast<uint8_t>(1 << enters));
+  ++seen_triangles;
+  ++stats.triangles;
+  const uint32_t corner[3] = {q, p, x};
+  if (kDirect) {
+    uint32_t* t = direct_room(direct->indices, direct_ni, 3);
+    for (int k = 0; k < 3; ++k) t[k] = direct_index[b.vertex(corner[k]).index];
+    direct_ni += 3;
+    if (final) {
+      for (int k = 0; k < 3; ++k)
+        if (final >> k & 1) b.free_vertex(corner[k]);
+    }
+    return Status();
+  }
+  const int enters = left ? 2 : 1, completes = 3 - enters;
+  uint32_t eslot[3];
+  eslot[0] = gate;
+  eslot[completes] = c;
+  eslot[enters] = f;
+  push_triangle(Op::kFill, corner, eslot, 0, static_cast<uint8_t>(final), static_cast<uint8_t>(1 | 1 << completes),
+                static_cast<uint8_t>(1 << enters));
   return Status();
 }
 
-void PsqDecoder::Impl::emit_common(const BTriangle& bt, Op op, uint8_t new_mask, uint8_t leaving, uint8_t entering) {
+void PsqDecoder::Impl::push_triangle(Op op, const uint32_t corner[3], const uint32_t eslot[3], uint8_t new_mask,
+                                     uint8_t final_mask, uint8_t leaving, uint8_t entering) {
   FastBoundary& b = fboundary;
-  if (direct) {
-    const uint32_t v[3] = {b.vertex(bt.c[0]).index, b.vertex(bt.c[1]).index, b.vertex(bt.c[2]).index};
-    direct_triangle(v);
-    props->next_face(&direct_values);  // keeps the property cursor in step
-    ++seen_triangles;
-    ++stats.triangles;
-    for (int k = 0; k < 3; ++k)
-      if (bt.final[k]) b.free_vertex(bt.c[k]);
-    return;
-  }
   SequenceEvent& ev = push();
   ev.kind = SequenceEvent::Kind::kTriangle;
   SequenceTriangle& t = ev.triangle;
   t.op = op;
   for (int k = 0; k < 3; ++k) {
-    t.v[k] = b.vertex(bt.c[k]).index;
-    t.vslot[k] = bt.c[k];
-    t.eslot[k] = bt.eslot[k];
+    t.v[k] = b.vertex(corner[k]).index;
+    t.vslot[k] = corner[k];
+    t.eslot[k] = eslot[k];
   }
-  const uint8_t final_mask = static_cast<uint8_t>(bt.final[0] | bt.final[1] << 1 | bt.final[2] << 2);
   t.new_mask = new_mask;
   t.final_mask = final_mask;
   t.border_mask = 0;
@@ -250,18 +289,16 @@ void PsqDecoder::Impl::emit_common(const BTriangle& bt, Op op, uint8_t new_mask,
   t.leaving_mask = leaving;
   t.entering_mask = entering;
   props->next_face(&t.values);
-  ++seen_triangles;
-  ++stats.triangles;
   if (final_mask) {
     // Spec 6.4: finalization events and freed slots in corner order.
     for (int k = 0; k < 3; ++k)
-      if (bt.final[k]) {
+      if (final_mask >> k & 1) {
         SequenceEvent& fin = push();
         fin.kind = SequenceEvent::Kind::kFinalize;
         fin.finalized = t.v[k];
       }
     for (int k = 0; k < 3; ++k)
-      if (bt.final[k]) b.free_vertex(bt.c[k]);
+      if (final_mask >> k & 1) b.free_vertex(corner[k]);
   }
 }
 
@@ -305,7 +342,7 @@ Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
     const BEdge& g = b.edge(gate);
     bsym = d.decode(*ft[kFastTableB + third_context(b.vertex(g.org).degree, b.vertex(g.dst).degree)]);
     if (bsym >= kFastBSymbols) return corrupt("third-vertex symbol " + std::to_string(bsym));
-    if (!header.rotation && (bsym == 0 || bsym == 27 || bsym == 30)) return fast_common(cls, bsym, gate);
+    if (!header.rotation && (bsym == 0 || bsym == 27 || bsym == 30)) return fast_common<false>(*frans, *fraw, cls, bsym, gate);
   }
   BTriangle bt;
   uint32_t intro[3];
@@ -533,93 +570,8 @@ Status PsqDecoder::Impl::fast_direct_records() {
       const uint32_t p = g.org, q = g.dst;
       const int bsym = d.decode(*ft[kFastTableB + third_context(b.vertex(p).degree, b.vertex(q).degree)]);
       if (bsym >= kFastBSymbols) return corrupt("third-vertex symbol " + std::to_string(bsym));
-      if (!rotation && bsym == 0) {
-        // An add (fast_common): the new vertex, then the triangle.
-        fast_context = fast_a_context_gate(cls, kFastNew);
-        if (seen_vertices >= chunk_vertices) return corrupt("more vertices than the chunk declares");
-        if (next_out >= 0xffffffffull) return Status(ErrorCode::kLimit, "more than 4294967295 vertices", conn_offset);
-        const uint32_t mask = prediction_choices(b, gate);
-        int choice = kChoiceGate;
-        if (mask != 0) {
-          choice = d.decode(*ft[fast_choice_table(mask, fast_choice)]);
-          if (!fast_choice_allowed(mask, choice))
-            return corrupt("prediction choice " + std::to_string(choice));
-          fast_choice = choice;
-        }
-        ++stats.predictions[choice];
-        const Prediction pr = predict_new_vertex(b, gate, 0, last_pos, nullptr, nullptr, choice);
-        int64_t pos[3];
-        int lengths[3] = {0, 0, 0};
-        for (int i = 0; i < 3; ++i) {
-          int64_t r;
-          const int c = length_context(pr.kind, i, pr.extent[i], std::max(lengths[0], lengths[1]));
-          if (!fast_residual(d, bits, fast_length_table(pr.kind, i, c), &r, &lengths[i])) return corrupt("bad residual");
-          pos[i] = wrap_add(pr.pos[i], r);
-        }
-        double x[3];
-        if (const char* why = position_of(pos, x)) return corrupt(why);
-        const uint32_t index = static_cast<uint32_t>(next_out);
-        for (int i = 0; i < 3; ++i) last_pos[i] = pos[i];
-        ++seen_vertices;
-        ++next_out;
-        ++stats.vertices;
-        *direct_room(direct_index, direct_nv++, 1) = static_cast<uint32_t>(direct_np / 3);
-        float* xyz = direct_room(mesh.positions, direct_np, 3);
-        for (int i = 0; i < 3; ++i) xyz[i] = static_cast<float>(x[i]);
-        direct_np += 3;
-        const uint32_t s = b.new_vertex(index, 0, pos);
-        if (s == kNone) return Status(ErrorCode::kLimit, "more active vertices than the header's boundary limit", conn_offset);
-        fneighbors.vertex_begins(s);
-        if (d.overran() || bits.overran())
-          return Status(ErrorCode::kTruncated, "record " + std::to_string(record_no) + ": coded data ends early",
-                        conn_offset + conn.size());
-        const uint32_t f1 = b.lean_add(gate, s);
-        if (f1 == kNone) return Status(ErrorCode::kLimit, "more open edges than the header's boundary limit", conn_offset);
-        ring.push(b, f1);
-        ring.push(b, b.edge(f1).next);
-        fneighbors.insert(p, s);
-        fneighbors.insert(s, q);
-        uint32_t* t = direct_room(mesh.indices, direct_ni, 3);
-        t[0] = direct_index[b.vertex(q).index];
-        t[1] = direct_index[b.vertex(p).index];
-        t[2] = direct_index[index];
-        direct_ni += 3;
-        ++seen_triangles;
-        ++stats.triangles;
-        last_op = static_cast<int>(Op::kAdd);
-        done = 1;
-      } else if (!rotation && (bsym == 27 || bsym == 30)) {
-        // A fill on the gate's neighbour (fast_common).
-        const bool left = bsym == 27;
-        fast_context = fast_a_context_gate(cls, left ? kFastLeft : kFastRight);
-        const uint32_t c = left ? g.prev : g.next;
-        if (c == kNone) return corrupt(left ? "no boundary edge before the gate" : "no boundary edge after the gate");
-        const uint32_t x = left ? b.edge(c).org : b.edge(c).dst;
-        if (x == p || x == q) return corrupt("triangle repeats a vertex");
-        const uint32_t from = left ? x : p, to = left ? q : x;  // the entering edge
-        if (fneighbors.contains(from, to))
-          return corrupt("an entering edge is open already, completes an edge the record does not name, or is dead");
-        if (d.overran() || bits.overran())
-          return Status(ErrorCode::kTruncated, "record " + std::to_string(record_no) + ": coded data ends early",
-                        conn_offset + conn.size());
-        uint32_t final;
-        const uint32_t f = b.lean_fill(gate, left, &final);
-        if (f == kNone) return Status(ErrorCode::kLimit, "more open edges than the header's boundary limit", conn_offset);
-        ring.push(b, f);
-        fneighbors.insert(from, to);
-        uint32_t* t = direct_room(mesh.indices, direct_ni, 3);
-        t[0] = direct_index[b.vertex(q).index];
-        t[1] = direct_index[b.vertex(p).index];
-        t[2] = direct_index[b.vertex(x).index];
-        direct_ni += 3;
-        ++seen_triangles;
-        ++stats.triangles;
-        last_op = static_cast<int>(Op::kFill);
-        if (final) {
-          const uint32_t corner[3] = {q, p, x};
-          for (int k = 0; k < 3; ++k)
-            if (final >> k & 1) b.free_vertex(corner[k]);
-        }
+      if (!rotation && (bsym == 0 || bsym == 27 || bsym == 30)) {
+        PSQ_RETURN_IF_ERROR(fast_common<true>(d, bits, cls, bsym, gate));
         done = 1;
       } else {
         qhead = qcount = 0;

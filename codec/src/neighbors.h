@@ -12,8 +12,10 @@
 // between old vertices (a fill has one), and nothing when a vertex is
 // finalized. A neighbour finalized since is stale (its slot's generation
 // moved on) and never matches; a slot's list is cleared when a new vertex
-// takes the slot. The lists hold the edges of active vertices only: their
-// size follows the boundary.
+// takes the slot, and a long list drops its stale entries before it grows,
+// so that a vertex that stays active while many neighbours come and go
+// (the centre of a large fan) lists about as many as are active: the
+// lists' size follows the boundary, not the mesh.
 #ifndef PSQ_CODEC_NEIGHBORS_H_
 #define PSQ_CODEC_NEIGHBORS_H_
 
@@ -46,6 +48,8 @@ class Neighbors {
     if (vb.count < kInline) vb.e[vb.count++] = ea;
     else spill(b, ea);
   }
+  // How many neighbours slot `s` lists, stale ones included (for tests).
+  uint32_t listed(uint32_t s) const { return s < slots_.size() ? slots_[s].count : 0; }
   // Whether an edge joins the vertices now in slots a and b.
   bool contains(uint32_t a, uint32_t b) const {
     // Scan the shorter list for the other vertex as it is now.
@@ -74,8 +78,18 @@ class Neighbors {
 
   __attribute__((noinline)) void spill(uint32_t s, uint64_t entry) {
     if (s >= spill_.size()) spill_.resize(slots_.size());
-    spill_[s].push_back(entry);
-    ++slots_[s].count;
+    std::vector<uint64_t>& v = spill_[s];
+    if (v.size() == v.capacity() && v.size() >= 16) {
+      // Before the list grows, drop the neighbours finalized since they
+      // were listed: growth is then geometric in the active neighbours,
+      // and the scan amortized over the entries that made the list full.
+      const Slot* slots = slots_.data();
+      v.erase(std::remove_if(v.begin(), v.end(),
+                             [slots](uint64_t x) { return slots[x >> 32].gen != static_cast<uint32_t>(x); }),
+              v.end());
+    }
+    v.push_back(entry);
+    slots_[s].count = kInline + static_cast<uint32_t>(v.size());
   }
   void grow(uint32_t s) { slots_.resize(std::max<size_t>(size_t{s} + 1, 2 * slots_.size())); }
 
