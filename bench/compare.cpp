@@ -544,7 +544,7 @@ std::vector<Codec> make_codecs() {
                       "streaming (one pass, or an external sort for incoherent input); keeps orientation and non-manifold vertices",
                       [bits](const BenchMesh& m, Bytes* out) { return psq_encode(m, bits, false, out); }, psq_decode});
   }
-  // The fast profile (spec/fast-profile-draft.md).
+  // The fast profile (spec/psq-format.md, section 13).
   for (int bits : {11, 14, 16}) {
     codecs.push_back({"psq-fast-q" + std::to_string(bits),
                       "the fast profile: static rANS tables per chunk, a boundary without lookups in the decoder",

@@ -195,7 +195,7 @@ Events round_trip(const Events& ev, const EncodeOptions& o, PsqStats* stats = nu
   Status c = replay(back, checker);
   EXPECT_TRUE(c.ok()) << c.to_string();
   if (!o.fast) {
-    // The fast profile (spec/fast-profile-draft.md) decodes to the same
+    // The fast profile (spec/psq-format.md, section 13) decodes to the same
     // sequence: the same positions, triangles up to rotation.
     EncodeOptions f = o;
     f.fast = true;

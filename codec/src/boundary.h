@@ -104,7 +104,7 @@ struct BTriangle {
 // kLookups: whether the boundary can find an open edge by its endpoints
 // and knows its dead edges (format 7 and the compact profile, and the
 // encoder of either profile). Without them (the fast profile's decoder, see
-// spec/fast-profile-draft.md), it keeps only slots, counts and loop links:
+// spec section 13), it keeps only slots, counts and loop links:
 // find_edge(), find_completions(), the recency ranks and the departure
 // points must not be used, and apply() takes the completions it is given.
 template <bool kLookups>

@@ -51,7 +51,8 @@ Status PsqDecoder::Impl::open(InputStream* stream) {
   stats.header_bytes = payload_at + length + 4;
   if (fast) {
     fboundary = FastBoundary(header.boundary_limit);
-    fabsent.set_absent();
+    for (int i = 0; i < kFastTables; ++i) ftables[i].set_absent();
+    std::fill(std::begin(ftable_absent), std::end(ftable_absent), true);
   } else {
     boundary = Boundary(header.boundary_limit);
   }

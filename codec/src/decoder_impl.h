@@ -1,7 +1,7 @@
 // codec/src/decoder_impl.h: the state of the .psq decoder
 // (psq/psq_codec.h), shared by its two record decoders: decoder.cpp (format
 // 7 coding, the compact profile) and fast_decoder.cpp (the fast profile,
-// spec/fast-profile-draft.md).
+// spec section 13).
 #ifndef PSQ_CODEC_DECODER_IMPL_H_
 #define PSQ_CODEC_DECODER_IMPL_H_
 
@@ -198,14 +198,15 @@ struct PsqDecoder::Impl {
   FastBoundary fboundary{1};
   Neighbors fneighbors;  // which active vertices an edge joins (the fast profile's checks)
   std::vector<RansTable> ftables = std::vector<RansTable>(kFastTables);
-  RansTable fabsent;
-  const RansTable* ft[kFastTables] = {};
+  // A chunk's tables by index, the absent ones set_absent() (indexed
+  // directly, so that finding a table is no load of its own).
+  bool ftable_absent[kFastTables] = {};
   std::unique_ptr<RansDecoder> frans;
   std::unique_ptr<RawReader> fraw;
   FastRing ring;
   int fast_context = kFastAStartContext;
   int fast_choice = 0;
-  // Reads the record section `conn` of a fast chunk (draft section 2).
+  // Reads the record section `conn` of a fast chunk (spec 13.2).
   Status fast_open_chunk();
   // At the chunk's end: every byte used, the rANS state back at its start.
   Status fast_close_chunk();

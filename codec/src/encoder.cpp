@@ -505,7 +505,7 @@ Status PsqEncoder::Impl::close_triangle(const SequenceTriangle& t, BTriangle& bt
   if (!boundary.apply(bt))
     return Status(ErrorCode::kLimit, "more than " + std::to_string(opt.boundary_limit) +
                                          " open edges (the boundary limit)");
-  if (fast)  // draft section 3: entering edges join the ring, in edge order
+  if (fast)  // spec 13.6.2: entering edges join the ring, in edge order
     for (int k = 0; k < 3; ++k)
       if (bt.state[k] == EdgeState::kEnters) ring.push(boundary, bt.eslot[k]);
   pending.clear();

@@ -1,7 +1,7 @@
 // codec/src/encoder_impl.h: the state of the .psq encoder (psq/psq_codec.h),
 // shared by its two record coders: encoder.cpp (format 7 coding, the
 // compact profile) and fast_encoder.cpp (the fast profile,
-// spec/fast-profile-draft.md).
+// spec section 13).
 #ifndef PSQ_CODEC_ENCODER_IMPL_H_
 #define PSQ_CODEC_ENCODER_IMPL_H_
 
@@ -123,7 +123,7 @@ struct PsqEncoder::Impl {
   Status close_chunk();
   Status after_record();
 
-  // The fast profile (fast_encoder.cpp, spec/fast-profile-draft.md).
+  // The fast profile (fast_encoder.cpp, spec section 13).
   bool fast = false;
   std::vector<RansSymbol> fast_symbols;  // the open chunk's symbols, in order
   RawWriter fast_raw;                    // and its raw bits
@@ -145,7 +145,7 @@ struct PsqEncoder::Impl {
   void fast_vertex(const PendingVertex& v, const int64_t pred[3], int kind, const int extent[3]);
   int64_t fast_cost(int table, int symbol) const;  // in 1/65536 bits
   int fast_choose_prediction(uint32_t gate, uint32_t mask, const int64_t pos[3], Prediction* pred);
-  // The fast profile's record section of the open chunk (draft section 2).
+  // The fast profile's record section of the open chunk (spec 13.2).
   void fast_section(std::vector<uint8_t>* section);
   Status finish();
 };

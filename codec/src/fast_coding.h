@@ -1,5 +1,5 @@
 // codec/src/fast_coding.h: the symbols, contexts and tables of the fast
-// profile (spec/fast-profile-draft.md), shared by its encoder and decoder.
+// profile (spec section 13), shared by its encoder and decoder.
 #ifndef PSQ_CODEC_FAST_CODING_H_
 #define PSQ_CODEC_FAST_CODING_H_
 
@@ -13,7 +13,7 @@
 namespace psq {
 namespace codec {
 
-// Record classes, the symbols of table A (draft section 5).
+// Record classes, the symbols of table A (spec 13.7.1).
 enum FastClass : int {
   kFastGateR = 0,
   kFastGateNext = 1,
@@ -89,14 +89,14 @@ constexpr int kFastRanks = 32;
 constexpr uint32_t kFastRing = 1024;
 constexpr uint32_t kFastRingScan = 128;
 
-// Residual symbols (draft section 6).
+// Residual symbols (spec 13.8.3).
 constexpr int kFastLengthSymbols = 65;
 constexpr int kFastLengthEscape = 64;
 
 // Degree context of B (format 7's third_context).
 constexpr int kFastBContexts = (kDegreeCap + 1) * (kDegreeCap + 1);
 
-// The fixed table list (draft section 4).
+// The fixed table list (spec 13.5.3).
 enum FastTable : int {
   kFastTableA = 0,                                         // kFastAContexts
   kFastTableRank = kFastTableA + kFastAContexts,           // 2
@@ -132,6 +132,14 @@ inline bool fast_choice_allowed(uint32_t mask, int choice) {
   static constexpr uint32_t kAllowed[4] = {0x01, 0x0b, 0x15, 0x1f};
   return static_cast<uint32_t>(choice) < 32 && ((kAllowed[mask & 3] >> choice) & 1);
 }
+// The context of a residual length in the fast profile: the extent along the
+// axis, clamped, for every axis of a predicted vertex, so that the three
+// lengths decode independently; a start's or an isolated vertex's: the
+// largest earlier length (spec 7.4).
+inline int fast_length_context(int kind, int axis, int extent, int longest_so_far) {
+  (void)axis;
+  return std::min(kind != kPredOther ? extent : longest_so_far, kLengthContexts - 1);
+}
 inline int fast_length_table(int kind, int axis, int context) {
   // Axes 1 and 2 share their tables: their contexts mean the same (spec 7.4),
   // and half as many tables take less of the cache and fewer bytes.
@@ -141,7 +149,7 @@ inline int fast_choice_table(uint32_t mask, int previous) {
   return kFastTableChoice + (static_cast<int>(mask) - 1) * kChoices + previous;
 }
 
-// The ring of the newest edges that entered the boundary (draft section 3):
+// The ring of the newest edges that entered the boundary (spec 13.6.2):
 // far gates name an edge by its rank among them.
 class FastRing {
  public:
@@ -190,7 +198,7 @@ class FastRing {
   uint64_t head_ = 0;
 };
 
-// A residual's length symbol (draft section 6): k for k < 2, 2k - 2 + the
+// A residual's length symbol (spec 13.8.3): k for k < 2, 2k - 2 + the
 // bit below the leading one for 2 <= k <= 32, else the escape.
 inline int fast_length_symbol(int k, uint64_t mag) {
   if (k < 2) return k;

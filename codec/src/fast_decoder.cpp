@@ -1,5 +1,5 @@
-// codec/src/fast_decoder.cpp: the fast profile's records (draft
-// spec/fast-profile-draft.md, sections 2 to 6). The boundary is a
+// codec/src/fast_decoder.cpp: the fast profile's records (spec
+// section 13). The boundary is a
 // FastBoundary: every edge a triangle completes is named by its record
 // (the gate, the gate's neighbours, or a slot in an escape), so the decoder
 // keeps no lookups by endpoints. Every symbol is one rANS table lookup.
@@ -38,10 +38,14 @@ Status PsqDecoder::Impl::fast_open_chunk() {
   bool present[kFastTables];
   for (int i = 0; i < kFastTables; ++i) present[i] = tables.get(1) != 0;
   for (int i = 0; i < kFastTables; ++i) {
-    ft[i] = &fabsent;
-    if (!present[i]) continue;
+    if (!present[i]) {
+      // Spec 13.5.2: an absent table decodes no symbol of its alphabet.
+      if (!ftable_absent[i]) ftables[i].set_absent();
+      ftable_absent[i] = true;
+      continue;
+    }
+    ftable_absent[i] = false;
     if (!ftables[i].read(tables, fast_table_size(i))) return bad("table " + std::to_string(i) + " is invalid", at);
-    ft[i] = &ftables[i];
   }
   if (!tables.at_clean_end()) return bad("the table block does not end with its last table", at);
   frans = std::make_unique<RansDecoder>(conn.data() + at + table_bytes, rans_bytes);
@@ -62,8 +66,8 @@ Status PsqDecoder::Impl::fast_close_chunk() {
 
 namespace {
 
-// What a length symbol below the escape fixes of a residual (draft section
-// 6): the magnitude's leading bits, how many low bits follow raw, and how
+// What a length symbol below the escape fixes of a residual (spec
+// 13.8.3): the magnitude's leading bits, how many low bits follow raw, and how
 // many raw bits to read (those and the sign, none for a zero).
 struct LengthCode {
   uint32_t lead;
@@ -90,7 +94,7 @@ const LengthCodes kLengthCodes;
 }  // namespace
 
 PSQ_INLINE bool PsqDecoder::Impl::fast_residual(RansDecoder& d, RawReader& rawbits, int table, int64_t* r, int* k) {
-  const int s = d.decode(*ft[table]);
+  const int s = d.decode(ftables[table]);
   if (s < kFastLengthEscape) {
     // Without branches on the symbol: the table gives the leading bits,
     // and the raw bits the low ones and the sign (zero reads none).
@@ -139,7 +143,7 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_vertex_position(const int64_t pred[3], 
   int lengths[3] = {0, 0, 0};
   for (int i = 0; i < 3; ++i) {
     int64_t r;
-    const int c = length_context(kind, i, extent[i], std::max(lengths[0], lengths[1]));
+    const int c = fast_length_context(kind, i, extent[i], std::max(lengths[0], lengths[1]));
     if (!fast_residual(*frans, *fraw, fast_length_table(kind, i, c), &r, &lengths[i])) return corrupt("bad residual");
     pos[i] = wrap_add(pred[i], r);
   }
@@ -165,7 +169,7 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_common(RansDecoder& d, RawReader& bits,
     const uint32_t mask = prediction_choices(b, gate);
     int choice = kChoiceGate;
     if (mask != 0) {
-      choice = d.decode(*ft[fast_choice_table(mask, fast_choice)]);
+      choice = d.decode(ftables[fast_choice_table(mask, fast_choice)]);
       if (!fast_choice_allowed(mask, choice)) return corrupt("prediction choice " + std::to_string(choice));
       fast_choice = choice;
     }
@@ -175,7 +179,7 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_common(RansDecoder& d, RawReader& bits,
     int lengths[3] = {0, 0, 0};
     for (int i = 0; i < 3; ++i) {
       int64_t r;
-      const int c = length_context(pr.kind, i, pr.extent[i], std::max(lengths[0], lengths[1]));
+      const int c = fast_length_context(pr.kind, i, pr.extent[i], std::max(lengths[0], lengths[1]));
       if (!fast_residual(d, bits, fast_length_table(pr.kind, i, c), &r, &lengths[i])) return corrupt("bad residual");
       pos[i] = wrap_add(pr.pos[i], r);
     }
@@ -306,7 +310,7 @@ Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
   RansDecoder& d = *frans;
   RawReader& bits = *fraw;
   FastBoundary& b = fboundary;
-  if (cls < 0) cls = d.decode(*ft[kFastTableA + fast_context]);
+  if (cls < 0) cls = d.decode(ftables[kFastTableA + fast_context]);
   if (cls >= kFastClasses) return corrupt("record class " + std::to_string(cls));
   const uint32_t R = b.reference();
   if (cls == kFastIsolated) {
@@ -328,7 +332,7 @@ Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
   // A gate record: its gate and B symbol first, for the common path.
   if (cls <= kFastGateFar && bsym < 0) {
     if (cls == kFastGateFar) {
-      const int rank = d.decode(*ft[kFastTableRank + (R == kNone ? 1 : 0)]);
+      const int rank = d.decode(ftables[kFastTableRank + (R == kNone ? 1 : 0)]);
       if (rank >= kFastRanks) return corrupt("far gate rank " + std::to_string(rank));
       gate = ring.ranked(b, static_cast<uint32_t>(rank));
       if (gate == kNone) return corrupt("far gate rank beyond the open edges of the ring");
@@ -340,7 +344,7 @@ Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
       ++stats.gates[cls == kFastGateR ? 0 : 1];
     }
     const BEdge& g = b.edge(gate);
-    bsym = d.decode(*ft[kFastTableB + third_context(b.vertex(g.org).degree, b.vertex(g.dst).degree)]);
+    bsym = d.decode(ftables[kFastTableB + third_context(b.vertex(g.org).degree, b.vertex(g.dst).degree)]);
     if (bsym >= kFastBSymbols) return corrupt("third-vertex symbol " + std::to_string(bsym));
     if (!header.rotation && (bsym == 0 || bsym == 27 || bsym == 30)) return fast_common<false>(*frans, *fraw, cls, bsym, gate);
   }
@@ -353,9 +357,9 @@ Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
   bool choice_allowed = false;
   const int sbits = slot_bits(b.edge_capacity());
   if (cls == kFastStart) {
-    const int s = d.decode(*ft[kFastTableS]);
+    const int s = d.decode(ftables[kFastTableS]);
     if (s >= kFastSSymbols) return corrupt("start symbol " + std::to_string(s));
-    const int m = d.decode(*ft[kFastTableReappear]);
+    const int m = d.decode(ftables[kFastTableReappear]);
     if (m >= 8) return corrupt("start re-appearance symbol " + std::to_string(m));
     reappear_mask = static_cast<uint32_t>(m);
     e[0] = s % 3;
@@ -465,7 +469,7 @@ Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
   }
   uint32_t r = 0;
   if (header.rotation) {
-    r = static_cast<uint32_t>(d.decode(*ft[kFastTableRotation]));
+    r = static_cast<uint32_t>(d.decode(ftables[kFastTableRotation]));
     if (r > 2) return corrupt("rotation above 2");
   }
   // New vertices in the order of introduction (spec 6.3).
@@ -481,7 +485,7 @@ Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
     if (nintro == 1) {
       const uint32_t mask = choice_allowed ? prediction_choices(b, gate) : 0;
       if (mask != 0) {
-        choice = d.decode(*ft[fast_choice_table(mask, fast_choice)]);
+        choice = d.decode(ftables[fast_choice_table(mask, fast_choice)]);
         if (!fast_choice_allowed(mask, choice))
           return corrupt("prediction choice " + std::to_string(choice));
         fast_choice = choice;
@@ -499,7 +503,7 @@ Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
     ev.vertex.slot = s;
     bt.c[k] = s;
   }
-  // Edge states (draft section 5): named completions, else entering or a
+  // Edge states (spec 13.7.8): named completions, else entering or a
   // border, a cut border setting the non-manifold flag.
   uint8_t cut = 0;
   int completed = 0;
@@ -559,7 +563,7 @@ Status PsqDecoder::Impl::fast_direct_records() {
   direct_room(direct_index, direct_nv, static_cast<size_t>(std::min<uint64_t>(chunk_vertices, cap)));
   const bool rotation = header.rotation;
   while (records_left > 0) {
-    const int cls = d.decode(*ft[kFastTableA + fast_context]);
+    const int cls = d.decode(ftables[kFastTableA + fast_context]);
     const uint32_t R = b.reference();
     int done = 0;  // 1: the record was decoded below
     if (cls <= kFastGatePrev && R != kNone && seen_triangles < chunk_triangles) {
@@ -568,7 +572,7 @@ Status PsqDecoder::Impl::fast_direct_records() {
       ++stats.gates[cls == kFastGateR ? 0 : 1];
       const BEdge& g = b.edge(gate);
       const uint32_t p = g.org, q = g.dst;
-      const int bsym = d.decode(*ft[kFastTableB + third_context(b.vertex(p).degree, b.vertex(q).degree)]);
+      const int bsym = d.decode(ftables[kFastTableB + third_context(b.vertex(p).degree, b.vertex(q).degree)]);
       if (bsym >= kFastBSymbols) return corrupt("third-vertex symbol " + std::to_string(bsym));
       if (!rotation && (bsym == 0 || bsym == 27 || bsym == 30)) {
         PSQ_RETURN_IF_ERROR(fast_common<true>(d, bits, cls, bsym, gate));

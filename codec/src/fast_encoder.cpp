@@ -1,5 +1,5 @@
-// codec/src/fast_encoder.cpp: the fast profile's records (draft
-// spec/fast-profile-draft.md, sections 2 to 6): static rANS symbols and raw
+// codec/src/fast_encoder.cpp: the fast profile's records (spec
+// section 13): static rANS symbols and raw
 // bits, coded at the end of each chunk.
 //
 // The encoder keeps format 7's boundary, with its lookups by endpoints: it
@@ -54,7 +54,7 @@ int PsqEncoder::Impl::fast_residual(int table, int64_t r) {
 void PsqEncoder::Impl::fast_vertex(const PendingVertex& v, const int64_t pred[3], int kind, const int extent[3]) {
   int lengths[3] = {0, 0, 0};
   for (int i = 0; i < 3; ++i) {
-    const int c = length_context(kind, i, extent[i], std::max(lengths[0], lengths[1]));
+    const int c = fast_length_context(kind, i, extent[i], std::max(lengths[0], lengths[1]));
     lengths[i] = fast_residual(fast_length_table(kind, i, c), wrap_sub(v.pos[i], pred[i]));
   }
   for (int i = 0; i < 3; ++i) last_pos[i] = v.pos[i];
@@ -123,7 +123,7 @@ int PsqEncoder::Impl::fast_choose_prediction(uint32_t gate, uint32_t mask, const
     int64_t c = fast_cost(fast_choice_table(mask, fast_choice), ch);
     int lengths[3] = {0, 0, 0};
     for (int a = 0; a < 3; ++a) {
-      const int lc = length_context(pr.kind, a, pr.extent[a], std::max(lengths[0], lengths[1]));
+      const int lc = fast_length_context(pr.kind, a, pr.extent[a], std::max(lengths[0], lengths[1]));
       const int64_t r = wrap_sub(pos[a], pr.pos[a]);
       const uint64_t mag = r < 0 ? 0 - static_cast<uint64_t>(r) : static_cast<uint64_t>(r);
       const int k = bit_length64(mag);
@@ -203,7 +203,7 @@ Status PsqEncoder::Impl::triangle_fast(const SequenceTriangle& t, const int pend
       return bad_sequence("a border edge completes a boundary edge");
   const int e[3] = {edge_state(bt, t, 0, rot), edge_state(bt, t, 1, rot), edge_state(bt, t, 2, rot)};
 
-  // The third vertex (draft section 5).
+  // The third vertex (spec 13.7.3).
   int third = kFastNew;
   uint32_t join = kNone;
   int join_side = 0;

@@ -1,5 +1,5 @@
 // codec/src/neighbors.h: which active vertices are joined by an edge, for
-// the fast profile's decoder (spec/fast-profile-draft.md, section 3).
+// the fast profile's decoder (spec 13.6.3).
 //
 // The fast decoder is told which open edges a triangle completes; every
 // other edge between two old vertices must be new to the mesh, or the

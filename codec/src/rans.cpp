@@ -118,7 +118,7 @@ void rans_encode(const std::vector<RansSymbol>& symbols, const RansTable* tables
     uint32_t& xi = x[i & 1];
     const RansTable& t = tables[symbols[i].table];
     const uint32_t f = t.freq(symbols[i].symbol), c = t.cum(symbols[i].symbol);
-    // One renormalization step keeps the next state below 2^32 (x < 2^21 f).
+    // One renormalization step keeps the next state below 2^32 (x < 2^22 f).
     const uint64_t x_max = (uint64_t{kRansLow >> kRansScaleBits} << 16) * f;
     if (xi >= x_max) {
       words.push_back(static_cast<uint16_t>(xi));

@@ -1,6 +1,5 @@
 // codec/src/rans.h: static rANS coding and a raw bit stream, the entropy
-// coder of the fast profile (work in progress on branch fast-profile; the
-// spec section is still to be written).
+// coder of the fast profile (spec 13.3 to 13.5).
 //
 // rANS (Duda, "Asymmetric numeral systems", 2013) with 32-bit states kept
 // in [2^16, 2^32) and renormalized by 16-bit words, in the style of

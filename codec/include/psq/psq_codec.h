@@ -73,7 +73,7 @@ struct EncodeOptions {
   int bits = 16;
   // Keep positions bit-exact (spec 7.2).
   bool lossless = false;
-  // The fast profile (spec/fast-profile-draft.md): static rANS tables per
+  // The fast profile (spec/psq-format.md, section 13): static rANS tables per
   // chunk and a boundary the decoder keeps without lookups. About twice
   // Draco's decoding speed on large meshes, 1 to 2% more bytes there than
   // the default (compact) coding, and much more on small meshes.
@@ -156,7 +156,7 @@ struct PsqHeader {
   int version_minor = 0;
   bool lossless = false;
   bool rotation = false;  // triangle rotations are coded (face properties)
-  bool fast = false;      // the fast profile (spec/fast-profile-draft.md)
+  bool fast = false;      // the fast profile (spec/psq-format.md, section 13)
   int bits = 0;           // 0 when lossless
   double origin[3] = {0, 0, 0};
   double step = 0;
