@@ -437,6 +437,42 @@ TEST(Codec, CompressesASmoothSphereWell) {
   EXPECT_EQ(stats.total_bytes, bytes.size());
 }
 
+// PsqStats splits the coded bits into connectivity and geometry in both
+// profiles (psq info, psq convert --json): the parts add up to about the
+// record bytes, and the decoder measures what the encoder did.
+TEST(Codec, MeasuredCostsAddUpInBothProfiles) {
+  Events ev = sequence_of(test::make_sphere(40, 80));
+  for (bool fast : {false, true}) {
+    SCOPED_TRACE(fast ? "fast" : "compact");
+    EncodeOptions o;
+    o.bits = 14;
+    o.fast = fast;
+    o.chunk_bytes = 1024;  // several chunks
+    o.measure_costs = true;
+    PsqStats enc;
+    std::vector<uint8_t> bytes = encode(ev, o, &enc);
+    ASSERT_GT(enc.chunks, 2u);
+    EXPECT_GT(enc.connectivity_bits, 0.5 * enc.vertices);
+    EXPECT_GT(enc.geometry_bits, 10.0 * enc.vertices);
+    const double coded = enc.connectivity_bits + enc.geometry_bits;
+    // Not counted: the block lengths, the rANS states' last bytes and the
+    // padding of each chunk, or the range coder's flush.
+    EXPECT_LE(coded, 8.0 * enc.record_bytes);
+    EXPECT_GE(coded, 0.99 * 8.0 * enc.record_bytes - 128.0 * enc.chunks);
+    InputStream in;
+    in.open_memory(bytes.data(), bytes.size(), "mem.psq");
+    PsqDecoder dec;
+    dec.measure_costs(true);
+    ASSERT_TRUE(dec.open(&in).ok());
+    SequenceEvent e;
+    do {
+      ASSERT_TRUE(dec.next(&e).ok());
+    } while (e.kind != SequenceEvent::Kind::kEnd);
+    EXPECT_NEAR(dec.stats().geometry_bits, enc.geometry_bits, 0.01 * enc.geometry_bits);
+    EXPECT_NEAR(dec.stats().connectivity_bits, enc.connectivity_bits, 0.05 * enc.connectivity_bits + 32.0 * enc.chunks);
+  }
+}
+
 TEST(Codec, EncoderRejectsInvalidSequences) {
   Events ev = sequence_of(test::make_grid(3));
   // Drop one finalize event: the encoder must notice.

@@ -220,7 +220,18 @@ struct PsqDecoder::Impl {
   // other records go through decode_record_fast() and their events are
   // drained into the arrays.
   Status fast_direct_records();
-  bool fast_residual(RansDecoder& d, RawReader& raw, int table, int64_t* r, int* k);
+  // measure_it: add the symbol's and raw bits' cost to `cost` (measure on).
+  bool fast_residual(RansDecoder& d, RawReader& raw, int table, int64_t* r, int* k, bool measure_it);
+  // The decoded symbol s of `table`, its information content added to
+  // `cost` when measuring (PsqDecoder::measure_costs).
+  int fast_symbol(RansDecoder& d, int table) {
+    const int s = d.decode(ftables[table]);
+    if (measure) measure_symbol(table, s);
+    return s;
+  }
+  void measure_symbol(int table, int s);
+  double fraw_geometry_bits = 0;  // raw bits of position residuals in the chunk, when measuring
+  uint64_t fraw_total_bits = 0;   // the chunk's raw block
   // A new vertex's event: its index and, when it re-appears, the distance.
   Status fast_vertex_begin(bool reappears, SequenceEvent* ev);
   // Then its residuals against `pred`, and its position.

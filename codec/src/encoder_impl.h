@@ -127,6 +127,7 @@ struct PsqEncoder::Impl {
   bool fast = false;
   std::vector<RansSymbol> fast_symbols;  // the open chunk's symbols, in order
   RawWriter fast_raw;                    // and its raw bits
+  uint64_t fast_raw_geometry = 0;        // of those, position residuals' (measure_costs)
   FastRing ring;
   int fast_context = kFastAStartContext;  // the previous record's class (table A)
   int fast_choice = 0;                    // the previous prediction choice

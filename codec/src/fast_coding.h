@@ -132,6 +132,12 @@ inline bool fast_choice_allowed(uint32_t mask, int choice) {
   static constexpr uint32_t kAllowed[4] = {0x01, 0x0b, 0x15, 0x1f};
   return static_cast<uint32_t>(choice) < 32 && ((kAllowed[mask & 3] >> choice) & 1);
 }
+// What a table's symbols code, for the split of coded bits in PsqStats:
+// prediction choices and residual lengths are geometry, the rest
+// connectivity (as the compact profile splits them).
+inline int fast_table_cost(int table) {
+  return table >= kFastTableChoice && table < kFastTableDistance ? kCostGeometry : kCostConnectivity;
+}
 // The context of a residual length in the fast profile: the extent along the
 // axis, clamped, for every axis of a predicted vertex, so that the three
 // lengths decode independently; a start's or an isolated vertex's: the

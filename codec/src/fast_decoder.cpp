@@ -3,6 +3,7 @@
 // FastBoundary: every edge a triangle completes is named by its record
 // (the gate, the gate's neighbours, or a slot in an escape), so the decoder
 // keeps no lookups by endpoints. Every symbol is one rANS table lookup.
+#include <cmath>
 #include <algorithm>
 
 #include "decoder_impl.h"
@@ -45,12 +46,17 @@ Status PsqDecoder::Impl::fast_open_chunk() {
       continue;
     }
     ftable_absent[i] = false;
+    const uint64_t before = tables.consumed_bits();
     if (!ftables[i].read(tables, fast_table_size(i))) return bad("table " + std::to_string(i) + " is invalid", at);
+    if (measure) cost[fast_table_cost(i)] += static_cast<double>(tables.consumed_bits() - before);
   }
+  if (measure) cost[kCostConnectivity] += kFastTables;  // the presence bits
   if (!tables.at_clean_end()) return bad("the table block does not end with its last table", at);
   frans = std::make_unique<RansDecoder>(conn.data() + at + table_bytes, rans_bytes);
   const size_t raw_at = at + table_bytes + rans_bytes;
   fraw = std::make_unique<RawReader>(conn.data() + raw_at, conn.size() - raw_at);
+  fraw_total_bits = 8 * static_cast<uint64_t>(conn.size() - raw_at);
+  fraw_geometry_bits = 0;
   return Status();
 }
 
@@ -61,6 +67,12 @@ Status PsqDecoder::Impl::fast_close_chunk() {
     return Status(ErrorCode::kBadValue, "the rANS block does not end where the chunk's records do", conn_offset);
   if (!fraw->at_clean_end())
     return Status(ErrorCode::kBadValue, "the raw bits do not end where the chunk's records do", conn_offset);
+  // The raw bits that no position residual read: slots, kinds, signs of
+  // distances (and the last word's padding).
+  if (measure) {
+    cost[kCostGeometry] += fraw_geometry_bits;
+    cost[kCostConnectivity] += static_cast<double>(fraw_total_bits) - fraw_geometry_bits;
+  }
   return Status();
 }
 
@@ -93,8 +105,21 @@ const LengthCodes kLengthCodes;
 
 }  // namespace
 
-PSQ_INLINE bool PsqDecoder::Impl::fast_residual(RansDecoder& d, RawReader& rawbits, int table, int64_t* r, int* k) {
+void PsqDecoder::Impl::measure_symbol(int table, int s) {
+  const RansTable& t = ftables[table];
+  if (s < t.size() && t.freq(s) != 0) cost[fast_table_cost(table)] += kRansScaleBits - std::log2(t.freq(s));
+}
+
+PSQ_INLINE bool PsqDecoder::Impl::fast_residual(RansDecoder& d, RawReader& rawbits, int table, int64_t* r, int* k,
+                                                bool measure_it) {
   const int s = d.decode(ftables[table]);
+  if (measure_it) {
+    measure_symbol(table, s);
+    // A position's raw bits are geometry; the rest of the raw block is
+    // connectivity (fast_close_chunk).
+    if (table != kFastTableDistance && s <= kFastLengthEscape)
+      fraw_geometry_bits += s < kFastLengthEscape ? kLengthCodes.c[s].raw_bits : 0;
+  }
   if (s < kFastLengthEscape) {
     // Without branches on the symbol: the table gives the leading bits,
     // and the raw bits the low ones and the sign (zero reads none).
@@ -110,6 +135,7 @@ PSQ_INLINE bool PsqDecoder::Impl::fast_residual(RansDecoder& d, RawReader& rawbi
   const int len = 33 + static_cast<int>(rawbits.get(5));
   const uint64_t second = rawbits.get(1);
   *k = len;
+  if (measure_it && table != kFastTableDistance) fraw_geometry_bits += 5 + 1 + (len - 2) + 1;
   const uint64_t mag = uint64_t{1} << (len - 1) | second << (len - 2) | get_raw(rawbits, len - 2);
   if (rawbits.get(1) == 0) {
     if (mag >= uint64_t{1} << 63) return false;  // +2^63 is not an i64 (spec 5.6)
@@ -131,7 +157,7 @@ Status PsqDecoder::Impl::fast_vertex_begin(bool reappears, SequenceEvent* ev) {
   if (reappears) {
     int64_t d;
     int length;
-    if (!fast_residual(*frans, *fraw, kFastTableDistance, &d, &length) || d < 0 || static_cast<uint64_t>(d) >= next_out)
+    if (!fast_residual(*frans, *fraw, kFastTableDistance, &d, &length, measure) || d < 0 || static_cast<uint64_t>(d) >= next_out)
       return corrupt("re-appearance of a vertex that does not exist");
     v.reappears = static_cast<uint32_t>(next_out - 1 - static_cast<uint64_t>(d));
   }
@@ -144,7 +170,7 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_vertex_position(const int64_t pred[3], 
   for (int i = 0; i < 3; ++i) {
     int64_t r;
     const int c = fast_length_context(kind, i, extent[i], std::max(lengths[0], lengths[1]));
-    if (!fast_residual(*frans, *fraw, fast_length_table(kind, i, c), &r, &lengths[i])) return corrupt("bad residual");
+    if (!fast_residual(*frans, *fraw, fast_length_table(kind, i, c), &r, &lengths[i], measure)) return corrupt("bad residual");
     pos[i] = wrap_add(pred[i], r);
   }
   return finish_vertex(pos, ev->vertex);
@@ -169,7 +195,9 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_common(RansDecoder& d, RawReader& bits,
     const uint32_t mask = prediction_choices(b, gate);
     int choice = kChoiceGate;
     if (mask != 0) {
-      choice = d.decode(ftables[fast_choice_table(mask, fast_choice)]);
+      const int table = fast_choice_table(mask, fast_choice);
+      choice = d.decode(ftables[table]);
+      if (!kDirect && measure) measure_symbol(table, choice);
       if (!fast_choice_allowed(mask, choice)) return corrupt("prediction choice " + std::to_string(choice));
       fast_choice = choice;
     }
@@ -180,7 +208,7 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_common(RansDecoder& d, RawReader& bits,
     for (int i = 0; i < 3; ++i) {
       int64_t r;
       const int c = fast_length_context(pr.kind, i, pr.extent[i], std::max(lengths[0], lengths[1]));
-      if (!fast_residual(d, bits, fast_length_table(pr.kind, i, c), &r, &lengths[i])) return corrupt("bad residual");
+      if (!fast_residual(d, bits, fast_length_table(pr.kind, i, c), &r, &lengths[i], !kDirect && measure)) return corrupt("bad residual");
       pos[i] = wrap_add(pr.pos[i], r);
     }
     double xyz[3];
@@ -310,7 +338,7 @@ Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
   RansDecoder& d = *frans;
   RawReader& bits = *fraw;
   FastBoundary& b = fboundary;
-  if (cls < 0) cls = d.decode(ftables[kFastTableA + fast_context]);
+  if (cls < 0) cls = fast_symbol(d, kFastTableA + fast_context);
   if (cls >= kFastClasses) return corrupt("record class " + std::to_string(cls));
   const uint32_t R = b.reference();
   if (cls == kFastIsolated) {
@@ -332,7 +360,7 @@ Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
   // A gate record: its gate and B symbol first, for the common path.
   if (cls <= kFastGateFar && bsym < 0) {
     if (cls == kFastGateFar) {
-      const int rank = d.decode(ftables[kFastTableRank + (R == kNone ? 1 : 0)]);
+      const int rank = fast_symbol(d, kFastTableRank + (R == kNone ? 1 : 0));
       if (rank >= kFastRanks) return corrupt("far gate rank " + std::to_string(rank));
       gate = ring.ranked(b, static_cast<uint32_t>(rank));
       if (gate == kNone) return corrupt("far gate rank beyond the open edges of the ring");
@@ -344,7 +372,7 @@ Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
       ++stats.gates[cls == kFastGateR ? 0 : 1];
     }
     const BEdge& g = b.edge(gate);
-    bsym = d.decode(ftables[kFastTableB + third_context(b.vertex(g.org).degree, b.vertex(g.dst).degree)]);
+    bsym = fast_symbol(d, kFastTableB + third_context(b.vertex(g.org).degree, b.vertex(g.dst).degree));
     if (bsym >= kFastBSymbols) return corrupt("third-vertex symbol " + std::to_string(bsym));
     if (!header.rotation && (bsym == 0 || bsym == 27 || bsym == 30)) return fast_common<false>(*frans, *fraw, cls, bsym, gate);
   }
@@ -357,9 +385,9 @@ Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
   bool choice_allowed = false;
   const int sbits = slot_bits(b.edge_capacity());
   if (cls == kFastStart) {
-    const int s = d.decode(ftables[kFastTableS]);
+    const int s = fast_symbol(d, kFastTableS);
     if (s >= kFastSSymbols) return corrupt("start symbol " + std::to_string(s));
-    const int m = d.decode(ftables[kFastTableReappear]);
+    const int m = fast_symbol(d, kFastTableReappear);
     if (m >= 8) return corrupt("start re-appearance symbol " + std::to_string(m));
     reappear_mask = static_cast<uint32_t>(m);
     e[0] = s % 3;
@@ -469,7 +497,7 @@ Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
   }
   uint32_t r = 0;
   if (header.rotation) {
-    r = static_cast<uint32_t>(d.decode(ftables[kFastTableRotation]));
+    r = static_cast<uint32_t>(fast_symbol(d, kFastTableRotation));
     if (r > 2) return corrupt("rotation above 2");
   }
   // New vertices in the order of introduction (spec 6.3).
@@ -485,7 +513,7 @@ Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
     if (nintro == 1) {
       const uint32_t mask = choice_allowed ? prediction_choices(b, gate) : 0;
       if (mask != 0) {
-        choice = d.decode(ftables[fast_choice_table(mask, fast_choice)]);
+        choice = fast_symbol(d, fast_choice_table(mask, fast_choice));
         if (!fast_choice_allowed(mask, choice))
           return corrupt("prediction choice " + std::to_string(choice));
         fast_choice = choice;

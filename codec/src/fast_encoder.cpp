@@ -35,6 +35,7 @@ int edge_state(const BTriangle& bt, const SequenceTriangle& t, int k, int rot) {
 }  // namespace
 
 int PsqEncoder::Impl::fast_residual(int table, int64_t r) {
+  const uint64_t raw_before = fast_raw.bits();
   const uint64_t mag = r < 0 ? 0 - static_cast<uint64_t>(r) : static_cast<uint64_t>(r);
   const int k = bit_length64(mag);
   const int sym = fast_length_symbol(k, mag);
@@ -48,6 +49,7 @@ int PsqEncoder::Impl::fast_residual(int table, int64_t r) {
     const uint64_t low = mag & ((uint64_t{1} << low_bits) - 1);
     put_raw(fast_raw, (static_cast<uint64_t>(r < 0) << low_bits) | low, low_bits + 1);
   }
+  if (table != kFastTableDistance) fast_raw_geometry += fast_raw.bits() - raw_before;
   return k;
 }
 
@@ -325,7 +327,7 @@ Status PsqEncoder::Impl::isolated_fast(PendingVertex& v) {
 }
 
 void PsqEncoder::Impl::fast_section(std::vector<uint8_t>* section) {
-  // Draft section 2: the tables of this chunk's symbols, the rANS block,
+  // Spec 13.2: the tables of this chunk's symbols, the rANS block,
   // the raw bits.
   std::vector<std::vector<uint64_t>> counts(kFastTables);
   for (int i = 0; i < kFastTables; ++i) counts[i].assign(fast_table_size(i), 0);
@@ -338,8 +340,22 @@ void PsqEncoder::Impl::fast_section(std::vector<uint8_t>* section) {
     tw.put(present, 1);
     if (present) tables[i].build(counts[i].data(), fast_table_size(i));
   }
-  for (int i = 0; i < kFastTables; ++i)
-    if (!tables[i].empty()) tables[i].write(tw);
+  if (opt.measure_costs) cost[kCostConnectivity] += kFastTables;  // the presence bits
+  for (int i = 0; i < kFastTables; ++i) {
+    if (tables[i].empty()) continue;
+    const uint64_t before = tw.bits();
+    tables[i].write(tw);
+    if (opt.measure_costs) cost[fast_table_cost(i)] += static_cast<double>(tw.bits() - before);
+  }
+  if (opt.measure_costs) {
+    // Each symbol's information content under its table; the raw bits of
+    // positions are geometry, the other raw bits connectivity.
+    for (const RansSymbol& s : fast_symbols)
+      cost[fast_table_cost(s.table)] += kRansScaleBits - std::log2(tables[s.table].freq(s.symbol));
+    cost[kCostGeometry] += static_cast<double>(fast_raw_geometry);
+    cost[kCostConnectivity] += static_cast<double>(fast_raw.bits() - fast_raw_geometry);
+  }
+  fast_raw_geometry = 0;
   const std::vector<uint8_t> table_bytes = tw.finish();
   std::vector<uint8_t> rans_bytes;
   rans_encode(fast_symbols, tables.data(), &rans_bytes);

@@ -203,6 +203,8 @@ class RawReader {
     return v;
   }
   bool overran() const { return overran_; }
+  // Bits read so far.
+  uint64_t consumed_bits() const { return 8 * static_cast<uint64_t>(pos_) - static_cast<uint64_t>(n_); }
   // True when no whole word is left unread and the bits left in the last
   // word read are zero (the writer's padding).
   bool at_clean_end() const { return !overran_ && pos_ == size_ && acc_ == 0; }

@@ -51,7 +51,8 @@ const char kHelp[] =
     "  --profile P    .psq: compact (smallest), fast (table-driven, about twice\n"
     "                 as fast to decode, 1 to 2% larger on large meshes) or auto\n"
     "                 (the default: fast when the input declares 131072\n"
-    "                 triangles or more)\n"
+    "                 triangles or more, or, not declaring its triangles (a\n"
+    "                 PLY, whose faces may be polygons), 65536 vertices or more)\n"
     "  --ascii        write ascii PLY instead of binary little-endian\n"
     "  --tmpdir DIR   directory for temporary spool files (default $TMPDIR)\n"
     "  --threads N    .psq: 1 runs on one thread; 2 (the default on two or\n"
@@ -62,8 +63,17 @@ const char kHelp[] =
     "  --json         print a JSON summary on standard output (not with OUT '-')\n"
     "  -h, --help     show this help\n";
 
-// --profile auto: the fast profile from this many declared triangles.
+// --profile auto: the fast profile from this many declared triangles or,
+// when the input does not declare its triangles (a PLY's faces may be
+// polygons), this many declared vertices: a closed mesh has about twice as
+// many triangles as vertices.
 constexpr int64_t kAutoFastTriangles = 131072;
+constexpr int64_t kAutoFastVertices = 65536;
+
+bool auto_fast(const MeshSchema& schema) {
+  if (schema.triangle_count != MeshSchema::kUnknown) return schema.triangle_count >= kAutoFastTriangles;
+  return schema.vertex_count != MeshSchema::kUnknown && schema.vertex_count >= kAutoFastVertices;
+}
 
 // IN (any mesh, or .psq) to a .psq OUT: the processing sequence of the
 // mesh, or the decoded sequence of a .psq, into the encoder.
@@ -196,7 +206,7 @@ int cmd_convert(int argc, char** argv) {
   s = output.open(out, force);
   if (!s.ok()) return report_error(out, s);
   if (profile == "fast") encode_options.fast = true;
-  if (profile == "auto") encode_options.fast = mesh.source->schema().triangle_count >= kAutoFastTriangles;
+  if (profile == "auto") encode_options.fast = auto_fast(mesh.source->schema());
   if (out_format == MeshFormat::kPsq) return to_psq(in, out, mesh, output, encode_options, build_options, threads, quiet, json);
   WriteOptions write_options;
   write_options.ascii = ascii;
