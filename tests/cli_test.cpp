@@ -2,6 +2,8 @@
 // atomic outputs, pipes, and the shared corpus.
 #include <gtest/gtest.h>
 
+#include <cstdlib>
+
 #include <dirent.h>
 
 #include <algorithm>
@@ -189,6 +191,14 @@ TEST(Cli, ConvertPicksTheFastProfileForLargeInputs) {
   EXPECT_TRUE(fast_flag(dir.file("f.psq")));
   ASSERT_EQ(run_psq("info " + dir.file("f.psq"), &out, &err), 0) << err;
   EXPECT_NE(out.find("8.0, fast profile"), std::string::npos) << out;
+  // The JSON summary measures the split of the coded bits, in both profiles.
+  for (const char* p : {"fast", "compact"}) {
+    ASSERT_EQ(run_psq("convert -f --json --profile " + std::string(p) + " " + small + " " + dir.file("j.psq"), &out, &err),
+              0) << err;
+    const size_t at = out.find("\"connectivity_bits_per_vertex\": ");
+    ASSERT_NE(at, std::string::npos) << out;
+    EXPECT_GT(std::atof(out.c_str() + at + 32), 0.5) << p << ": " << out;
+  }
   EXPECT_EQ(run_psq("convert --profile quick " + small + " " + dir.file("q.psq"), &out, &err), 2);
 }
 

@@ -172,6 +172,8 @@ int cmd_convert(int argc, char** argv) {
   if (!parse_size(chunk, &chunk_bytes) || chunk_bytes > (uint64_t{1} << 24))
     return usage_error("convert", "bad --chunk '" + chunk + "' (1 to 16M)");
   encode_options.chunk_bytes = static_cast<uint32_t>(chunk_bytes);
+  // The JSON summary splits the bits into connectivity and geometry.
+  encode_options.measure_costs = json;
   if (profile != "compact" && profile != "fast" && profile != "auto")
     return usage_error("convert", "bad --profile '" + profile + "' (compact, fast or auto)");
   if (threads_text != "1" && threads_text != "2")
