@@ -49,7 +49,7 @@ const char kHelp[] =
     "                 (default 512M)\n"
     "  --chunk SIZE   .psq: close a chunk at this many coded bytes (default 1M)\n"
     "  --profile P    .psq: compact (smallest), fast (table-driven, about twice\n"
-    "                 as fast to decode, 1 to 2% larger on large meshes) or auto\n"
+    "                 as fast to decode, up to 2% larger on large meshes) or auto\n"
     "                 (the default: fast when the input declares 131072\n"
     "                 triangles or more, or, not declaring its triangles (a\n"
     "                 PLY, whose faces may be polygons), 65536 vertices or more)\n"
