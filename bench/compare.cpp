@@ -379,12 +379,13 @@ Status meshopt_decode(const uint8_t* data, size_t size, DecodedCounts* counts) {
 // psq: the mesh through the sequence builder (converter, or external sort
 // for unordered input) into the .psq encoder, all in this process; decode
 // pulls every event through PsqDecoder::pump.
-Status psq_encode(const BenchMesh& m, int bits, Bytes* out) {
+Status psq_encode(const BenchMesh& m, int bits, bool fast, Bytes* out) {
   BenchMeshSource source(m);
   psq::VectorWriter writer(out);
   psq::EncodeOptions options;
   options.bits = bits > 0 ? bits : 16;
   options.lossless = bits == 0;
+  options.fast = fast;
   psq::PsqEncoder encoder(&writer, options);
   psq::BuildOptions build;
   psq::BuildReport report;
@@ -474,16 +475,17 @@ class RecordedSequence : public psq::SequenceSink {
 
 // psq-qN-seq: records the mesh's processing sequence (untimed), then the
 // timed part encodes it.
-Status psq_prepare_sequence(const BenchMesh& m, int bits, std::function<Status(Bytes*)>* timed) {
+Status psq_prepare_sequence(const BenchMesh& m, int bits, bool fast, std::function<Status(Bytes*)>* timed) {
   auto recorded = std::make_shared<RecordedSequence>();
   BenchMeshSource source(m);
   psq::BuildOptions build;
   psq::BuildReport report;
   PSQ_RETURN_IF_ERROR(psq::build_sequence(source, *recorded, build, &report));
-  *timed = [recorded, bits](Bytes* out) {
+  *timed = [recorded, bits, fast](Bytes* out) {
     psq::VectorWriter writer(out);
     psq::EncodeOptions options;
     options.bits = bits;
+    options.fast = fast;
     psq::PsqEncoder encoder(&writer, options);
     return recorded->replay(encoder);
   };
@@ -540,16 +542,28 @@ std::vector<Codec> make_codecs() {
   for (int bits : {11, 14, 16, 0}) {
     codecs.push_back({bits ? "psq-q" + std::to_string(bits) : std::string("psq-lossless"),
                       "streaming (one pass, or an external sort for incoherent input); keeps orientation and non-manifold vertices",
-                      [bits](const BenchMesh& m, Bytes* out) { return psq_encode(m, bits, out); }, psq_decode});
+                      [bits](const BenchMesh& m, Bytes* out) { return psq_encode(m, bits, false, out); }, psq_decode});
+  }
+  // The fast profile (spec/psq-format.md, section 13).
+  for (int bits : {11, 14, 16}) {
+    codecs.push_back({"psq-fast-q" + std::to_string(bits),
+                      "the fast profile: static rANS tables per chunk, a boundary without lookups in the decoder",
+                      [bits](const BenchMesh& m, Bytes* out) { return psq_encode(m, bits, true, out); }, psq_decode});
   }
   codecs.push_back({"psq-q16-arrays", "as psq-q16, decoded into vertex and index arrays (decode_mesh)",
-                    [](const BenchMesh& m, Bytes* out) { return psq_encode(m, 16, out); }, psq_decode_arrays});
+                    [](const BenchMesh& m, Bytes* out) { return psq_encode(m, 16, false, out); }, psq_decode_arrays});
+  codecs.push_back({"psq-fast-q16-arrays", "as psq-fast-q16, decoded into vertex and index arrays (decode_mesh)",
+                    [](const BenchMesh& m, Bytes* out) { return psq_encode(m, 16, true, out); }, psq_decode_arrays});
   // The codec issue's encode criterion: from a processing sequence.
   codecs.push_back({"psq-q16-seq",
                     "the encoder alone: the sequence is recorded in memory first (untimed; its memory counts)",
                     nullptr, psq_decode,
                     [](const BenchMesh& m, std::function<Status(Bytes*)>* timed) {
-                      return psq_prepare_sequence(m, 16, timed);
+                      return psq_prepare_sequence(m, 16, false, timed);
+                    }});
+  codecs.push_back({"psq-fast-q16-seq", "the fast profile's encoder alone, from a recorded sequence", nullptr,
+                    psq_decode, [](const BenchMesh& m, std::function<Status(Bytes*)>* timed) {
+                      return psq_prepare_sequence(m, 16, true, timed);
                     }});
   for (int level : {7, 10}) {
     for (int bits : {11, 14, 16}) {

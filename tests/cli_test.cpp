@@ -2,6 +2,8 @@
 // atomic outputs, pipes, and the shared corpus.
 #include <gtest/gtest.h>
 
+#include <cstdlib>
+
 #include <dirent.h>
 
 #include <algorithm>
@@ -165,6 +167,39 @@ TEST(Cli, ConvertWritesTheSameBytesOnOneOrTwoThreads) {
   EXPECT_NE(err.find("psq: error: " + dir.file("cut.ply") + ": byte "), std::string::npos) << err;
   EXPECT_FALSE(test::file_exists(dir.file("cut.psq")));
   EXPECT_EQ(dir.entries(), (std::vector<std::string>{"cut.ply", "r1.psq", "r2.psq", "s.ply", "s1.psq", "s2.psq"}));
+}
+
+// --profile auto (the default) picks the fast profile for large inputs,
+// also for a PLY, which declares its vertices but not its triangles; the
+// header's flag bit 2 (spec 4.2) tells.
+TEST(Cli, ConvertPicksTheFastProfileForLargeInputs) {
+  test::TempDir dir;
+  const std::string small = write_sphere(dir, "small.ply", true);
+  const std::string large = write_sphere(dir, "large.ply", true, 200, 330);  // 66,002 vertices
+  std::string out, err;
+  auto fast_flag = [&](const std::string& psq) {
+    const std::string bytes = test::read_file(psq);
+    return bytes.size() > 11 && (static_cast<uint8_t>(bytes[10]) & 4) != 0;
+  };
+  ASSERT_EQ(run_psq("convert " + small + " " + dir.file("small.psq"), &out, &err), 0) << err;
+  EXPECT_FALSE(fast_flag(dir.file("small.psq")));
+  ASSERT_EQ(run_psq("convert " + large + " " + dir.file("large.psq"), &out, &err), 0) << err;
+  EXPECT_TRUE(fast_flag(dir.file("large.psq")));
+  ASSERT_EQ(run_psq("convert --profile compact " + large + " " + dir.file("c.psq"), &out, &err), 0) << err;
+  EXPECT_FALSE(fast_flag(dir.file("c.psq")));
+  ASSERT_EQ(run_psq("convert --profile fast " + small + " " + dir.file("f.psq"), &out, &err), 0) << err;
+  EXPECT_TRUE(fast_flag(dir.file("f.psq")));
+  ASSERT_EQ(run_psq("info " + dir.file("f.psq"), &out, &err), 0) << err;
+  EXPECT_NE(out.find("8.0, fast profile"), std::string::npos) << out;
+  // The JSON summary measures the split of the coded bits, in both profiles.
+  for (const char* p : {"fast", "compact"}) {
+    ASSERT_EQ(run_psq("convert -f --json --profile " + std::string(p) + " " + small + " " + dir.file("j.psq"), &out, &err),
+              0) << err;
+    const size_t at = out.find("\"connectivity_bits_per_vertex\": ");
+    ASSERT_NE(at, std::string::npos) << out;
+    EXPECT_GT(std::atof(out.c_str() + at + 32), 0.5) << p << ": " << out;
+  }
+  EXPECT_EQ(run_psq("convert --profile quick " + small + " " + dir.file("q.psq"), &out, &err), 2);
 }
 
 TEST(Cli, ConvertSafety) {

@@ -10,6 +10,7 @@
 #include <random>
 
 #include "coding.h"
+#include "neighbors.h"
 
 namespace psq {
 namespace codec {
@@ -47,5 +48,29 @@ TEST(CodecInternal, TriangleExtentMatchesItsDefinition) {
 }
 
 }  // namespace
+// The centre of a fan stays active while 100,000 neighbours come and go
+// through a few slots: its list keeps only the neighbours that are still
+// active (plus the ten inline entries and the growth slack), and answers
+// like a set of the live edges.
+TEST(Neighbors, ListsOfLongLivedVerticesDropFinalizedNeighbours) {
+  codec::Neighbors n;
+  n.vertex_begins(0);
+  for (uint32_t s = 1; s <= 8; ++s) n.vertex_begins(s);
+  for (uint32_t k = 0; k < 100000; ++k) {
+    const uint32_t s = 1 + k % 8;  // the slot of the k-th neighbour
+    n.vertex_begins(s);             // the slot's previous vertex was finalized
+    EXPECT_FALSE(n.contains(0, s));
+    n.insert(0, s);
+    ASSERT_TRUE(n.contains(0, s));
+    ASSERT_TRUE(n.contains(s, 0));
+  }
+  EXPECT_LE(n.listed(0), 10u + 2 * 16u + 8u);
+  // A vertex new in a slot has no edges, whatever its slot's past.
+  n.vertex_begins(3);
+  EXPECT_FALSE(n.contains(0, 3));
+  EXPECT_FALSE(n.contains(3, 0));
+  for (uint32_t s = 1; s <= 8; ++s) EXPECT_EQ(n.contains(0, s), s != 3) << s;
+}
+
 }  // namespace codec
 }  // namespace psq

@@ -194,6 +194,19 @@ Events round_trip(const Events& ev, const EncodeOptions& o, PsqStats* stats = nu
   SequenceChecker checker;
   Status c = replay(back, checker);
   EXPECT_TRUE(c.ok()) << c.to_string();
+  if (!o.fast) {
+    // The fast profile (spec/psq-format.md, section 13) decodes to the same
+    // sequence: the same positions, triangles up to rotation.
+    EncodeOptions f = o;
+    f.fast = true;
+    Events fast_back;
+    Status fs = decode(encode(ev, f), &fast_back);
+    EXPECT_TRUE(fs.ok()) << "fast profile: " << fs.to_string();
+    SequenceChecker fast_checker;
+    Status fc = replay(fast_back, fast_checker);
+    EXPECT_TRUE(fc.ok()) << "fast profile: " << fc.to_string();
+    expect_same(back, fast_back, 0);
+  }
   return back;
 }
 
@@ -424,6 +437,42 @@ TEST(Codec, CompressesASmoothSphereWell) {
   EXPECT_EQ(stats.total_bytes, bytes.size());
 }
 
+// PsqStats splits the coded bits into connectivity and geometry in both
+// profiles (psq info, psq convert --json): the parts add up to about the
+// record bytes, and the decoder measures what the encoder did.
+TEST(Codec, MeasuredCostsAddUpInBothProfiles) {
+  Events ev = sequence_of(test::make_sphere(40, 80));
+  for (bool fast : {false, true}) {
+    SCOPED_TRACE(fast ? "fast" : "compact");
+    EncodeOptions o;
+    o.bits = 14;
+    o.fast = fast;
+    o.chunk_bytes = 1024;  // several chunks
+    o.measure_costs = true;
+    PsqStats enc;
+    std::vector<uint8_t> bytes = encode(ev, o, &enc);
+    ASSERT_GT(enc.chunks, 2u);
+    EXPECT_GT(enc.connectivity_bits, 0.5 * enc.vertices);
+    EXPECT_GT(enc.geometry_bits, 10.0 * enc.vertices);
+    const double coded = enc.connectivity_bits + enc.geometry_bits;
+    // Not counted: the block lengths, the rANS states' last bytes and the
+    // padding of each chunk, or the range coder's flush.
+    EXPECT_LE(coded, 8.0 * enc.record_bytes);
+    EXPECT_GE(coded, 0.99 * 8.0 * enc.record_bytes - 128.0 * enc.chunks);
+    InputStream in;
+    in.open_memory(bytes.data(), bytes.size(), "mem.psq");
+    PsqDecoder dec;
+    dec.measure_costs(true);
+    ASSERT_TRUE(dec.open(&in).ok());
+    SequenceEvent e;
+    do {
+      ASSERT_TRUE(dec.next(&e).ok());
+    } while (e.kind != SequenceEvent::Kind::kEnd);
+    EXPECT_NEAR(dec.stats().geometry_bits, enc.geometry_bits, 0.01 * enc.geometry_bits);
+    EXPECT_NEAR(dec.stats().connectivity_bits, enc.connectivity_bits, 0.05 * enc.connectivity_bits + 32.0 * enc.chunks);
+  }
+}
+
 TEST(Codec, EncoderRejectsInvalidSequences) {
   Events ev = sequence_of(test::make_grid(3));
   // Drop one finalize event: the encoder must notice.
@@ -486,7 +535,7 @@ TEST(Codec, EncoderRefusesWhatTheDecoderWouldReject) {
   EXPECT_EQ(enc.finalize(1).code(), ErrorCode::kBadSequence);
 }
 
-std::vector<uint8_t> small_file() {
+std::vector<uint8_t> small_file(bool fast = false) {
   Mesh m = messy_mesh();
   m.schema.vertex_properties = {{"red", ScalarType::kUInt8}};
   for (size_t i = 0; i < m.positions.size(); ++i) m.vertex_values[i] = {static_cast<double>(i % 200)};
@@ -494,6 +543,7 @@ std::vector<uint8_t> small_file() {
   EncodeOptions o;
   o.bits = 10;
   o.chunk_bytes = 200;
+  o.fast = fast;
   return encode(ev, o);
 }
 
@@ -502,8 +552,12 @@ Status decode_all(const std::vector<uint8_t>& bytes) {
   return decode(bytes, &out);
 }
 
-TEST(CodecHostile, EveryTruncationFailsCleanly) {
-  std::vector<uint8_t> bytes = small_file();
+class CodecHostile : public ::testing::TestWithParam<bool> {};  // the parameter: the fast profile
+INSTANTIATE_TEST_SUITE_P(Profiles, CodecHostile, ::testing::Values(false, true),
+                         [](const ::testing::TestParamInfo<bool>& i) { return i.param ? "Fast" : "Compact"; });
+
+TEST_P(CodecHostile, EveryTruncationFailsCleanly) {
+  std::vector<uint8_t> bytes = small_file(GetParam());
   ASSERT_TRUE(decode_all(bytes).ok());
   for (size_t n = 0; n < bytes.size(); ++n) {
     std::vector<uint8_t> cut(bytes.begin(), bytes.begin() + static_cast<std::ptrdiff_t>(n));
@@ -517,8 +571,8 @@ TEST(CodecHostile, EveryTruncationFailsCleanly) {
   }
 }
 
-TEST(CodecHostile, BitFlipsAreDetected) {
-  std::vector<uint8_t> bytes = small_file();
+TEST_P(CodecHostile, BitFlipsAreDetected) {
+  std::vector<uint8_t> bytes = small_file(GetParam());
   std::mt19937 rng(5);
   for (int trial = 0; trial < 2000; ++trial) {
     std::vector<uint8_t> b = bytes;
@@ -532,8 +586,8 @@ TEST(CodecHostile, BitFlipsAreDetected) {
 
 // A chunk with a valid checksum but garbage records (a crafted file) must
 // still fail cleanly: re-sign random record bytes.
-TEST(CodecHostile, CraftedRecordsWithValidChecksums) {
-  std::vector<uint8_t> bytes = small_file();
+TEST_P(CodecHostile, CraftedRecordsWithValidChecksums) {
+  std::vector<uint8_t> bytes = small_file(GetParam());
   std::mt19937 rng(9);
   int failures = 0;
   for (int trial = 0; trial < 300; ++trial) {
@@ -575,19 +629,37 @@ TEST(CodecHostile, CraftedRecordsWithValidChecksums) {
   EXPECT_GT(failures, 250);
 }
 
+// A format 7.0 stream (tests/data/format7_spider_16bit.psq, the conformance
+// vector spider_16bit.psq as psq wrote it before format 8.0) is read: 7.0
+// streams are 8.0 compact streams (spec 11). Format 7 had no fast profile.
+TEST(CodecHostile, Format7StreamsAreRead) {
+  const std::string text = test::read_file(std::string(PSQ_TEST_DATA) + "/format7_spider_16bit.psq");
+  std::vector<uint8_t> bytes(text.begin(), text.end());
+  ASSERT_EQ(bytes[8], 7);
+  Events back;
+  Status s = decode(bytes, &back);
+  ASSERT_TRUE(s.ok()) << s.to_string();
+  // (conformance_test checks that its dump is the vector's.)
+  bytes[10] |= 4;  // the fast profile's flag
+  s = decode_all(bytes);
+  EXPECT_EQ(s.code(), ErrorCode::kUnsupported);
+  EXPECT_NE(s.message().find("unknown header flags (value 4)"), std::string::npos) << s.message();
+}
+
 TEST(CodecHostile, BadHeaders) {
   std::vector<uint8_t> bytes = small_file();
   std::vector<uint8_t> b = bytes;
   b[0] = 'X';
   EXPECT_EQ(decode_all(b).code(), ErrorCode::kUnknownFormat);
   b = bytes;
-  b[8] = 8;  // a later major version
+  b[8] = 9;  // a later major version
   Status s = decode_all(b);
   EXPECT_EQ(s.code(), ErrorCode::kUnsupported);
-  // The message names the version found and the one this psq reads.
-  EXPECT_NE(s.message().find("format version 8.0; this psq reads " + std::to_string(bytes[8]) + ".x"),
+  // The message names the version found and the ones this psq reads.
+  EXPECT_NE(s.message().find("format version 9.0; this psq reads 7.x and " + std::to_string(bytes[8]) + ".x"),
             std::string::npos)
       << s.message();
+
   b = bytes;
   b[8] = 6;  // format 6.0, without the means of two parallelograms (spec 11)
   EXPECT_EQ(decode_all(b).code(), ErrorCode::kUnsupported);

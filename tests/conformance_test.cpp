@@ -151,6 +151,20 @@ TEST(Conformance, DoublesVectorNeedsMeansBeyond64Bits) {
   EXPECT_GT(st.gates[3], 0u) << "no start";
 }
 
+// The fast profile's vectors decode to the same sequences as the compact
+// ones made from the same input: their dumps are identical.
+TEST(Conformance, FastVectorsDecodeLikeTheirCompactTwins) {
+  for (const char* name : {"spider_16bit", "spider_lossless", "grid_borders", "nonmanifold_wrap", "max_export_chunks",
+                           "properties_lossless"}) {
+    EXPECT_EQ(test::read_file(kDir + "fast_" + name + ".dump"), test::read_file(kDir + name + ".dump")) << name;
+    PsqDecoder dec;
+    decode_vector(std::string("fast_") + name + ".psq", &dec, [](const SequenceEvent&) {});
+    EXPECT_TRUE(dec.header().fast) << name;
+  }
+  // A format 7.0 stream decodes like the 8.0 compact stream of its input.
+  EXPECT_EQ(test::read_file(kDir + "format7_spider_16bit.dump"), test::read_file(kDir + "spider_16bit.dump"));
+}
+
 // The encoder still writes the vectors made from tests/data byte for byte.
 TEST(Conformance, EncoderReproducesTheVectors) {
   test::TempDir tmp;
@@ -164,6 +178,10 @@ TEST(Conformance, EncoderReproducesTheVectors) {
       {"spider_lossless.psq", "spider.ply", "--lossless"},
       {"nonmanifold_wrap.psq", "nonmanifold_wrap.ply", "--bits 12"},
       {"max_export_chunks.psq", "max_export_nm.ply", "--bits 14 --chunk 256"},
+      {"fast_spider_16bit.psq", "spider.ply", "--profile fast"},
+      {"fast_spider_lossless.psq", "spider.ply", "--lossless --profile fast"},
+      {"fast_nonmanifold_wrap.psq", "nonmanifold_wrap.ply", "--bits 12 --profile fast"},
+      {"fast_max_export_chunks.psq", "max_export_nm.ply", "--bits 14 --chunk 256 --profile fast"},
   };
   for (const Case& c : cases) {
     std::string out, err;

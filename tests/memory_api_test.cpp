@@ -174,3 +174,121 @@ TEST(MemoryApi, CorruptStreamsFailWithAnEmptyMesh) {
 
 }  // namespace
 }  // namespace psq
+
+namespace psq {
+namespace {
+
+// decode_mesh as PsqDecoder's events describe it: positions as floats in
+// order of first appearance, re-appearances merged, triangles in order.
+Status arrays_from_events(const std::vector<uint8_t>& bytes, MeshBuffers* out) {
+  InputStream stream;
+  stream.open_memory(bytes.data(), bytes.size(), "mem.psq");
+  PsqDecoder decoder;
+  PSQ_RETURN_IF_ERROR(decoder.open(&stream));
+  std::vector<uint32_t> index;
+  for (;;) {
+    SequenceEvent e;
+    PSQ_RETURN_IF_ERROR(decoder.next(&e));
+    if (e.kind == SequenceEvent::Kind::kEnd) return Status();
+    if (e.kind == SequenceEvent::Kind::kVertex) {
+      if (e.vertex.reappears != kNoVertex) {
+        index.push_back(index[e.vertex.reappears]);
+      } else {
+        index.push_back(static_cast<uint32_t>(out->positions.size() / 3));
+        for (double x : e.vertex.position) out->positions.push_back(static_cast<float>(x));
+      }
+    } else if (e.kind == SequenceEvent::Kind::kTriangle) {
+      for (uint32_t v : e.triangle.v) out->indices.push_back(index[v]);
+    }
+  }
+}
+
+std::vector<uint8_t> encode_arrays(const test::Mesh& m, const EncodeOptions& o) {
+  const Arrays in = arrays_of(m);
+  std::vector<uint8_t> bytes;
+  const Status s = encode_mesh(in.positions.data(), in.positions.size() / 3, in.indices.data(), in.indices.size() / 3,
+                               o, &bytes);
+  EXPECT_TRUE(s.ok()) << s.to_string();
+  return bytes;
+}
+
+// A fin and a bowtie on a grid: borders, cuts and re-appearing vertices.
+test::Mesh nonmanifold_grid(int n) {
+  test::Mesh m = test::make_grid(n);
+  const uint32_t a = static_cast<uint32_t>(m.positions.size());
+  m.positions.push_back({0.5, -0.5, 0.7});
+  m.positions.push_back({2.5, 2.5, 1.0});
+  m.positions.push_back({2.5, 1.5, 1.0});
+  m.triangles.push_back({0, 1, a});
+  m.triangles.push_back({6, a + 1, a + 2});
+  return m;
+}
+
+class MemoryApiProfiles : public ::testing::TestWithParam<bool> {
+ protected:
+  EncodeOptions options() const {
+    EncodeOptions o;
+    o.fast = GetParam();
+    return o;
+  }
+};
+
+// decode_mesh decodes the fast profile's common records straight into the
+// arrays (fast_decoder.cpp) and the others through events: the result must
+// be exactly the events' mesh, in the same order.
+TEST_P(MemoryApiProfiles, ArraysAreTheEventsMesh) {
+  struct Case {
+    test::Mesh mesh;
+    int bits;  // 0: lossless
+    uint32_t chunk_bytes;
+  };
+  const std::vector<Case> cases = {
+      {test::make_sphere(30, 40), 16, 1u << 20}, {test::make_sphere(30, 40), 11, 300},
+      {test::make_sphere(12, 9), 0, 1u << 20},   {nonmanifold_grid(12), 14, 1u << 20},
+      {nonmanifold_grid(20), 0, 200},            {test::make_grid(40), 3, 1u << 20},
+  };
+  for (size_t i = 0; i < cases.size(); ++i) {
+    EncodeOptions o = options();
+    o.lossless = cases[i].bits == 0;
+    if (!o.lossless) o.bits = cases[i].bits;
+    o.chunk_bytes = cases[i].chunk_bytes;
+    const std::vector<uint8_t> bytes = encode_arrays(cases[i].mesh, o);
+    MeshBuffers direct, events;
+    ASSERT_TRUE(decode_mesh(bytes.data(), bytes.size(), &direct).ok()) << "case " << i;
+    ASSERT_TRUE(arrays_from_events(bytes, &events).ok()) << "case " << i;
+    EXPECT_EQ(direct.positions, events.positions) << "case " << i;
+    EXPECT_EQ(direct.indices, events.indices) << "case " << i;
+    EXPECT_EQ(direct.indices.size(), 3 * cases[i].mesh.triangles.size()) << "case " << i;
+  }
+}
+
+// Flipped bits: decode_mesh and the events agree on whether the stream is
+// valid, and on its mesh when it is (the direct records check what the
+// event path checks); a failed decode_mesh leaves the mesh empty.
+TEST_P(MemoryApiProfiles, FlippedBitsAgreeWithTheEvents) {
+  EncodeOptions o = options();
+  o.chunk_bytes = 400;
+  const std::vector<uint8_t> good = encode_arrays(nonmanifold_grid(16), o);
+  std::mt19937 rng(4);
+  for (int trial = 0; trial < 600; ++trial) {
+    std::vector<uint8_t> bytes = good;
+    const size_t at = rng() % bytes.size();
+    bytes[at] ^= static_cast<uint8_t>(1u << (rng() % 8));
+    MeshBuffers direct, events;
+    const Status sd = decode_mesh(bytes.data(), bytes.size(), &direct);
+    const Status se = arrays_from_events(bytes, &events);
+    ASSERT_EQ(sd.ok(), se.ok()) << "byte " << at << ": " << sd.to_string() << " / " << se.to_string();
+    if (sd.ok()) {
+      EXPECT_EQ(direct.positions, events.positions) << "byte " << at;
+      EXPECT_EQ(direct.indices, events.indices) << "byte " << at;
+    } else {
+      EXPECT_TRUE(direct.positions.empty() && direct.indices.empty()) << "byte " << at;
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Profiles, MemoryApiProfiles, ::testing::Values(false, true),
+                         [](const ::testing::TestParamInfo<bool>& p) { return p.param ? "Fast" : "Compact"; });
+
+}  // namespace
+}  // namespace psq

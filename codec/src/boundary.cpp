@@ -2,10 +2,11 @@
 // section 6.1.
 #include "boundary.h"
 
+#include <algorithm>
+#include <cassert>
+
 #include "coding.h"
 #include "geometry.h"
-
-#include <algorithm>
 
 namespace psq {
 namespace codec {
@@ -16,7 +17,8 @@ namespace codec {
 // instructions and encoding it 2.9% fewer (bench/instructions.sh); the
 // bytes are the same.
 
-uint32_t Boundary::new_vertex(uint32_t index, uint32_t key, const int64_t pos[3]) {
+template <bool L>
+uint32_t BasicBoundary<L>::new_vertex(uint32_t index, uint32_t key, const int64_t pos[3]) {
   uint32_t slot;
   if (!free_vertices_.empty()) {
     slot = free_vertices_.back();
@@ -39,7 +41,8 @@ uint32_t Boundary::new_vertex(uint32_t index, uint32_t key, const int64_t pos[3]
   return slot;
 }
 
-PSQ_INLINE bool Boundary::is_border(uint32_t a, uint32_t b) const {
+template <bool L>
+PSQ_INLINE bool BasicBoundary<L>::is_border(uint32_t a, uint32_t b) const {
   const BVertex& va = vertices_[a];
   for (uint32_t i = 0; i < va.ndead; ++i)
     if (va.dead[i] == b) return true;
@@ -52,7 +55,8 @@ PSQ_INLINE bool Boundary::is_border(uint32_t a, uint32_t b) const {
   return false;
 }
 
-PSQ_INLINE void Boundary::add_border(uint32_t a, uint32_t b) {
+template <bool L>
+PSQ_INLINE void BasicBoundary<L>::add_border(uint32_t a, uint32_t b) {
   BVertex& va = vertices_[a];
   BVertex& vb = vertices_[b];
   if (va.ndead < kInlineDead && vb.ndead < kInlineDead) {
@@ -77,7 +81,16 @@ PSQ_INLINE void Boundary::add_border(uint32_t a, uint32_t b) {
   vertices_[b].first_border = r;
 }
 
-void Boundary::free_vertex(uint32_t slot) {
+template <bool L>
+void BasicBoundary<L>::free_vertex(uint32_t slot) {
+  if constexpr (L) forget_dead_edges(slot);
+  vlive_[slot] = 0;
+  --active_vertices_;
+  free_vertices_.push_back(slot);
+}
+
+template <bool L>
+PSQ_INLINE void BasicBoundary<L>::forget_dead_edges(uint32_t slot) {
   // Forget its inline dead edges: remove it from each other endpoint's
   // inline list (order within a list does not matter).
   BVertex& v = vertices_[slot];
@@ -104,12 +117,10 @@ void Boundary::free_vertex(uint32_t slot) {
     r = next;
   }
   vertices_[slot].first_border = kNone;
-  vlive_[slot] = 0;
-  --active_vertices_;
-  free_vertices_.push_back(slot);
 }
 
-PSQ_INLINE uint32_t Boundary::alloc_edge() {
+template <bool L>
+PSQ_INLINE uint32_t BasicBoundary<L>::alloc_edge() {
   uint32_t slot;
   if (!free_edges_.empty()) {
     slot = free_edges_.back();
@@ -127,7 +138,8 @@ PSQ_INLINE uint32_t Boundary::alloc_edge() {
   return slot;
 }
 
-uint32_t Boundary::find_edge(uint32_t a, uint32_t b) const {
+template <bool L>
+uint32_t BasicBoundary<L>::find_edge(uint32_t a, uint32_t b) const {
   for (uint32_t e = vertices_[a].first_out; e != kNone; e = edges_[e].next_out)
     if (edges_[e].dst == b) return e;
   return kNone;
@@ -136,7 +148,8 @@ uint32_t Boundary::find_edge(uint32_t a, uint32_t b) const {
 // Edge k of t, whose endpoints are both old: an error when it is open
 // already or dead (spec 6.1.3), else it completes its open twin or, without
 // one, enters or is a border as t.border says.
-PSQ_INLINE bool Boundary::classify_old_edge(BTriangle& t, int k) const {
+template <bool L>
+PSQ_INLINE bool BasicBoundary<L>::classify_old_edge(BTriangle& t, int k) const {
   const uint32_t u = t.c[k], w = t.c[k == 2 ? 0 : k + 1];
   if (find_edge(u, w) != kNone || is_border(u, w)) return false;
   t.completes[k] = find_edge(w, u);
@@ -152,7 +165,8 @@ PSQ_INLINE void classify_new_edge(BTriangle& t, int k) {
   t.state[k] = t.border[k] ? EdgeState::kBorder : EdgeState::kEnters;
 }
 
-bool Boundary::find_completions(BTriangle& t) const {
+template <bool L>
+bool BasicBoundary<L>::find_completions(BTriangle& t) const {
   if (t.gate == kNone) {
     for (int k = 0; k < 3; ++k) {
       if (t.is_new[k] || t.is_new[(k + 1) % 3]) classify_new_edge(t, k);
@@ -193,7 +207,8 @@ bool Boundary::find_completions(BTriangle& t) const {
 // Makes q follow p on its loop (either may be kNone), first detaching
 // whatever followed p and whatever preceded q, so that next and prev stay
 // mutual (spec 6.1.2).
-PSQ_INLINE void Boundary::link(uint32_t p, uint32_t q) {
+template <bool L>
+PSQ_INLINE void BasicBoundary<L>::link(uint32_t p, uint32_t q) {
   if (p != kNone) {
     uint32_t old = edges_[p].next;
     if (old != kNone && edges_[old].prev == p) edges_[old].prev = kNone;
@@ -206,17 +221,20 @@ PSQ_INLINE void Boundary::link(uint32_t p, uint32_t q) {
   }
 }
 
-PSQ_INLINE void Boundary::free_edge(uint32_t slot) {
+template <bool L>
+PSQ_INLINE void BasicBoundary<L>::free_edge(uint32_t slot) {
   BEdge& e = edges_[slot];
   if (e.next != kNone && edges_[e.next].prev == slot) edges_[e.next].prev = kNone;
   if (e.prev != kNone && edges_[e.prev].next == slot) edges_[e.prev].next = kNone;
-  // Unlink from the out-list of org and the in-list of dst.
-  uint32_t* p = &vertices_[e.org].first_out;
-  while (*p != slot) p = &edges_[*p].next_out;
-  *p = e.next_out;
-  p = &vertices_[e.dst].first_in;
-  while (*p != slot) p = &edges_[*p].next_in;
-  *p = e.next_in;
+  if constexpr (L) {
+    // Unlink from the out-list of org and the in-list of dst.
+    uint32_t* p = &vertices_[e.org].first_out;
+    while (*p != slot) p = &edges_[*p].next_out;
+    *p = e.next_out;
+    p = &vertices_[e.dst].first_in;
+    while (*p != slot) p = &edges_[*p].next_in;
+    *p = e.next_in;
+  }
   --vertices_[e.org].open;
   --vertices_[e.dst].open;
   e.live = false;
@@ -224,7 +242,8 @@ PSQ_INLINE void Boundary::free_edge(uint32_t slot) {
   free_edges_.push_back(slot);
 }
 
-PSQ_INLINE uint32_t Boundary::enter_edge(BTriangle& t, int k) {
+template <bool L>
+PSQ_INLINE uint32_t BasicBoundary<L>::enter_edge(BTriangle& t, int k) {
   const uint32_t s = alloc_edge();
   if (s == kNone) return kNone;
   const uint32_t org = t.c[k], dst = t.c[k == 2 ? 0 : k + 1], opp = t.c[k == 0 ? 2 : k - 1];
@@ -236,23 +255,26 @@ PSQ_INLINE uint32_t Boundary::enter_edge(BTriangle& t, int k) {
   e.opp[1] = o.pos[1];
   e.opp[2] = o.pos[2];
   BVertex& vo = vertices_[org];
-  e.next_out = vo.first_out;
-  vo.first_out = s;
-  ++vo.open;
   BVertex& vd = vertices_[dst];
-  e.next_in = vd.first_in;
-  vd.first_in = s;
+  ++vo.open;
   ++vd.open;
   t.eslot[k] = s;
   e.age = entered_++;
-  recent_.push_back(Recent{s, e.age});
+  if constexpr (L) {
+    e.next_out = vo.first_out;
+    vo.first_out = s;
+    e.next_in = vd.first_in;
+    vd.first_in = s;
+    recent_.push_back(Recent{s, e.age});
+  }
   return s;
 }
 
-PSQ_INLINE void Boundary::compact_recent() {
+template <bool L>
+PSQ_INLINE void BasicBoundary<L>::compact_recent() {
   // Keep the recency stack proportional to the boundary: drop every stale
   // entry once they outnumber the open edges (amortized O(1) per edge).
-  if (recent_.size() > 2 * static_cast<size_t>(open_edges_) + 64) {
+  if (L && recent_.size() > 2 * static_cast<size_t>(open_edges_) + 64) {
     size_t w = 0;
     for (const Recent& r : recent_)
       if (current(r)) recent_[w++] = r;
@@ -260,14 +282,16 @@ PSQ_INLINE void Boundary::compact_recent() {
   }
 }
 
-PSQ_INLINE void Boundary::close_edge(BTriangle& t, int k) {
+template <bool L>
+PSQ_INLINE void BasicBoundary<L>::close_edge(BTriangle& t, int k) {
   const uint32_t u = t.c[k], w = t.c[k == 2 ? 0 : k + 1];
   t.eslot[k] = t.completes[k];
   free_edge(t.completes[k]);
-  add_border(u, w);  // now used by two triangles: dead
+  if constexpr (L) add_border(u, w);  // now used by two triangles: dead
 }
 
-PSQ_INLINE void Boundary::finish_triangle(BTriangle& t) {
+template <bool L>
+PSQ_INLINE void BasicBoundary<L>::finish_triangle(BTriangle& t) {
   for (int k = 0; k < 3; ++k) {
     BVertex& v = vertices_[t.c[k]];
     ++v.degree;
@@ -275,7 +299,8 @@ PSQ_INLINE void Boundary::finish_triangle(BTriangle& t) {
   }
 }
 
-bool Boundary::apply(BTriangle& t) {
+template <bool L>
+bool BasicBoundary<L>::apply(BTriangle& t) {
   if (t.gate != kNone && t.join_edge == kNone && t.state[1] != EdgeState::kBorder &&
       t.state[2] != EdgeState::kBorder)
     return apply_on_gate(t);
@@ -336,9 +361,11 @@ bool Boundary::apply(BTriangle& t) {
     } else if (t.state[k] == EdgeState::kBorder) {
       const uint32_t u = t.c[k], w = t.c[k == 2 ? 0 : k + 1];
       t.eslot[k] = kNone;
-      add_border(u, w);
-      ++vertices_[u].borders;
-      ++vertices_[w].borders;
+      if constexpr (L) {
+        add_border(u, w);
+        ++vertices_[u].borders;
+        ++vertices_[w].borders;
+      }
     }
   }
   for (int i = 0; i < nlinks; ++i) link(lp[i], lq[i]);
@@ -352,7 +379,8 @@ bool Boundary::apply(BTriangle& t) {
 // join, edges 1 and 2 each entering or completing (adds, fills and ends
 // without borders, most of a mesh). The same steps in the same order as the
 // general case, with its tests on borders and joins resolved.
-bool Boundary::apply_on_gate(BTriangle& t) {
+template <bool L>
+bool BasicBoundary<L>::apply_on_gate(BTriangle& t) {
   // A fill whose completed neighbour is linked to the gate (the common
   // case, and every fill whose third vertex was named "left" or "right").
   const BEdge& gate = edges_[t.completes[0]];
@@ -391,7 +419,8 @@ bool Boundary::apply_on_gate(BTriangle& t) {
 // completed edge but the gate (the gate is neither its own neighbour nor
 // one of the fresh edges), and no vertex becomes final (p and q trade the
 // gate for a fresh edge; x has two).
-PSQ_INLINE bool Boundary::apply_add(BTriangle& t) {
+template <bool L>
+PSQ_INLINE bool BasicBoundary<L>::apply_add(BTriangle& t) {
   const uint32_t f1 = enter_edge(t, 1);
   if (f1 == kNone) return false;
   const uint32_t f2 = enter_edge(t, 2);
@@ -425,7 +454,8 @@ PSQ_INLINE bool Boundary::apply_add(BTriangle& t) {
 // of these: the neighbour's other neighbour ends or starts at x, not at p
 // or q, and the gate's other neighbour would be edge k's twin (edge k
 // would complete it, not enter).
-PSQ_INLINE bool Boundary::apply_fill(BTriangle& t, int k) {
+template <bool L>
+PSQ_INLINE bool BasicBoundary<L>::apply_fill(BTriangle& t, int k) {
   const uint32_t f = enter_edge(t, k);
   if (f == kNone) return false;
   const uint32_t g = t.completes[0], c = t.completes[3 - k];
@@ -446,6 +476,90 @@ PSQ_INLINE bool Boundary::apply_fill(BTriangle& t, int k) {
   return true;
 }
 
+// lean_add() and lean_fill(): apply_add() and apply_fill() with the corners
+// of the triangle (q, p, x) known from the gate. The slots are allocated,
+// aged and freed in the same order, so the slot numbers and the ring's
+// ages agree with the encoder's boundary.
+template <bool L>
+uint32_t BasicBoundary<L>::lean_add(uint32_t gate, uint32_t x) {
+  assert(!L);  // no endpoint lists or recency stack to keep
+  const uint32_t p = edges_[gate].org, q = edges_[gate].dst;
+  const uint32_t f1 = alloc_edge();
+  if (f1 == kNone) return kNone;
+  const uint32_t f2 = alloc_edge();
+  if (f2 == kNone) return kNone;
+  BVertex& vp = vertices_[p];
+  BVertex& vq = vertices_[q];
+  BVertex& vx = vertices_[x];
+  BEdge& e1 = edges_[f1];
+  BEdge& e2 = edges_[f2];
+  e1.org = p;
+  e1.dst = x;
+  e2.org = x;
+  e2.dst = q;
+  for (int k = 0; k < 3; ++k) {
+    e1.opp[k] = vq.pos[k];
+    e2.opp[k] = vp.pos[k];
+  }
+  e1.age = entered_++;
+  e2.age = entered_++;
+  // p and q trade the gate for a fresh edge; x has two.
+  vx.open += 2;
+  ++vp.degree;
+  ++vq.degree;
+  ++vx.degree;
+  BEdge& g = edges_[gate];
+  const uint32_t gate_prev = g.prev, gate_next = g.next;
+  g.live = false;
+  --open_edges_;
+  free_edges_.push_back(gate);
+  e1.prev = gate_prev;
+  e1.next = f2;
+  e2.prev = f1;
+  e2.next = gate_next;
+  if (gate_prev != kNone) edges_[gate_prev].next = f1;
+  if (gate_next != kNone) edges_[gate_next].prev = f2;
+  reference_ = f1;
+  return f1;
+}
+
+template <bool L>
+uint32_t BasicBoundary<L>::lean_fill(uint32_t gate, bool left, uint32_t* final) {
+  assert(!L);
+  const uint32_t c = left ? edges_[gate].prev : edges_[gate].next;
+  const uint32_t p = edges_[gate].org, q = edges_[gate].dst;
+  const uint32_t x = left ? edges_[c].org : edges_[c].dst;
+  const uint32_t f = alloc_edge();
+  if (f == kNone) return kNone;
+  // Left: x->q enters, opposite p. Right: p->x enters, opposite q.
+  BEdge& e = edges_[f];
+  e.org = left ? x : p;
+  e.dst = left ? q : x;
+  const BVertex& o = vertices_[left ? p : q];
+  for (int k = 0; k < 3; ++k) e.opp[k] = o.pos[k];
+  e.age = entered_++;
+  ++vertices_[e.org].open;
+  ++vertices_[e.dst].open;
+  const uint32_t before = left ? edges_[c].prev : edges_[gate].prev;
+  const uint32_t after = left ? edges_[gate].next : edges_[c].next;
+  free_edge(gate);
+  free_edge(c);
+  e.prev = before;
+  e.next = after;
+  if (before != kNone) edges_[before].next = f;
+  if (after != kNone) edges_[after].prev = f;
+  reference_ = f;
+  const uint32_t corner[3] = {q, p, x};
+  uint32_t m = 0;
+  for (int k = 0; k < 3; ++k) {
+    BVertex& v = vertices_[corner[k]];
+    ++v.degree;
+    if (v.open == 0) m |= 1u << k;
+  }
+  *final = m;
+  return f;
+}
+
 namespace {
 // The largest coordinate distance of two points (coding.h).
 uint64_t linf_distance(const int64_t* a, const int64_t* b) {
@@ -455,14 +569,9 @@ uint64_t linf_distance(const int64_t* a, const int64_t* b) {
 }
 }  // namespace
 
-void parallelogram(const Boundary& boundary, uint32_t edge, int64_t out[3]) {
-  const BEdge& g = boundary.edge(edge);
-  const int64_t* a = boundary.vertex(g.org).pos;
-  const int64_t* b = boundary.vertex(g.dst).pos;
-  for (int k = 0; k < 3; ++k) out[k] = wrap_sub(wrap_add(a[k], b[k]), g.opp[k]);
-}
 
-int third_shape_context(const Boundary& boundary, uint32_t gate) {
+template <class B>
+int third_shape_context(const B& boundary, uint32_t gate) {
   const BEdge& g = boundary.edge(gate);
   const int64_t* p = boundary.vertex(g.org).pos;
   const int64_t* q = boundary.vertex(g.dst).pos;
@@ -477,41 +586,10 @@ int third_shape_context(const Boundary& boundary, uint32_t gate) {
   return d < (e >> 1) ? 1 + side : d < e ? 3 + side : 0;
 }
 
-void triangle_extents(const Boundary& boundary, uint32_t edge, int out[3]) {
-  const BEdge& g = boundary.edge(edge);
-  const int64_t* a = boundary.vertex(g.org).pos;
-  const int64_t* b = boundary.vertex(g.dst).pos;
-  for (int k = 0; k < 3; ++k) out[k] = triangle_extent(a, b, g.opp, k);
-}
 
-Prediction predict_new_vertex(const Boundary& boundary, uint32_t gate, int i, const int64_t last[3],
-                              const int64_t first[3], const int64_t second[3], int choice) {
-  Prediction p;
-  p.kind = kPredOther;
-  p.extent[0] = p.extent[1] = p.extent[2] = 0;
-  if (gate != kNone) {
-    // Spec 7.3: the parallelogram over the chosen open edge, whose
-    // triangle is the predicting triangle, or the mean of the gate's and
-    // a neighbour's parallelograms, whose predicting triangle is the
-    // gate's.
-    const BEdge& g = boundary.edge(gate);
-    const uint32_t edge[3] = {gate, g.prev, g.next};  // by side
-    parallelogram(boundary, edge[choice_side(choice)], p.pos);
-    if (choice >= kChoiceMeanBefore) {
-      int64_t across_gate[3];
-      parallelogram(boundary, gate, across_gate);
-      for (int k = 0; k < 3; ++k) p.pos[k] = midpoint(across_gate[k], p.pos[k]);
-    }
-    p.kind = prediction_kind(choice);
-    triangle_extents(boundary, edge[predicting_side(choice)], p.extent);
-    return p;
-  }
-  for (int k = 0; k < 3; ++k)
-    p.pos[k] = i == 0 ? last[k] : i == 1 ? first[k] : midpoint(first[k], second[k]);
-  return p;
-}
 
-uint32_t Boundary::scan_recent(uint32_t want, uint32_t* out) {
+template <bool L>
+uint32_t BasicBoundary<L>::scan_recent(uint32_t want, uint32_t* out) {
   // Entries above index i were scanned; current ones are kept (at most
   // `want`), stale ones dropped for good.
   want = std::min(want, kRecentRanks);
@@ -530,7 +608,8 @@ uint32_t Boundary::scan_recent(uint32_t want, uint32_t* out) {
   return n;
 }
 
-void Boundary::depart(uint32_t edge) {
+template <bool L>
+void BasicBoundary<L>::depart(uint32_t edge) {
   const Recent r{edge, edges_[edge].age};
   size_t w = 0;
   for (const Recent& d : departures_)
@@ -540,15 +619,21 @@ void Boundary::depart(uint32_t edge) {
   if (departures_.size() > kDepartures) departures_.resize(kDepartures);
 }
 
-uint32_t Boundary::departure(uint32_t j) const {
+template <bool L>
+uint32_t BasicBoundary<L>::departure(uint32_t j) const {
   return j < departures_.size() && current(departures_[j]) ? departures_[j].slot : kNone;
 }
 
-uint32_t Boundary::recent_edge(uint32_t rank) {
+template <bool L>
+uint32_t BasicBoundary<L>::recent_edge(uint32_t rank) {
   uint32_t out[kRecentRanks];
   if (rank >= kRecentRanks) return kNone;
   return scan_recent(rank + 1, out) > rank ? out[rank] : kNone;
 }
+
+template class BasicBoundary<true>;
+template class BasicBoundary<false>;
+template int third_shape_context(const Boundary&, uint32_t);
 
 }  // namespace codec
 }  // namespace psq

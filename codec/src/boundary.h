@@ -25,6 +25,9 @@
 #include <cstdint>
 #include <vector>
 
+#include "coding.h"
+#include "geometry.h"
+
 namespace psq {
 namespace codec {
 
@@ -98,11 +101,18 @@ struct BTriangle {
   bool final[3] = {false, false, false};      // corner's vertex has no open edge left
 };
 
-class Boundary {
+// kLookups: whether the boundary can find an open edge by its endpoints
+// and knows its dead edges (format 7 and the compact profile, and the
+// encoder of either profile). Without them (the fast profile's decoder, see
+// spec section 13), it keeps only slots, counts and loop links:
+// find_edge(), find_completions(), the recency ranks and the departure
+// points must not be used, and apply() takes the completions it is given.
+template <bool kLookups>
+class BasicBoundary {
  public:
   // `limit`: most vertex slots and most edge slots that may be in use at
   // once (the header's boundary limit, spec 4.2).
-  explicit Boundary(uint32_t limit) : limit_(limit) {}
+  explicit BasicBoundary(uint32_t limit) : limit_(limit) {}
 
   // A new vertex slot, or kNone when `limit` vertices are active.
   uint32_t new_vertex(uint32_t index, uint32_t key, const int64_t pos[3]);
@@ -137,6 +147,19 @@ class Boundary {
   // relinks the loops and updates degrees and open counts. Fills t.eslot and
   // t.final. Returns false when an entering edge would exceed the limit.
   bool apply(BTriangle& t);
+  // apply() for the two triangles whose kind the fast profile's decoder
+  // knows, without a BTriangle (same slots, links and ages as apply()).
+  // lean_add(): an add of new vertex slot x on `gate` (p->q);
+  // p->x and x->q enter (in that order), the gate closes. Returns the slot
+  // of p->x (x->q is its `next`), or kNone when an edge would exceed the
+  // limit. lean_fill(): a fill on `gate` whose third vertex x is the origin
+  // of the gate's `prev` (left) or the end of its `next` (right), which the
+  // triangle completes; x->q (left) or p->x (right) enters. Returns the
+  // entering edge's slot, or kNone at the limit, and sets *final to the
+  // corners (bit k for corner k of q, p, x) whose vertex has no open edge
+  // left.
+  uint32_t lean_add(uint32_t gate, uint32_t x);
+  uint32_t lean_fill(uint32_t gate, bool left, uint32_t* final);
 
   // The gate reference after the last apply() (spec 6.2.1): the first
   // entering edge of the last triangle in edge order 1, 2, 0, or kNone.
@@ -179,6 +202,7 @@ class Boundary {
   bool classify_old_edge(BTriangle& t, int k) const;
   void add_border(uint32_t a, uint32_t b);
   void free_edge(uint32_t slot);
+  void forget_dead_edges(uint32_t slot);
   void link(uint32_t p, uint32_t q);
   // Scans the recency stack from the top for up to `want` open edges,
   // dropping stale entries on the way; fills `out` newest first.
@@ -207,12 +231,13 @@ class Boundary {
   bool current(const Recent& r) const { return edges_[r.slot].live && edges_[r.slot].age == r.age; }
 };
 
+using Boundary = BasicBoundary<true>;
+using FastBoundary = BasicBoundary<false>;
+
 // The parallelogram point across open edge `edge` (spec 7.3): its
 // endpoints' coordinates added, its `opp` subtracted, modulo 2^64.
-void parallelogram(const Boundary& boundary, uint32_t edge, int64_t out[3]);
 // The extents (spec 7.4) of the triangle that made `edge` open: per axis,
 // the bit length of the largest coordinate distance of its corners.
-void triangle_extents(const Boundary& boundary, uint32_t edge, int out[3]);
 
 // The prediction of a record's i-th new vertex (spec 7.3) and its residual
 // contexts (7.4). For an add (gate != kNone), by `choice` (coding.h): the
@@ -231,13 +256,56 @@ struct Prediction {
   int kind;   // kPredParallelogram, kPredNeighbour, kPredMean or kPredOther (coding.h)
   int extent[3];  // per axis: the bit length of the predicting triangle's extent, or 0
 };
-Prediction predict_new_vertex(const Boundary& boundary, uint32_t gate, int i, const int64_t last[3],
-                              const int64_t first[3], const int64_t second[3], int choice = 0);
+
+template <class B>
+inline void parallelogram(const B& boundary, uint32_t edge, int64_t out[3]) {
+  const BEdge& g = boundary.edge(edge);
+  const int64_t* a = boundary.vertex(g.org).pos;
+  const int64_t* b = boundary.vertex(g.dst).pos;
+  for (int k = 0; k < 3; ++k) out[k] = wrap_sub(wrap_add(a[k], b[k]), g.opp[k]);
+}
+
+template <class B>
+inline void triangle_extents(const B& boundary, uint32_t edge, int out[3]) {
+  const BEdge& g = boundary.edge(edge);
+  const int64_t* a = boundary.vertex(g.org).pos;
+  const int64_t* b = boundary.vertex(g.dst).pos;
+  for (int k = 0; k < 3; ++k) out[k] = triangle_extent(a, b, g.opp, k);
+}
+
+template <class B>
+inline Prediction predict_new_vertex(const B& boundary, uint32_t gate, int i, const int64_t last[3],
+                                     const int64_t first[3], const int64_t second[3], int choice = 0) {
+  Prediction p;
+  p.kind = kPredOther;
+  p.extent[0] = p.extent[1] = p.extent[2] = 0;
+  if (gate != kNone) {
+    // Spec 7.3: the parallelogram over the chosen open edge, whose
+    // triangle is the predicting triangle, or the mean of the gate's and
+    // a neighbour's parallelograms, whose predicting triangle is the
+    // gate's.
+    const BEdge& g = boundary.edge(gate);
+    const uint32_t edge[3] = {gate, g.prev, g.next};  // by side
+    parallelogram(boundary, edge[choice_side(choice)], p.pos);
+    if (choice >= kChoiceMeanBefore) {
+      int64_t across_gate[3];
+      parallelogram(boundary, gate, across_gate);
+      for (int k = 0; k < 3; ++k) p.pos[k] = midpoint(across_gate[k], p.pos[k]);
+    }
+    p.kind = prediction_kind(choice);
+    triangle_extents(boundary, edge[predicting_side(choice)], p.extent);
+    return p;
+  }
+  for (int k = 0; k < 3; ++k)
+    p.pos[k] = i == 0 ? last[k] : i == 1 ? first[k] : midpoint(first[k], second[k]);
+  return p;
+}
 
 // Which neighbours of `gate` may take part in predicting the new vertex
 // of an add (spec 7.3): bit 0, the open edge before the gate (its `prev`
 // link); bit 1, the one after it (`next`). 0: only the gate.
-inline uint32_t prediction_choices(const Boundary& boundary, uint32_t gate) {
+template <class B>
+inline uint32_t prediction_choices(const B& boundary, uint32_t gate) {
   const BEdge& g = boundary.edge(gate);
   return (g.prev != kNone ? 1u : 0u) | (g.next != kNone ? 2u : 0u);
 }
@@ -250,12 +318,14 @@ inline uint32_t prediction_choices(const Boundary& boundary, uint32_t gate) {
 // is closer than e / 2, 3 or 4 when it is closer than e, else 0. A fill
 // closes the gap the new triangle would cover, so a vertex near where a new
 // vertex would go predicts it; this saves 9 to 23% of the symbol's cost.
-int third_shape_context(const Boundary& boundary, uint32_t gate);
+template <class B>
+int third_shape_context(const B& boundary, uint32_t gate);
 
 // The context of edge k's border bit (spec 6.2.5): how many of its two
 // endpoints already touch a border edge (0..2). Borders run in loops, so a
 // vertex on a border tends to start another border edge.
-inline int border_context(const Boundary& boundary, const BTriangle& t, int k) {
+template <class B>
+inline int border_context(const B& boundary, const BTriangle& t, int k) {
   return (boundary.vertex(t.c[k]).borders > 0) + (boundary.vertex(t.c[(k + 1) % 3]).borders > 0);
 }
 

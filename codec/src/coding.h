@@ -131,8 +131,10 @@ inline int triangle_extent(const int64_t* a, const int64_t* b, const int64_t* c,
   // difference is its distance and none is larger; otherwise some
   // difference wraps, and the pairs decide.
   const int64_t x = a[axis], y = b[axis], z = c[axis];
-  const uint64_t spread = static_cast<uint64_t>(std::max(x, std::max(y, z))) -
-                          static_cast<uint64_t>(std::min(x, std::min(y, z)));
+  // Conditional moves, not branches: the comparisons are data.
+  const int64_t hi_xy = x > y ? x : y, lo_xy = x > y ? y : x;
+  const int64_t hi = hi_xy > z ? hi_xy : z, lo = lo_xy < z ? lo_xy : z;
+  const uint64_t spread = static_cast<uint64_t>(hi) - static_cast<uint64_t>(lo);
   if (static_cast<int64_t>(spread) >= 0) return bit_length64(spread);
   return bit_length64(std::max(coord_distance(x, y), std::max(coord_distance(x, z), coord_distance(y, z))));
 }

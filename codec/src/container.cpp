@@ -97,7 +97,8 @@ std::vector<uint8_t> write_header(const PsqHeader& h) {
   head.bytes(kPsqMagic, 8);
   head.u8(kVersionMajor);
   head.u8(kVersionMinor);
-  head.u16(static_cast<uint16_t>((h.lossless ? kFlagLossless : 0) | (h.rotation ? kFlagRotation : 0)));
+  head.u16(static_cast<uint16_t>((h.lossless ? kFlagLossless : 0) | (h.rotation ? kFlagRotation : 0) |
+                                 (h.fast ? kFlagFast : 0)));
   head.varint(payload.size());
   head.bytes(payload.data(), payload.size());
   head.u32(crc32c_update(0, out.data(), out.size()));

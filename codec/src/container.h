@@ -15,11 +15,15 @@
 namespace psq {
 namespace codec {
 
-constexpr int kVersionMajor = 7;
+constexpr int kVersionMajor = 8;
+// The oldest major version still read: 7.0 streams are 8.0 compact streams
+// (spec 11).
+constexpr int kOldestVersionMajor = 7;
 constexpr int kVersionMinor = 0;
 constexpr uint16_t kFlagLossless = 1u << 0;
 constexpr uint16_t kFlagRotation = 1u << 1;
-constexpr uint16_t kKnownFlags = kFlagLossless | kFlagRotation;
+constexpr uint16_t kFlagFast = 1u << 2;
+constexpr uint16_t kKnownFlags = kFlagLossless | kFlagRotation | kFlagFast;
 
 constexpr size_t kFixedHeaderBytes = 12;    // magic, version, flags (the payload length follows)
 constexpr uint32_t kMaxHeaderPayload = 1u << 20;

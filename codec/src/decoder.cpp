@@ -3,135 +3,10 @@
 #include <algorithm>
 #include <cmath>
 
-#include "boundary.h"
-#include "coding.h"
-#include "container.h"
-#include "crc32c.h"
+#include "decoder_impl.h"
 #include "geometry.h"
-#include "properties.h"
-#include "psq/psq_codec.h"
-#include "psq/psq_memory.h"
 
 namespace psq {
-
-using namespace codec;
-
-namespace {
-// Fuzzing builds accept any checksum, so that the fuzzer reaches the record
-// decoder behind them (as zstd does); every other check still runs.
-bool checksum_ok(uint32_t stored, uint32_t computed) {
-#ifdef FUZZING_BUILD_MODE_UNSAFE_FOR_PRODUCTION
-  (void)stored;
-  (void)computed;
-  return true;
-#else
-  return stored == computed;
-#endif
-}
-}  // namespace
-
-struct PsqDecoder::Impl {
-  InputStream* in = nullptr;
-  PsqHeader header;
-  Status error;
-  bool opened = false, ended = false, measure = false;
-  Models models;
-  Boundary boundary{1};
-  std::unique_ptr<PropertyUnpacker> props;
-  PsqStats stats;
-  double cost[kCostCount] = {0, 0};
-  uint32_t file_crc = 0;     // of the header's bytes (spec 4.2)
-  bool in_header = true;
-  uint32_t chain_crc = 0;    // spec 4.5: the block checksums, in order
-
-  // The current chunk.
-  std::vector<uint8_t> conn, packed, raw;
-  std::unique_ptr<RangeDecoder> rc;
-  uint64_t conn_offset = 0, chunk_offset = 0;
-  uint32_t records_left = 0, chunk_vertices = 0, chunk_triangles = 0;
-  uint32_t seen_vertices = 0, seen_triangles = 0;
-
-  uint64_t next_out = 0;
-  uint64_t record_no = 0;
-  int last_op = 5;
-  uint32_t last_gate = 0;
-  int64_t last_pos[3] = {0, 0, 0};
-  int64_t grid_max = 0;
-
-  // Decoded events waiting for next().
-  SequenceEvent queue[7];
-  int qhead = 0, qcount = 0;
-
-  Status fail(Status s) {
-    if (error.ok()) error = s;
-    return error;
-  }
-  Status read(void* dst, size_t n) {
-    Status s = in->read_exact(dst, n);
-    if (!s.ok()) {
-      if (s.code() == ErrorCode::kTruncated)
-        return Status(ErrorCode::kTruncated, "the stream ends inside a chunk or before its end record", in->offset());
-      return s;
-    }
-    if (in_header) file_crc = crc32c_update(file_crc, dst, n);
-    return Status();
-  }
-  // Reads n bytes in steps, so that a huge declared size allocates only as
-  // the bytes actually arrive.
-  Status read_block(size_t n, std::vector<uint8_t>* out) {
-    out->clear();
-    while (out->size() < n) {
-      size_t k = std::min<size_t>(n - out->size(), size_t{1} << 20);
-      size_t at = out->size();
-      out->resize(at + k);
-      PSQ_RETURN_IF_ERROR(read(out->data() + at, k));
-    }
-    return Status();
-  }
-  // Reads a varint field (spec 3.1) a byte at a time, appending its bytes
-  // to `bytes` when given. A malformed varint is *bad_header* at its start.
-  Status read_varint(uint64_t* v, std::vector<uint8_t>* bytes) {
-    const uint64_t at = in->offset();
-    uint8_t b[kMaxVarintBytes];
-    for (size_t i = 0; i < kMaxVarintBytes; ++i) {
-      PSQ_RETURN_IF_ERROR(read(&b[i], 1));
-      if (bytes) bytes->push_back(b[i]);
-      if (!(b[i] & 0x80)) {
-        if (parse_varint(b, i + 1, v) > 0) return Status();
-        break;
-      }
-    }
-    return Status(ErrorCode::kBadHeader, "malformed varint", at);
-  }
-  Status corrupt(const std::string& what) {
-    uint64_t at = conn_offset + (rc ? rc->consumed() : 0);
-    return Status(ErrorCode::kBadValue, "record " + std::to_string(record_no) + ": " + what, at);
-  }
-
-  Status open(InputStream* stream);
-  Status next_chunk();
-  Status read_end();
-  Status decode_record() {
-    if (measure) {
-      BasicDecoder<true> dec(rc.get(), cost);
-      return decode_record(dec);
-    }
-    BasicDecoder<false> dec(rc.get(), nullptr);
-    return decode_record(dec);
-  }
-  template <class Dec>
-  Status decode_record(Dec& dec);
-  template <class Dec>
-  Status new_vertex(Dec& dec, const int64_t pred[3], int kind, const int extent[3], int64_t pos[3], SequenceEvent* ev);
-  // The events of one record, in order (at most 3 vertices, a triangle and
-  // 3 finalizations); the queue is empty before each record is decoded.
-  SequenceEvent& push() { return queue[qcount++]; }
-  // Decodes the next record (or chunk, or the end) into the queue.
-  Status advance();
-  // decode_mesh(): every record, its events straight into `mesh` (the
-  // vertices that re-appear merged back), without pump()'s sink calls.
-  Status decode_into(MeshBuffers* mesh);
-};
 
 Status PsqDecoder::Impl::open(InputStream* stream) {
   in = stream;
@@ -145,12 +20,15 @@ Status PsqDecoder::Impl::open(InputStream* stream) {
   header.version_major = get.u8();
   header.version_minor = get.u8();
   uint16_t flags = get.u16();
-  if (header.version_major != kVersionMajor)
+  if (header.version_major < kOldestVersionMajor || header.version_major > kVersionMajor)
     return Status(ErrorCode::kUnsupported, "format version " + std::to_string(header.version_major) + "." +
                                                std::to_string(header.version_minor) + "; this psq reads " +
+                                               std::to_string(kOldestVersionMajor) + ".x and " +
                                                std::to_string(kVersionMajor) + ".x", 8);
-  if (flags & ~kKnownFlags)
-    return Status(ErrorCode::kUnsupported, "unknown header flags (value " + std::to_string(flags & ~kKnownFlags) + ")", 10);
+  // Format 7 had no fast profile (spec 11).
+  const uint16_t known = header.version_major < 8 ? static_cast<uint16_t>(kKnownFlags & ~kFlagFast) : kKnownFlags;
+  if (flags & ~known)
+    return Status(ErrorCode::kUnsupported, "unknown header flags (value " + std::to_string(flags & ~known) + ")", 10);
   uint64_t length = 0;
   PSQ_RETURN_IF_ERROR(read_varint(&length, nullptr));
   const uint64_t payload_at = in->offset();
@@ -159,6 +37,7 @@ Status PsqDecoder::Impl::open(InputStream* stream) {
                                          std::to_string(kMaxHeaderPayload) + ")", 12);
   header.lossless = flags & kFlagLossless;
   header.rotation = flags & kFlagRotation;
+  header.fast = fast = flags & kFlagFast;
   std::vector<uint8_t> payload;
   PSQ_RETURN_IF_ERROR(read_block(length, &payload));
   uint32_t expect = file_crc;
@@ -170,7 +49,13 @@ Status PsqDecoder::Impl::open(InputStream* stream) {
   chain_crc = crc32c_update(0, c, 4);
   PSQ_RETURN_IF_ERROR(parse_header_payload(payload.data(), payload.size(), payload_at, &header));
   stats.header_bytes = payload_at + length + 4;
-  boundary = Boundary(header.boundary_limit);
+  if (fast) {
+    fboundary = FastBoundary(header.boundary_limit);
+    for (int i = 0; i < kFastTables; ++i) ftables[i].set_absent();
+    std::fill(std::begin(ftable_absent), std::end(ftable_absent), true);
+  } else {
+    boundary = Boundary(header.boundary_limit);
+  }
   props = std::make_unique<PropertyUnpacker>(header.schema.vertex_properties, header.schema.face_properties);
   if (!header.lossless) {
     grid_max = static_cast<int64_t>((uint64_t{1} << header.bits) - 1);
@@ -220,7 +105,8 @@ Status PsqDecoder::Impl::next_chunk() {
       return Status(ErrorCode::kBadValue, "property section does not match the chunk's vertices and triangles",
                     conn_offset + conn_size);
   }
-  rc = std::make_unique<RangeDecoder>(conn.data(), conn.size());
+  if (fast) PSQ_RETURN_IF_ERROR(fast_open_chunk());
+  else rc = std::make_unique<RangeDecoder>(conn.data(), conn.size());
   records_left = static_cast<uint32_t>(records);
   chunk_vertices = static_cast<uint32_t>(vertices);
   chunk_triangles = static_cast<uint32_t>(triangles);
@@ -251,8 +137,8 @@ Status PsqDecoder::Impl::read_end() {
                std::to_string(stats.triangles) + ", " + std::to_string(stats.chunks));
   if (max_active != stats.max_active_vertices || max_open != stats.max_open_edges)
     return bad("boundary maxima differ from the stream's");
-  if (boundary.active_vertices() != 0)
-    return bad("the stream ends with " + std::to_string(boundary.active_vertices()) + " vertices still active");
+  if (active_vertices() != 0)
+    return bad("the stream ends with " + std::to_string(active_vertices()) + " vertices still active");
   bool at_end = false;
   PSQ_RETURN_IF_ERROR(in->at_end(&at_end));
   if (!at_end) return Status(ErrorCode::kBadHeader, "data after the end record", in->offset());
@@ -282,7 +168,6 @@ Status PsqDecoder::Impl::new_vertex(Dec& dec, const int64_t pred[3], int kind, c
       return corrupt("re-appearance of a vertex that does not exist");
     v.reappears = static_cast<uint32_t>(next_out - 1 - static_cast<uint64_t>(d));
   }
-  const bool is_float = header.schema.position_type == ScalarType::kFloat32;
   int lengths[3] = {0, 0, 0};
   for (int i = 0; i < 3; ++i) {
     int64_t r;
@@ -291,22 +176,32 @@ Status PsqDecoder::Impl::new_vertex(Dec& dec, const int64_t pred[3], int kind, c
       return corrupt("residual longer than 64 bits");
     pos[i] = wrap_add(pred[i], r);
   }
+  return finish_vertex(pos, v);
+}
+
+const char* PsqDecoder::Impl::position_of(const int64_t pos[3], double out[3]) const {
+  const bool is_float = header.schema.position_type == ScalarType::kFloat32;
   for (int i = 0; i < 3; ++i) {
     double x;
     if (!header.lossless) {
-      if (pos[i] < 0 || pos[i] > grid_max) return corrupt("position outside the quantization grid");
+      if (pos[i] < 0 || pos[i] > grid_max) return "position outside the quantization grid";
       x = header.origin[i] + static_cast<double>(pos[i]) * header.step;
       if (is_float) x = round_to_float(x);
     } else if (is_float) {
-      if (pos[i] < -(int64_t{1} << 31) || pos[i] >= (int64_t{1} << 31)) return corrupt("position is not a float");
+      if (pos[i] < -(int64_t{1} << 31) || pos[i] >= (int64_t{1} << 31)) return "position is not a float";
       x = static_cast<double>(float_from_ordered(pos[i]));
     } else {
       x = double_from_ordered(pos[i]);
     }
-    if (!std::isfinite(x)) return corrupt("position is not finite");
-    v.position[i] = x;
-    last_pos[i] = pos[i];
+    if (!std::isfinite(x)) return "position is not finite";
+    out[i] = x;
   }
+  return nullptr;
+}
+
+Status PsqDecoder::Impl::finish_vertex(const int64_t pos[3], SequenceVertex& v) {
+  if (const char* why = position_of(pos, v.position)) return corrupt(why);
+  for (int i = 0; i < 3; ++i) last_pos[i] = pos[i];
   props->next_vertex(&v.values);
   ++seen_vertices;
   ++next_out;
@@ -455,7 +350,12 @@ Status PsqDecoder::Impl::decode_record(Dec& dec) {
   if (dec.overran()) return Status(ErrorCode::kTruncated, "record " + std::to_string(record_no) + ": coded data ends early", conn_offset + conn.size());
   if (!boundary.apply(bt)) return Status(ErrorCode::kLimit, "more open edges than the header's boundary limit", conn_offset);
   last_op = static_cast<int>(op);
+  emit_triangle(boundary, bt, op, r, cut);
+  return Status();
+}
 
+template <class B>
+void PsqDecoder::Impl::emit_triangle(B& b, const BTriangle& bt, Op op, uint32_t r, uint8_t cut) {
   // The triangle in output order: output corner j is canonical (j + r) % 3.
   static constexpr uint8_t kCorner[3][3] = {{0, 1, 2}, {1, 2, 0}, {2, 0, 1}};
   const uint8_t* corner = kCorner[r];
@@ -470,7 +370,7 @@ Status PsqDecoder::Impl::decode_record(Dec& dec) {
     const int k = corner[j];
     const uint32_t slot = bt.c[k];
     const EdgeState state = bt.state[k];
-    t.v[j] = boundary.vertex(slot).index;
+    t.v[j] = b.vertex(slot).index;
     t.vslot[j] = slot;
     t.eslot[j] = bt.eslot[k];  // kNone (kNoSlot) for a border: apply() sets it
     new_mask |= static_cast<uint32_t>(bt.is_new[k]) << j;
@@ -498,9 +398,11 @@ Status PsqDecoder::Impl::decode_record(Dec& dec) {
       fin.finalized = t.v[j];
     }
   for (int k = 0; k < 3; ++k)
-    if (bt.final[k]) boundary.free_vertex(bt.c[k]);
-  return Status();
+    if (bt.final[k]) b.free_vertex(bt.c[k]);
 }
+
+template void PsqDecoder::Impl::emit_triangle(FastBoundary&, const BTriangle&, Op, uint32_t, uint8_t);
+
 
 // ------------------------------------------------------------------ API
 
@@ -520,17 +422,21 @@ const PsqStats& PsqDecoder::stats() const { return impl_->stats; }
 Status PsqDecoder::Impl::advance() {
   qhead = qcount = 0;
   if (records_left == 0) return next_chunk();
-  PSQ_RETURN_IF_ERROR(decode_record());
+  PSQ_RETURN_IF_ERROR(fast ? decode_record_fast() : decode_record());
   ++record_no;
-  stats.max_active_vertices = std::max(stats.max_active_vertices, boundary.active_vertices());
-  stats.max_open_edges = std::max(stats.max_open_edges, boundary.open_edges());
+  stats.max_active_vertices = std::max(stats.max_active_vertices, active_vertices());
+  stats.max_open_edges = std::max(stats.max_open_edges, open_edges());
   if (--records_left == 0) {
-    if (rc->overran()) return Status(ErrorCode::kTruncated, "coded records end early", conn_offset + conn.size());
-    // Spec 5.8: the records use the section exactly (the encoder's flush
-    // writes as many bytes as the decoder reads).
-    if (rc->consumed() != conn.size())
-      return Status(ErrorCode::kBadValue, std::to_string(conn.size() - rc->consumed()) +
-                                              " unused bytes after the chunk's records", conn_offset + rc->consumed());
+    if (fast) {
+      PSQ_RETURN_IF_ERROR(fast_close_chunk());
+    } else {
+      if (rc->overran()) return Status(ErrorCode::kTruncated, "coded records end early", conn_offset + conn.size());
+      // Spec 5.8: the records use the section exactly (the encoder's flush
+      // writes as many bytes as the decoder reads).
+      if (rc->consumed() != conn.size())
+        return Status(ErrorCode::kBadValue, std::to_string(conn.size() - rc->consumed()) +
+                                                " unused bytes after the chunk's records", conn_offset + rc->consumed());
+    }
     if (seen_vertices != chunk_vertices || seen_triangles != chunk_triangles)
       return Status(ErrorCode::kBadHeader, "chunk declares other vertex or triangle counts than it holds", chunk_offset);
   }
@@ -538,44 +444,24 @@ Status PsqDecoder::Impl::advance() {
 }
 
 Status PsqDecoder::Impl::decode_into(MeshBuffers* mesh) {
-  std::vector<uint32_t> mesh_index;  // by dense index
+  direct = mesh;
   while (!ended) {
+    if (fast && records_left > 0 && props->empty()) {
+      PSQ_RETURN_IF_ERROR(fast_direct_records());
+      continue;
+    }
     qhead = qcount = 0;
     PSQ_RETURN_IF_ERROR(advance());
     for (int i = 0; i < qcount; ++i) {
       const SequenceEvent& e = queue[i];
-      if (e.kind == SequenceEvent::Kind::kVertex) {
-        // Dense indices come in order, and a re-appearance names an earlier
-        // one (the decoder checks both).
-        if (e.vertex.reappears != kNoVertex) {
-          mesh_index.push_back(mesh_index[e.vertex.reappears]);
-          continue;
-        }
-        mesh_index.push_back(static_cast<uint32_t>(mesh->positions.size() / 3));
-        for (double x : e.vertex.position) mesh->positions.push_back(static_cast<float>(x));
-      } else if (e.kind == SequenceEvent::Kind::kTriangle) {
-        for (uint32_t v : e.triangle.v) mesh->indices.push_back(mesh_index[v]);
-      }
+      if (e.kind == SequenceEvent::Kind::kVertex) direct_vertex(e.vertex);
+      else if (e.kind == SequenceEvent::Kind::kTriangle) direct_triangle(e.triangle.v);
     }
   }
   qhead = qcount = 0;
+  mesh->positions.resize(direct_np);
+  mesh->indices.resize(direct_ni);
   return Status();
-}
-
-// psq/psq_memory.h
-Status decode_mesh(const uint8_t* data, size_t size, MeshBuffers* mesh) {
-  mesh->positions.clear();
-  mesh->indices.clear();
-  InputStream in;
-  in.open_memory(data, size, "<memory>");
-  PsqDecoder decoder;
-  Status s = decoder.open(&in);
-  if (s.ok()) s = decoder.impl_->decode_into(mesh);
-  if (!s.ok()) {
-    mesh->positions.clear();
-    mesh->indices.clear();
-  }
-  return s;
 }
 
 Status PsqDecoder::next(SequenceEvent* event) {

@@ -4,8 +4,7 @@
 #include <cmath>
 #include <unordered_map>
 
-#include "boundary.h"
-#include "coding.h"
+#include "encoder_impl.h"
 #include "training.h"
 #include "container.h"
 #include "crc32c.h"
@@ -16,102 +15,6 @@
 namespace psq {
 
 using namespace codec;
-
-namespace {
-
-Status bad_sequence(const std::string& what) { return Status(ErrorCode::kBadSequence, what); }
-
-struct PendingVertex {
-  uint32_t in_index;
-  uint32_t in_slot = kNoSlot;  // the input's boundary slot
-  uint32_t reappears;  // input numbering, or kNoVertex
-  int64_t pos[3];
-  PropertyValues values;
-  bool coded = false;  // already coded in the current record
-};
-
-// How a far gate names its edge (spec 6.2.1): the far symbol (a recency
-// rank 0..13, kFarResume or kFarEscape) and, for a resume, the departure
-// point and the offset symbol.
-struct FarName {
-  uint32_t far = codec::kFarEscape, index = 0, offset = 0;
-};
-
-}  // namespace
-
-struct PsqEncoder::Impl {
-  ByteWriter* out;
-  EncodeOptions opt;
-  Status error;
-  bool begun = false, finished = false;
-  PsqHeader header;
-  Models models;
-  Boundary boundary{1};
-  std::unique_ptr<PropertyPacker> props;
-  PsqStats stats;
-  double cost[kCostCount] = {0, 0};
-
-  // Active vertices by the input's boundary slot (the converter's and the
-  // decoder's sequences have them: no hashing), else by input dense index.
-  std::vector<uint32_t> by_inslot;
-  std::unordered_map<uint32_t, uint32_t> slot_of;
-  // Input index -> decoded index where they differ (spec 2.3: an isolated
-  // vertex coded while others wait for their triangle).
-  std::unordered_map<uint32_t, uint32_t> renumbered;
-  std::vector<PendingVertex> pending;  // introduced, not used yet
-  std::vector<uint32_t> expect_final;  // input indices the input must finalize now
-  uint32_t next_in = 0;                // next input dense index
-  uint64_t next_out = 0;               // next decoded dense index
-  int last_op = 5;
-  uint32_t last_gate = 0;              // the previous gate symbol (gate context)
-  int64_t last_pos[3] = {0, 0, 0};
-  uint64_t choices_coded = 0;          // adds with a choice of parallelogram so far
-
-  // The open chunk.
-  std::vector<uint8_t> records;
-  std::unique_ptr<RangeEncoder> rc;
-  uint32_t chunk_records = 0, chunk_vertices = 0, chunk_triangles = 0;
-  // Spec 4.5: the stream checksum chains the checksums of the header and
-  // of every chunk (their last 4 bytes), then the end record's fields.
-  uint32_t chain_crc = 0;
-
-  Status emit(const std::vector<uint8_t>& bytes) {
-    stats.total_bytes += bytes.size();
-    return out->write(bytes.data(), bytes.size());
-  }
-
-  Status fail(Status s) {
-    if (error.ok()) error = s;
-    return error;
-  }
-
-  uint32_t out_index_of(uint32_t in) const {
-    auto it = renumbered.find(in);
-    return it == renumbered.end() ? in : it->second;
-  }
-
-  Status begin(const MeshSchema& schema);
-  Status coded_position(const double p[3], int64_t out[3]);
-  // The reference encoder's choice of the parallelogram that predicts an
-  // add's new vertex at `pos` (spec 7.3), among those of `mask`; sets
-  // *pred to its prediction. Out of line: inlined, it made GCC stop
-  // inlining the range coder into triangle().
-  PSQ_NOINLINE int choose_prediction(uint32_t gate, uint32_t mask, int shape, const int64_t pos[3],
-                                     Prediction* pred);
-  // Spec 6.2.1, the reference encoder's choice of a far gate among the
-  // candidates (kNone where none): the one with the lowest recency rank,
-  // else the first that a departure point and offset reach, else the first
-  // candidate by its raw slot. Sets *name and returns the candidate's index.
-  int name_far_gate(const uint32_t cand[3], FarName* name);
-  std::vector<uint8_t> dep_mark;  // per edge slot: 1 + its departure index, or 0 (name_far_gate)
-  void code_new_vertex(Encoder& enc, const PendingVertex& v, const int64_t pred[3], int kind, const int extent[3]);
-  Status introduce(const PendingVertex& v);
-  Status triangle(const SequenceTriangle& t);
-  Status isolated(size_t pending_at);
-  Status close_chunk();
-  Status after_record();
-  Status finish();
-};
 
 Status PsqEncoder::Impl::begin(const MeshSchema& schema) {
   if (begun) return bad_sequence("begin() called twice");
@@ -130,6 +33,7 @@ Status PsqEncoder::Impl::begin(const MeshSchema& schema) {
   header.schema = schema;
   header.schema.has_bounds = false;
   header.lossless = opt.lossless;
+  header.fast = fast = opt.fast;
   header.rotation = !schema.face_properties.empty();
   header.boundary_limit = opt.boundary_limit;
   if (!opt.lossless) {
@@ -171,7 +75,7 @@ Status PsqEncoder::Impl::begin(const MeshSchema& schema) {
   if (!hs.ok()) return Status(hs.code() == ErrorCode::kLimit ? ErrorCode::kLimit : ErrorCode::kBadValue,
                               "cannot encode this mesh: " + hs.message());
   stats.header_bytes = h.size();
-  rc = std::make_unique<RangeEncoder>(&records);
+  if (!fast) rc = std::make_unique<RangeEncoder>(&records);
   chain_crc = crc32c_update(chain_crc, h.data() + h.size() - 4, 4);
   return emit(h);
 }
@@ -408,6 +312,7 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
     return bad_sequence("vertex " + std::to_string(pending.front().in_index) +
                         " was introduced but the next triangle does not use it");
   if (nnew == 2) return bad_sequence("a triangle introduces exactly two vertices");
+  if (fast) return triangle_fast(t, pend, slots, nnew);
 
   Encoder enc(rc.get(), opt.measure_costs ? cost : nullptr);
   const int ctx = gate_context(boundary.reference(), last_op, last_gate);
@@ -545,17 +450,7 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
     }
     if (nnew == 1) ++stats.predictions[choice];
     code_new_vertex(enc, v, pr.pos, pr.kind, pr.extent);
-    uint32_t s = boundary.new_vertex(out_index_of(v.in_index), v.in_index, v.pos);
-    if (s == kNone)
-      return Status(ErrorCode::kLimit, "more than " + std::to_string(opt.boundary_limit) +
-                                           " active vertices (the boundary limit)");
-    bt.c[k] = s;
-    if (v.in_slot != kNoSlot) {
-      if (v.in_slot >= by_inslot.size()) by_inslot.resize(std::max<size_t>(v.in_slot + 1, 2 * by_inslot.size()), kNone);
-      by_inslot[v.in_slot] = s;
-    } else {
-      slot_of[v.in_index] = s;
-    }
+    PSQ_RETURN_IF_ERROR(register_vertex(v, &bt.c[k]));
   }
 
   if (!boundary.find_completions(bt))
@@ -578,6 +473,27 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
   for (int k = 0; k < 3; ++k)
     if (bt.state[k] == EdgeState::kBorder)
       enc.bit(models.cut[start], (t.nonmanifold_mask >> ((rot + k) % 3)) & 1, kCostConnectivity);
+  return close_triangle(t, bt, nnew);
+}
+
+Status PsqEncoder::Impl::register_vertex(const PendingVertex& v, uint32_t* slot) {
+  const uint32_t s = boundary.new_vertex(out_index_of(v.in_index), v.in_index, v.pos);
+  if (s == kNone)
+    return Status(ErrorCode::kLimit, "more than " + std::to_string(opt.boundary_limit) +
+                                         " active vertices (the boundary limit)");
+  *slot = s;
+  if (v.in_slot != kNoSlot) {
+    if (v.in_slot >= by_inslot.size()) by_inslot.resize(std::max<size_t>(v.in_slot + 1, 2 * by_inslot.size()), kNone);
+    by_inslot[v.in_slot] = s;
+  } else {
+    slot_of[v.in_index] = s;
+  }
+  return Status();
+}
+
+Status PsqEncoder::Impl::close_triangle(const SequenceTriangle& t, BTriangle& bt, int nnew) {
+  int completed = 0;
+  for (int k = 0; k < 3; ++k) completed += bt.state[k] == EdgeState::kCompletes;
   Op op = nnew == 3 ? Op::kStart
           : completed == 1 ? (nnew == 1 ? Op::kAdd : Op::kJoin)
           : completed == 2 ? Op::kFill
@@ -589,6 +505,9 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
   if (!boundary.apply(bt))
     return Status(ErrorCode::kLimit, "more than " + std::to_string(opt.boundary_limit) +
                                          " open edges (the boundary limit)");
+  if (fast)  // spec 13.6.2: entering edges join the ring, in edge order
+    for (int k = 0; k < 3; ++k)
+      if (bt.state[k] == EdgeState::kEnters) ring.push(boundary, bt.eslot[k]);
   pending.clear();
   last_op = static_cast<int>(op);
   // Spec 6.4: vertices left with no open edge are finalized, in canonical
@@ -608,6 +527,13 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
 }
 
 Status PsqEncoder::Impl::isolated(size_t at) {
+  if (fast) {
+    PendingVertex v = std::move(pending[at]);
+    pending.erase(pending.begin() + static_cast<std::ptrdiff_t>(at));
+    PSQ_RETURN_IF_ERROR(introduce(v));
+    PSQ_RETURN_IF_ERROR(isolated_fast(v));
+    return after_record();
+  }
   Encoder enc(rc.get(), opt.measure_costs ? cost : nullptr);
   const int ctx = gate_context(boundary.reference(), last_op, last_gate);
   enc.gate(models, ctx, kGateIsolated);
@@ -625,7 +551,20 @@ Status PsqEncoder::Impl::after_record() {
   ++chunk_records;
   stats.max_active_vertices = std::max(stats.max_active_vertices, boundary.active_vertices());
   stats.max_open_edges = std::max(stats.max_open_edges, boundary.open_edges());
-  if (records.size() >= opt.chunk_bytes || props->raw_size() >= kChunkPropertyTarget ||
+  // The fast profile codes a chunk at its end: estimate 4 bits a symbol
+  // for the target size. The limit of a chunk's coded records (spec 10)
+  // must hold whatever the symbols cost: no symbol costs more than
+  // kRansScaleBits bits (its frequency is at least 1), and the tables at
+  // most a presence bit and a gamma code per symbol.
+  const size_t coded = fast ? fast_raw.bits() / 8 + fast_symbols.size() / 2 : records.size();
+  bool full = false;
+  if (fast) {
+    constexpr size_t kTableBound = size_t{kFastTables} * (1 + kRansMaxSymbols * (2 * kRansScaleBits)) / 8 + 64;
+    constexpr size_t kRecordBound = 4096;  // one more record, with room to spare
+    const size_t bound = fast_raw.bits() / 8 + fast_symbols.size() * kRansScaleBits / 8 + 8 + kTableBound;
+    full = bound + kRecordBound >= kMaxRecordBytes;
+  }
+  if (coded >= opt.chunk_bytes || full || props->raw_size() >= kChunkPropertyTarget ||
       chunk_records >= kMaxChunkRecords)
     return close_chunk();
   return Status();
@@ -633,7 +572,8 @@ Status PsqEncoder::Impl::after_record() {
 
 Status PsqEncoder::Impl::close_chunk() {
   if (chunk_records == 0) return Status();
-  rc->finish();
+  if (fast) fast_section(&records);
+  else rc->finish();
   std::vector<uint8_t> raw, packed;
   if (!props->empty()) {
     props->take(&raw);
@@ -657,7 +597,7 @@ Status PsqEncoder::Impl::close_chunk() {
   stats.chunk_overhead_bytes += fields + 4;
   ++stats.chunks;
   records.clear();
-  rc = std::make_unique<RangeEncoder>(&records);
+  if (!fast) rc = std::make_unique<RangeEncoder>(&records);
   chunk_records = chunk_vertices = chunk_triangles = 0;
   chain_crc = crc32c_update(chain_crc, chunk.data() + chunk.size() - 4, 4);
   return emit(chunk);

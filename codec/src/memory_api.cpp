@@ -1,10 +1,11 @@
 // codec/src/memory_api.cpp: psq/psq_memory.h, the in-memory door over the
-// streaming encoder and decoder (decode_mesh, which drives the decoder's
-// internals, is in decoder.cpp).
+// streaming encoder and decoder.
 #include <cmath>
 #include <string>
 
 #include "psq/psq_memory.h"
+
+#include "decoder_impl.h"
 #include "psq/sequence_builder.h"
 
 namespace psq {
@@ -67,6 +68,34 @@ class ArrayMeshSource : public MeshSource {
   Status error_;
 };
 
+// The decoded sequence as arrays, re-appearing vertices merged back.
+class ArraySink : public SequenceSink {
+ public:
+  explicit ArraySink(MeshBuffers* mesh) : mesh_(mesh) {}
+  Status begin(const MeshSchema&) override { return Status(); }
+  Status vertex(const SequenceVertex& v) override {
+    // Dense indices come in order (the decoder checks), and a re-appearance
+    // names an earlier one.
+    if (v.reappears != kNoVertex) {
+      mesh_index_.push_back(mesh_index_[v.reappears]);
+      return Status();
+    }
+    mesh_index_.push_back(static_cast<uint32_t>(mesh_->positions.size() / 3));
+    for (double x : v.position) mesh_->positions.push_back(static_cast<float>(x));
+    return Status();
+  }
+  Status triangle(const SequenceTriangle& t) override {
+    for (uint32_t v : t.v) mesh_->indices.push_back(mesh_index_[v]);
+    return Status();
+  }
+  Status finalize(uint32_t) override { return Status(); }
+  Status finish() override { return Status(); }
+
+ private:
+  MeshBuffers* mesh_;
+  std::vector<uint32_t> mesh_index_;  // by dense index
+};
+
 }  // namespace
 
 Status encode_mesh(const float* positions, size_t vertex_count, const uint32_t* indices, size_t triangle_count,
@@ -81,6 +110,21 @@ Status encode_mesh(const float* positions, size_t vertex_count, const uint32_t* 
   PSQ_RETURN_IF_ERROR(build_sequence(source, encoder, BuildOptions(), &report));
   out->insert(out->end(), bytes.begin(), bytes.end());
   return Status();
+}
+
+Status decode_mesh(const uint8_t* data, size_t size, MeshBuffers* mesh) {
+  mesh->positions.clear();
+  mesh->indices.clear();
+  InputStream in;
+  in.open_memory(data, size, "<memory>");
+  PsqDecoder decoder;
+  Status s = decoder.open(&in);
+  if (s.ok()) s = decoder.impl_->decode_into(mesh);
+  if (!s.ok()) {
+    mesh->positions.clear();
+    mesh->indices.clear();
+  }
+  return s;
 }
 
 }  // namespace psq

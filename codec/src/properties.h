@@ -50,6 +50,8 @@ class PropertyUnpacker {
   // Takes a chunk's raw section for `nv` vertices and `nf` faces; false when
   // its size or a list count does not match (a corrupt stream).
   bool load(std::vector<uint8_t>&& raw, uint64_t nv, uint64_t nf);
+  // True when the schema has neither vertex nor face properties.
+  bool empty() const { return vcols_.empty() && fcols_.empty(); }
   // The next vertex's or face's values, in order.
   // Without columns (no properties) nothing is read: the common case costs
   // no call.

@@ -135,6 +135,18 @@ valid max_export_chunks "$data/max_export_nm.ply" --bits 14 --chunk 256
 valid properties_lossless "$tmp/props.ply" --lossless
 valid properties_1bit "$tmp/props.ply" --bits 1
 valid doubles_lossless "$tmp/doubles.ply" --lossless
+# The fast profile (spec 13).
+valid fast_spider_16bit "$data/spider.ply" --profile fast
+valid fast_spider_lossless "$data/spider.ply" --lossless --profile fast
+valid fast_grid_borders "$tmp/grid.ply" --bits 8 --profile fast
+valid fast_nonmanifold_wrap "$data/nonmanifold_wrap.ply" --bits 12 --profile fast
+valid fast_max_export_chunks "$data/max_export_nm.ply" --bits 14 --chunk 256 --profile fast
+valid fast_properties_lossless "$tmp/props.ply" --lossless --profile fast
+# A format 7.0 stream, as psq wrote it before 8.0 (tests/data): decoders of
+# 8.0 read it (spec 11).
+cp "$data/format7_spider_16bit.psq" format7_spider_16bit.psq
+"$psq" dump format7_spider_16bit.psq -o format7_spider_16bit.dump
+echo "valid format7_spider_16bit.psq $(sha256sum < format7_spider_16bit.dump | cut -d' ' -f1)" >> MANIFEST
 # Written to a pipe: the same bytes as to a file (the encoder never seeks).
 "$psq" convert - - --to psq --bits 10 < "$data/spider.ply" > spider_pipe.psq
 "$psq" dump spider_pipe.psq -o spider_pipe.dump
@@ -168,8 +180,11 @@ payload=$((12 + hvar))     # where the header payload starts
 chunk=$((payload + hlen + 4))  # the first chunk's tag
 # Not .psq at all.
 printf 'PLY\n' > bad_magic.psq; invalid bad_magic unknown_format 0
-# A major version this decoder does not know (8).
-{ head -c 8 "$src"; printf '\x08'; tail -c +10 "$src"; } > bad_version.psq; invalid bad_version unsupported 8
+# A major version this decoder does not know (9).
+{ head -c 8 "$src"; printf '\x09'; tail -c +10 "$src"; } > bad_version.psq; invalid bad_version unsupported 8
+# A fast-profile stream that claims format 7, which had no fast profile.
+{ head -c 8 fast_spider_16bit.psq; printf '\x07'; tail -c +10 fast_spider_16bit.psq; } > bad_fast_version.psq
+invalid bad_fast_version unsupported 10
 # An unknown flag.
 { head -c 11 "$src"; printf '\x80'; tail -c +13 "$src"; } > bad_flags.psq; invalid bad_flags unsupported 10
 # A header payload of 2^28 bytes (a five-byte varint).

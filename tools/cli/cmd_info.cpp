@@ -152,7 +152,7 @@ int cmd_info(int argc, char** argv) {
       const PsqStats& p = mesh.decoder->stats();
       const double nv = p.vertices ? static_cast<double>(p.vertices) : 1.0;
       o += "  \"psq\": {\"version\": \"" + std::to_string(h.version_major) + "." + std::to_string(h.version_minor) +
-           "\", \"lossless\": " + (h.lossless ? "true" : "false") + ", \"bits\": " + std::to_string(h.bits) +
+           "\", \"profile\": \"" + (h.fast ? "fast" : "compact") + "\", \"lossless\": " + (h.lossless ? "true" : "false") + ", \"bits\": " + std::to_string(h.bits) +
            ", \"step\": " + json_number(h.step) + ", \"chunks\": " + std::to_string(p.chunks) +
            ", \"bytes\": " + std::to_string(p.total_bytes) + ", \"sequence_vertices\": " + std::to_string(p.vertices) +
            ", \"bits_per_vertex\": " + json_number(8.0 * p.total_bytes / nv) +
@@ -210,7 +210,8 @@ int cmd_info(int argc, char** argv) {
       const PsqHeader& h = mesh.decoder->header();
       const PsqStats& p = mesh.decoder->stats();
       const double nv = p.vertices ? static_cast<double>(p.vertices) : 1.0;
-      std::printf("psq version            %d.%d\n", h.version_major, h.version_minor);
+      std::printf("psq version            %d.%d, %s profile\n", h.version_major, h.version_minor,
+                  h.fast ? "fast" : "compact");
       if (h.lossless) std::printf("positions              lossless\n");
       else std::printf("positions              quantized to %d bits (step %.9g)\n", h.bits, h.step);
       std::printf("size                   %llu bytes in %llu chunks, %.3f bits/vertex\n",

@@ -24,7 +24,7 @@ struct MeshBuffers {
 // Encodes the mesh of `vertex_count` vertices (`positions`: 3 floats each)
 // and `triangle_count` triangles (`indices`: 3 each) and appends the .psq
 // stream to `out`, with `options` as for PsqEncoder (quantization bits or
-// lossless, chunk size). The processing sequence is built as
+// lossless, profile, chunk size). The processing sequence is built as
 // `psq convert` builds it (psq/sequence_builder.h): in one pass when the
 // triangles are coherent, else through an external sort whose temporary
 // files go to $TMPDIR. Degenerate triangles (a repeated index) are dropped.

@@ -1,0 +1,246 @@
+// codec/src/decoder_impl.h: the state of the .psq decoder
+// (psq/psq_codec.h), shared by its two record decoders: decoder.cpp (format
+// 7 coding, the compact profile) and fast_decoder.cpp (the fast profile,
+// spec section 13).
+#ifndef PSQ_CODEC_DECODER_IMPL_H_
+#define PSQ_CODEC_DECODER_IMPL_H_
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "boundary.h"
+#include "coding.h"
+#include "container.h"
+#include "crc32c.h"
+#include "neighbors.h"
+#include "fast_coding.h"
+#include "properties.h"
+#include "psq/io.h"
+#include "psq/psq_codec.h"
+#include "psq/psq_memory.h"
+#include "psq/range_coder.h"
+#include "rans.h"
+
+namespace psq {
+
+// An internal header of the decoder's two files, which both work in the
+// codec's namespace.
+using namespace codec;
+
+namespace codec {
+// Fuzzing builds accept any checksum, so that the fuzzer reaches the record
+// decoder behind them (as zstd does); every other check still runs.
+inline bool checksum_ok(uint32_t stored, uint32_t computed) {
+#ifdef FUZZING_BUILD_MODE_UNSAFE_FOR_PRODUCTION
+  (void)stored;
+  (void)computed;
+  return true;
+#else
+  return stored == computed;
+#endif
+}
+}  // namespace codec
+
+struct PsqDecoder::Impl {
+  InputStream* in = nullptr;
+  PsqHeader header;
+  Status error;
+  bool opened = false, ended = false, measure = false;
+  Models models;
+  Boundary boundary{1};
+  std::unique_ptr<PropertyUnpacker> props;
+  PsqStats stats;
+  double cost[kCostCount] = {0, 0};
+  uint32_t file_crc = 0;     // of the header's bytes (spec 4.2)
+  bool in_header = true;
+  uint32_t chain_crc = 0;    // spec 4.5: the block checksums, in order
+
+  // The current chunk.
+  std::vector<uint8_t> conn, packed, raw;
+  std::unique_ptr<RangeDecoder> rc;
+  uint64_t conn_offset = 0, chunk_offset = 0;
+  uint32_t records_left = 0, chunk_vertices = 0, chunk_triangles = 0;
+  uint32_t seen_vertices = 0, seen_triangles = 0;
+
+  uint64_t next_out = 0;
+  uint64_t record_no = 0;
+  int last_op = 5;
+  uint32_t last_gate = 0;
+  int64_t last_pos[3] = {0, 0, 0};
+  int64_t grid_max = 0;
+
+  // Decoded events waiting for next().
+  SequenceEvent queue[7];
+  int qhead = 0, qcount = 0;
+
+  Status fail(Status s) {
+    if (error.ok()) error = s;
+    return error;
+  }
+  Status read(void* dst, size_t n) {
+    Status s = in->read_exact(dst, n);
+    if (!s.ok()) {
+      if (s.code() == ErrorCode::kTruncated)
+        return Status(ErrorCode::kTruncated, "the stream ends inside a chunk or before its end record", in->offset());
+      return s;
+    }
+    if (in_header) file_crc = crc32c_update(file_crc, dst, n);
+    return Status();
+  }
+  // Reads n bytes in steps, so that a huge declared size allocates only as
+  // the bytes actually arrive.
+  Status read_block(size_t n, std::vector<uint8_t>* out) {
+    out->clear();
+    while (out->size() < n) {
+      size_t k = std::min<size_t>(n - out->size(), size_t{1} << 20);
+      size_t at = out->size();
+      out->resize(at + k);
+      PSQ_RETURN_IF_ERROR(read(out->data() + at, k));
+    }
+    return Status();
+  }
+  // Reads a varint field (spec 3.1) a byte at a time, appending its bytes
+  // to `bytes` when given. A malformed varint is *bad_header* at its start.
+  Status read_varint(uint64_t* v, std::vector<uint8_t>* bytes) {
+    const uint64_t at = in->offset();
+    uint8_t b[kMaxVarintBytes];
+    for (size_t i = 0; i < kMaxVarintBytes; ++i) {
+      PSQ_RETURN_IF_ERROR(read(&b[i], 1));
+      if (bytes) bytes->push_back(b[i]);
+      if (!(b[i] & 0x80)) {
+        if (parse_varint(b, i + 1, v) > 0) return Status();
+        break;
+      }
+    }
+    return Status(ErrorCode::kBadHeader, "malformed varint", at);
+  }
+  Status corrupt(const std::string& what) {
+    uint64_t at = conn_offset + (rc ? rc->consumed() : 0);
+    return Status(ErrorCode::kBadValue, "record " + std::to_string(record_no) + ": " + what, at);
+  }
+
+  Status open(InputStream* stream);
+  Status next_chunk();
+  Status read_end();
+  Status decode_record() {
+    if (measure) {
+      BasicDecoder<true> dec(rc.get(), cost);
+      return decode_record(dec);
+    }
+    BasicDecoder<false> dec(rc.get(), nullptr);
+    return decode_record(dec);
+  }
+  template <class Dec>
+  Status decode_record(Dec& dec);
+  template <class Dec>
+  Status new_vertex(Dec& dec, const int64_t pred[3], int kind, const int extent[3], int64_t pos[3], SequenceEvent* ev);
+  // The events of one record, in order (at most 3 vertices, a triangle and
+  // 3 finalizations); the queue is empty before each record is decoded.
+  SequenceEvent& push() { return queue[qcount++]; }
+  // Decodes the next record (or chunk, or the end) into the queue.
+  Status advance();
+
+  // Shared by both profiles: a new vertex's position from its coded
+  // coordinates (spec 7.1, 7.2) with its checks, its properties and the
+  // counts; the triangle event of a record (spec 6.2.3, 6.4) and the
+  // finalizations, from a BTriangle that `b` applied.
+  Status finish_vertex(const int64_t pos[3], SequenceVertex& v);
+  // The position of coded coordinates `pos` (spec 7.1, 7.2), or the reason
+  // they are not one.
+  const char* position_of(const int64_t pos[3], double x[3]) const;
+  template <class B>
+  void emit_triangle(B& b, const BTriangle& bt, Op op, uint32_t r, uint8_t cut);
+  // emit_triangle() for a triangle of the fast profile's common path: no
+  // rotation, no border, the masks known from its kind.
+  // The triangle event of a common record (fast_common), and the
+  // finalizations of the corners in final_mask, whose slots it frees.
+  void push_triangle(Op op, const uint32_t corner[3], const uint32_t eslot[3], uint8_t new_mask, uint8_t final_mask,
+                     uint8_t leaving, uint8_t entering);
+
+  // Direct output (decode_mesh): the fast profile's common records write
+  // their vertex and triangle here instead of queueing events; the other
+  // records' events are drained into it by decode_into().
+  MeshBuffers* direct = nullptr;
+  std::vector<uint32_t> direct_index;  // dense index -> mesh vertex index
+  PropertyValues direct_values;        // face values not returned
+  // The arrays are sized ahead and written through pointers; these are the
+  // lengths in use (decode_into() trims the arrays to them at the end).
+  size_t direct_np = 0, direct_ni = 0, direct_nv = 0;  // positions, indices, direct_index
+  // Room for n more elements after the `used` ones of v (growing it
+  // geometrically).
+  template <class T>
+  static T* direct_room(std::vector<T>& v, size_t used, size_t n) {
+    if (used + n > v.size()) v.resize(std::max(used + n, 2 * v.size()));
+    return v.data() + used;
+  }
+  void direct_vertex(const SequenceVertex& v) {
+    uint32_t* di = direct_room(direct_index, direct_nv, 1);
+    ++direct_nv;
+    if (v.reappears != kNoVertex) {
+      *di = direct_index[v.reappears];
+      return;
+    }
+    *di = static_cast<uint32_t>(direct_np / 3);
+    float* p = direct_room(direct->positions, direct_np, 3);
+    for (int i = 0; i < 3; ++i) p[i] = static_cast<float>(v.position[i]);
+    direct_np += 3;
+  }
+  void direct_triangle(const uint32_t v[3]) {
+    uint32_t* t = direct_room(direct->indices, direct_ni, 3);
+    for (int k = 0; k < 3; ++k) t[k] = direct_index[v[k]];
+    direct_ni += 3;
+  }
+  Status decode_into(MeshBuffers* mesh);
+
+  // The fast profile (fast_decoder.cpp).
+  bool fast = false;
+  FastBoundary fboundary{1};
+  Neighbors fneighbors;  // which active vertices an edge joins (the fast profile's checks)
+  std::vector<RansTable> ftables = std::vector<RansTable>(kFastTables);
+  // A chunk's tables by index, the absent ones set_absent() (indexed
+  // directly, so that finding a table is no load of its own).
+  bool ftable_absent[kFastTables] = {};
+  std::unique_ptr<RansDecoder> frans;
+  std::unique_ptr<RawReader> fraw;
+  FastRing ring;
+  int fast_context = kFastAStartContext;
+  int fast_choice = 0;
+  // Reads the record section `conn` of a fast chunk (spec 13.2).
+  Status fast_open_chunk();
+  // At the chunk's end: every byte used, the rANS state back at its start.
+  Status fast_close_chunk();
+  // The next record; with `cls` >= 0 its class is decoded already, and
+  // with `bsym` >= 0 also its gate and B symbol (a gate record).
+  Status decode_record_fast(int cls = -1, uint32_t gate = kNone, int bsym = -1);
+  template <bool kDirect>
+  Status fast_common(RansDecoder& d, RawReader& bits, int cls, int bsym, uint32_t gate);
+  // decode_mesh's loop over the rest of a fast chunk's records, when the
+  // stream has no properties: adds and fills write the arrays directly,
+  // other records go through decode_record_fast() and their events are
+  // drained into the arrays.
+  Status fast_direct_records();
+  // measure_it: add the symbol's and raw bits' cost to `cost` (measure on).
+  bool fast_residual(RansDecoder& d, RawReader& raw, int table, int64_t* r, int* k, bool measure_it);
+  // The decoded symbol s of `table`, its information content added to
+  // `cost` when measuring (PsqDecoder::measure_costs).
+  int fast_symbol(RansDecoder& d, int table) {
+    const int s = d.decode(ftables[table]);
+    if (measure) measure_symbol(table, s);
+    return s;
+  }
+  void measure_symbol(int table, int s);
+  double fraw_geometry_bits = 0;  // raw bits of position residuals in the chunk, when measuring
+  uint64_t fraw_total_bits = 0;   // the chunk's raw block
+  // A new vertex's event: its index and, when it re-appears, the distance.
+  Status fast_vertex_begin(bool reappears, SequenceEvent* ev);
+  // Then its residuals against `pred`, and its position.
+  Status fast_vertex_position(const int64_t pred[3], int kind, const int extent[3], int64_t pos[3],
+                              SequenceEvent* ev);
+  uint32_t active_vertices() const { return fast ? fboundary.active_vertices() : boundary.active_vertices(); }
+  uint32_t open_edges() const { return fast ? fboundary.open_edges() : boundary.open_edges(); }
+};
+
+}  // namespace psq
+
+#endif  // PSQ_CODEC_DECODER_IMPL_H_

@@ -1,0 +1,156 @@
+// codec/src/encoder_impl.h: the state of the .psq encoder (psq/psq_codec.h),
+// shared by its two record coders: encoder.cpp (format 7 coding, the
+// compact profile) and fast_encoder.cpp (the fast profile,
+// spec section 13).
+#ifndef PSQ_CODEC_ENCODER_IMPL_H_
+#define PSQ_CODEC_ENCODER_IMPL_H_
+
+#include <memory>
+#include <unordered_map>
+#include <vector>
+
+#include "boundary.h"
+#include "coding.h"
+#include "fast_coding.h"
+#include "properties.h"
+#include "psq/psq_codec.h"
+#include "psq/range_coder.h"
+#include "rans.h"
+
+namespace psq {
+
+namespace codec {
+
+inline Status bad_sequence(const std::string& what) { return Status(ErrorCode::kBadSequence, what); }
+
+struct PendingVertex {
+  uint32_t in_index;
+  uint32_t in_slot = kNoSlot;  // the input's boundary slot
+  uint32_t reappears;  // input numbering, or kNoVertex
+  int64_t pos[3];
+  PropertyValues values;
+  bool coded = false;  // already coded in the current record
+};
+
+// How a far gate names its edge (spec 6.2.1): the far symbol (a recency
+// rank 0..13, kFarResume or kFarEscape) and, for a resume, the departure
+// point and the offset symbol.
+struct FarName {
+  uint32_t far = codec::kFarEscape, index = 0, offset = 0;
+};
+
+}  // namespace codec
+
+// An internal header of the encoder's two files, which both work in the
+// codec's namespace.
+using namespace codec;
+
+struct PsqEncoder::Impl {
+  ByteWriter* out;
+  EncodeOptions opt;
+  Status error;
+  bool begun = false, finished = false;
+  PsqHeader header;
+  Models models;
+  Boundary boundary{1};
+  std::unique_ptr<PropertyPacker> props;
+  PsqStats stats;
+  double cost[kCostCount] = {0, 0};
+
+  // Active vertices by the input's boundary slot (the converter's and the
+  // decoder's sequences have them: no hashing), else by input dense index.
+  std::vector<uint32_t> by_inslot;
+  std::unordered_map<uint32_t, uint32_t> slot_of;
+  // Input index -> decoded index where they differ (spec 2.3: an isolated
+  // vertex coded while others wait for their triangle).
+  std::unordered_map<uint32_t, uint32_t> renumbered;
+  std::vector<PendingVertex> pending;  // introduced, not used yet
+  std::vector<uint32_t> expect_final;  // input indices the input must finalize now
+  uint32_t next_in = 0;                // next input dense index
+  uint64_t next_out = 0;               // next decoded dense index
+  int last_op = 5;
+  uint32_t last_gate = 0;              // the previous gate symbol (gate context)
+  int64_t last_pos[3] = {0, 0, 0};
+  uint64_t choices_coded = 0;          // adds with a choice of parallelogram so far
+
+  // The open chunk.
+  std::vector<uint8_t> records;
+  std::unique_ptr<RangeEncoder> rc;
+  uint32_t chunk_records = 0, chunk_vertices = 0, chunk_triangles = 0;
+  // Spec 4.5: the stream checksum chains the checksums of the header and
+  // of every chunk (their last 4 bytes), then the end record's fields.
+  uint32_t chain_crc = 0;
+
+  Status emit(const std::vector<uint8_t>& bytes) {
+    stats.total_bytes += bytes.size();
+    return out->write(bytes.data(), bytes.size());
+  }
+
+  Status fail(Status s) {
+    if (error.ok()) error = s;
+    return error;
+  }
+
+  uint32_t out_index_of(uint32_t in) const {
+    auto it = renumbered.find(in);
+    return it == renumbered.end() ? in : it->second;
+  }
+
+  Status begin(const MeshSchema& schema);
+  Status coded_position(const double p[3], int64_t out[3]);
+  // The reference encoder's choice of the parallelogram that predicts an
+  // add's new vertex at `pos` (spec 7.3), among those of `mask`; sets
+  // *pred to its prediction. Out of line: inlined, it made GCC stop
+  // inlining the range coder into triangle().
+  PSQ_NOINLINE int choose_prediction(uint32_t gate, uint32_t mask, int shape, const int64_t pos[3],
+                                     Prediction* pred);
+  // Spec 6.2.1, the reference encoder's choice of a far gate among the
+  // candidates (kNone where none): the one with the lowest recency rank,
+  // else the first that a departure point and offset reach, else the first
+  // candidate by its raw slot. Sets *name and returns the candidate's index.
+  int name_far_gate(const uint32_t cand[3], FarName* name);
+  std::vector<uint8_t> dep_mark;  // per edge slot: 1 + its departure index, or 0 (name_far_gate)
+  void code_new_vertex(Encoder& enc, const PendingVertex& v, const int64_t pred[3], int kind, const int extent[3]);
+  Status introduce(const PendingVertex& v);
+  // Gives a coded new vertex its boundary slot.
+  Status register_vertex(const PendingVertex& v, uint32_t* slot);
+  Status triangle(const SequenceTriangle& t);
+  // What triangle() does after the record is coded (both profiles): checks
+  // the op, applies the triangle to the boundary, expects the finalized
+  // vertices.
+  Status close_triangle(const SequenceTriangle& t, BTriangle& bt, int nnew);
+  Status isolated(size_t pending_at);
+  Status close_chunk();
+  Status after_record();
+
+  // The fast profile (fast_encoder.cpp, spec section 13).
+  bool fast = false;
+  std::vector<RansSymbol> fast_symbols;  // the open chunk's symbols, in order
+  RawWriter fast_raw;                    // and its raw bits
+  uint64_t fast_raw_geometry = 0;        // of those, position residuals' (measure_costs)
+  FastRing ring;
+  int fast_context = kFastAStartContext;  // the previous record's class (table A)
+  int fast_choice = 0;                    // the previous prediction choice
+  // Running symbol counts per table, for pricing the prediction choice.
+  std::vector<uint32_t> fast_count = std::vector<uint32_t>(size_t{kFastTables} * 128, 0);
+  std::vector<uint32_t> fast_total = std::vector<uint32_t>(kFastTables, 0);
+  Status triangle_fast(const SequenceTriangle& t, const int pend[3], const uint32_t slots[3], int nnew);
+  Status isolated_fast(PendingVertex& v);
+  void fast_put(int table, int symbol) {
+    fast_symbols.push_back(RansSymbol{static_cast<uint16_t>(table), static_cast<uint8_t>(symbol)});
+    ++fast_count[static_cast<size_t>(table) * 128 + static_cast<size_t>(symbol)];
+    ++fast_total[table];
+  }
+  // Codes residual r with length table `table`; returns its bit length.
+  int fast_residual(int table, int64_t r);
+  void fast_vertex(const PendingVertex& v, const int64_t pred[3], int kind, const int extent[3]);
+  int64_t fast_cost(int table, int symbol) const;  // in 1/65536 bits
+  int fast_choose_prediction(uint32_t gate, uint32_t mask, const int64_t pos[3], Prediction* pred);
+  // The fast profile's record section of the open chunk (spec 13.2).
+  void fast_section(std::vector<uint8_t>* section);
+  Status finish();
+};
+
+}  // namespace psq
+
+#endif  // PSQ_CODEC_ENCODER_IMPL_H_

@@ -1,0 +1,218 @@
+// codec/src/fast_coding.h: the symbols, contexts and tables of the fast
+// profile (spec section 13), shared by its encoder and decoder.
+#ifndef PSQ_CODEC_FAST_CODING_H_
+#define PSQ_CODEC_FAST_CODING_H_
+
+#include <algorithm>
+#include <cstdint>
+#include <vector>
+
+#include "boundary.h"
+#include "coding.h"
+
+namespace psq {
+namespace codec {
+
+// Record classes, the symbols of table A (spec 13.7.1).
+enum FastClass : int {
+  kFastGateR = 0,
+  kFastGateNext = 1,
+  kFastGatePrev = 2,
+  kFastGateFar = 3,
+  kFastStart = 4,
+  kFastIsolated = 5,
+  kFastEscape = 6,
+  kFastClasses = 7,
+};
+
+// Third-vertex kinds t of a gate record's B symbol.
+enum FastThird : int {
+  kFastNew = 0,
+  kFastNewReappears = 1,
+  kFastLeft = 2,
+  kFastRight = 3,
+  kFastEnd = 4,
+  kFastJoin = 5,
+};
+
+// Edge states of B and of a start's S symbol.
+enum FastEdge : int { kFastEnters = 0, kFastBorder = 1, kFastCut = 2 };
+
+// B symbol layout: new 0..8, new re-appearing 9..17, join 18..26 (edge 1
+// state + 3 x edge 2 state), left 27..29 (edge 2 state), right 30..32 (edge
+// 1 state), end 33.
+constexpr int kFastBSymbols = 34;
+inline int fast_b_symbol(int third, int e1, int e2) {
+  switch (third) {
+    case kFastNew: return e1 + 3 * e2;
+    case kFastNewReappears: return 9 + e1 + 3 * e2;
+    case kFastJoin: return 18 + e1 + 3 * e2;
+    case kFastLeft: return 27 + e2;
+    case kFastRight: return 30 + e1;
+    default: return 33;
+  }
+}
+// Splits a B symbol (< kFastBSymbols) into its third kind and edge states
+// (edge states of completed edges are left at kFastEnters).
+inline void fast_b_split(int b, int* third, int* e1, int* e2) {
+  *e1 = *e2 = kFastEnters;
+  if (b < 27) {
+    *third = b < 9 ? kFastNew : b < 18 ? kFastNewReappears : kFastJoin;
+    const int v = b % 9;
+    *e1 = v % 3;
+    *e2 = v / 3;
+  } else if (b < 30) {
+    *third = kFastLeft;
+    *e2 = b - 27;
+  } else if (b < 33) {
+    *third = kFastRight;
+    *e1 = b - 30;
+  } else {
+    *third = kFastEnd;
+  }
+}
+
+// The context of table A: the class of the record before, as g * 6 + t for
+// a gate record (g = 0..3, t = FastThird), 24 start, 25 isolated, 26
+// escape.
+constexpr int kFastAContexts = 27;
+constexpr int kFastAStartContext = 24;
+inline int fast_a_context_gate(int g, int third) { return g * 6 + third; }
+
+// A start's S symbol: its three edge states and whether corner 2 was
+// introduced before corner 1 (spec 6.2.4's swap).
+constexpr int kFastSSymbols = 54;
+
+// Far gates: ranks 0..31 among the current entries of the newest 128 of
+// the ring.
+constexpr int kFastRanks = 32;
+constexpr uint32_t kFastRing = 1024;
+constexpr uint32_t kFastRingScan = 128;
+
+// Residual symbols (spec 13.8.3).
+constexpr int kFastLengthSymbols = 65;
+constexpr int kFastLengthEscape = 64;
+
+// Degree context of B (format 7's third_context).
+constexpr int kFastBContexts = (kDegreeCap + 1) * (kDegreeCap + 1);
+
+// The fixed table list (spec 13.5.3).
+enum FastTable : int {
+  kFastTableA = 0,                                         // kFastAContexts
+  kFastTableRank = kFastTableA + kFastAContexts,           // 2
+  kFastTableB = kFastTableRank + 2,                        // kFastBContexts
+  kFastTableS = kFastTableB + kFastBContexts,              // 1
+  kFastTableReappear = kFastTableS + 1,                    // 1: a start's re-appearing corners
+  kFastTableChoice = kFastTableReappear + 1,               // 15
+  kFastTableLength = kFastTableChoice + 15,                // kPredKinds x 2 x kLengthContexts
+  kFastTableDistance = kFastTableLength + kPredKinds * 2 * kLengthContexts,  // 1
+  kFastTableRotation = kFastTableDistance + 1,             // 1
+  kFastTables = kFastTableRotation + 1,
+};
+
+// The alphabet size of each table.
+inline int fast_table_size(int table) {
+  if (table < kFastTableRank) return kFastClasses;
+  if (table < kFastTableB) return kFastRanks;
+  if (table < kFastTableS) return kFastBSymbols;
+  if (table == kFastTableS) return kFastSSymbols;
+  if (table == kFastTableReappear) return 8;
+  if (table < kFastTableLength) return kChoices;
+  if (table < kFastTableRotation) return kFastLengthSymbols;
+  return 3;
+}
+
+// Whether prediction choice `choice` (any decoded symbol) may follow the
+// neighbour mask `mask` (1..3, prediction_choices()): the gate always, a
+// side's choices when that neighbour exists. One table test, no branch on
+// the choice itself.
+inline bool fast_choice_allowed(uint32_t mask, int choice) {
+  // Bit c of entry m: choice c allowed with mask m (choices 1 and 3 need
+  // the edge before, 2 and 4 the one after).
+  static constexpr uint32_t kAllowed[4] = {0x01, 0x0b, 0x15, 0x1f};
+  return static_cast<uint32_t>(choice) < 32 && ((kAllowed[mask & 3] >> choice) & 1);
+}
+// What a table's symbols code, for the split of coded bits in PsqStats:
+// prediction choices and residual lengths are geometry, the rest
+// connectivity (as the compact profile splits them).
+inline int fast_table_cost(int table) {
+  return table >= kFastTableChoice && table < kFastTableDistance ? kCostGeometry : kCostConnectivity;
+}
+// The context of a residual length in the fast profile: the extent along the
+// axis, clamped, for every axis of a predicted vertex, so that the three
+// lengths decode independently; a start's or an isolated vertex's: the
+// largest earlier length (spec 7.4).
+inline int fast_length_context(int kind, int axis, int extent, int longest_so_far) {
+  (void)axis;
+  return std::min(kind != kPredOther ? extent : longest_so_far, kLengthContexts - 1);
+}
+inline int fast_length_table(int kind, int axis, int context) {
+  // Axes 1 and 2 share their tables: their contexts mean the same (spec 7.4),
+  // and half as many tables take less of the cache and fewer bytes.
+  return kFastTableLength + (kind * 2 + (axis == 0 ? 0 : 1)) * kLengthContexts + context;
+}
+inline int fast_choice_table(uint32_t mask, int previous) {
+  return kFastTableChoice + (static_cast<int>(mask) - 1) * kChoices + previous;
+}
+
+// The ring of the newest edges that entered the boundary (spec 13.6.2):
+// far gates name an edge by its rank among them.
+class FastRing {
+ public:
+  // Edge slot `slot` of `boundary` entered it (its age tells it from a
+  // later edge in the same slot).
+  template <class B>
+  void push(const B& boundary, uint32_t slot) {
+    ring_[head_++ & (kFastRing - 1)] = Entry{slot, boundary.edge(slot).age};
+  }
+  // The open edge of rank `rank` (the rank-th current entry, 0 the newest,
+  // among the newest kFastRingScan), or kNone.
+  template <class B>
+  uint32_t ranked(const B& boundary, uint32_t rank) const {
+    const uint32_t n = std::min<uint64_t>(head_, kFastRingScan);
+    for (uint32_t i = 1; i <= n; ++i) {
+      const Entry& e = ring_[(head_ - i) & (kFastRing - 1)];
+      if (current(boundary, e) && rank-- == 0) return e.slot;
+    }
+    return kNone;
+  }
+  // The rank of open edge `slot`, or -1 when it is not among them or its
+  // rank is kFastRanks or more.
+  template <class B>
+  int rank_of(const B& boundary, uint32_t slot) const {
+    const uint32_t n = std::min<uint64_t>(head_, kFastRingScan);
+    int r = 0;
+    for (uint32_t i = 1; i <= n && r < kFastRanks; ++i) {
+      const Entry& e = ring_[(head_ - i) & (kFastRing - 1)];
+      if (!current(boundary, e)) continue;
+      if (e.slot == slot) return r;
+      ++r;
+    }
+    return -1;
+  }
+
+ private:
+  struct Entry {
+    uint32_t slot = 0;
+    uint64_t age = 0;
+  };
+  template <class B>
+  bool current(const B& boundary, const Entry& e) const {
+    return boundary.edge_live(e.slot) && boundary.edge(e.slot).age == e.age;
+  }
+  Entry ring_[kFastRing];
+  uint64_t head_ = 0;
+};
+
+// A residual's length symbol (spec 13.8.3): k for k < 2, 2k - 2 + the
+// bit below the leading one for 2 <= k <= 32, else the escape.
+inline int fast_length_symbol(int k, uint64_t mag) {
+  if (k < 2) return k;
+  if (k > 32) return kFastLengthEscape;
+  return 2 * k - 2 + static_cast<int>((mag >> (k - 2)) & 1);
+}
+
+}  // namespace codec
+}  // namespace psq
+
+#endif  // PSQ_CODEC_FAST_CODING_H_

@@ -1,0 +1,647 @@
+// codec/src/fast_decoder.cpp: the fast profile's records (spec
+// section 13). The boundary is a
+// FastBoundary: every edge a triangle completes is named by its record
+// (the gate, the gate's neighbours, or a slot in an escape), so the decoder
+// keeps no lookups by endpoints. Every symbol is one rANS table lookup.
+#include <cmath>
+#include <algorithm>
+
+#include "decoder_impl.h"
+#include "geometry.h"
+
+namespace psq {
+
+namespace {
+
+PSQ_INLINE uint64_t get_raw(RawReader& raw, int bits) {
+  if (bits > 32) {
+    const uint64_t low = raw.get(32);
+    return low | static_cast<uint64_t>(raw.get(bits - 32)) << 32;
+  }
+  return raw.get(bits);
+}
+
+}  // namespace
+
+Status PsqDecoder::Impl::fast_open_chunk() {
+  auto bad = [&](const std::string& what, uint64_t at) {
+    return Status(ErrorCode::kBadValue, "fast record section: " + what, conn_offset + at);
+  };
+  uint64_t table_bytes = 0, rans_bytes = 0;
+  const int n1 = parse_varint(conn.data(), conn.size(), &table_bytes);
+  if (n1 <= 0) return bad("malformed table block length", 0);
+  const int n2 = parse_varint(conn.data() + n1, conn.size() - static_cast<size_t>(n1), &rans_bytes);
+  if (n2 <= 0) return bad("malformed rANS block length", static_cast<uint64_t>(n1));
+  const size_t at = static_cast<size_t>(n1 + n2);
+  if (table_bytes > conn.size() - at || rans_bytes > conn.size() - at - table_bytes)
+    return bad("block lengths exceed the section", 0);
+  RawReader tables(conn.data() + at, table_bytes);
+  bool present[kFastTables];
+  for (int i = 0; i < kFastTables; ++i) present[i] = tables.get(1) != 0;
+  for (int i = 0; i < kFastTables; ++i) {
+    if (!present[i]) {
+      // Spec 13.5.2: an absent table decodes no symbol of its alphabet.
+      if (!ftable_absent[i]) ftables[i].set_absent();
+      ftable_absent[i] = true;
+      continue;
+    }
+    ftable_absent[i] = false;
+    const uint64_t before = tables.consumed_bits();
+    if (!ftables[i].read(tables, fast_table_size(i))) return bad("table " + std::to_string(i) + " is invalid", at);
+    if (measure) cost[fast_table_cost(i)] += static_cast<double>(tables.consumed_bits() - before);
+  }
+  if (measure) cost[kCostConnectivity] += kFastTables;  // the presence bits
+  if (!tables.at_clean_end()) return bad("the table block does not end with its last table", at);
+  frans = std::make_unique<RansDecoder>(conn.data() + at + table_bytes, rans_bytes);
+  const size_t raw_at = at + table_bytes + rans_bytes;
+  fraw = std::make_unique<RawReader>(conn.data() + raw_at, conn.size() - raw_at);
+  fraw_total_bits = 8 * static_cast<uint64_t>(conn.size() - raw_at);
+  fraw_geometry_bits = 0;
+  return Status();
+}
+
+Status PsqDecoder::Impl::fast_close_chunk() {
+  if (frans->overran() || fraw->overran())
+    return Status(ErrorCode::kTruncated, "coded records end early", conn_offset + conn.size());
+  if (!frans->at_clean_end())
+    return Status(ErrorCode::kBadValue, "the rANS block does not end where the chunk's records do", conn_offset);
+  if (!fraw->at_clean_end())
+    return Status(ErrorCode::kBadValue, "the raw bits do not end where the chunk's records do", conn_offset);
+  // The raw bits that no position residual read: slots, kinds, signs of
+  // distances (and the last word's padding).
+  if (measure) {
+    cost[kCostGeometry] += fraw_geometry_bits;
+    cost[kCostConnectivity] += static_cast<double>(fraw_total_bits) - fraw_geometry_bits;
+  }
+  return Status();
+}
+
+namespace {
+
+// What a length symbol below the escape fixes of a residual (spec
+// 13.8.3): the magnitude's leading bits, how many low bits follow raw, and how
+// many raw bits to read (those and the sign, none for a zero).
+struct LengthCode {
+  uint32_t lead;
+  uint8_t low_bits;
+  uint8_t raw_bits;
+  uint8_t length;
+};
+
+struct LengthCodes {
+  LengthCode c[kFastLengthEscape];
+  LengthCodes() {
+    for (int s = 0; s < kFastLengthEscape; ++s) {
+      LengthCode& e = c[s];
+      const int len = s < 2 ? s : (s + 2) >> 1;
+      e.length = static_cast<uint8_t>(len);
+      e.low_bits = static_cast<uint8_t>(len >= 2 ? len - 2 : 0);
+      e.raw_bits = static_cast<uint8_t>(len == 0 ? 0 : e.low_bits + 1);
+      e.lead = len == 0 ? 0 : len == 1 ? 1 : (3u - static_cast<uint32_t>(~s & 1)) << (len - 2);
+    }
+  }
+};
+const LengthCodes kLengthCodes;
+
+}  // namespace
+
+void PsqDecoder::Impl::measure_symbol(int table, int s) {
+  const RansTable& t = ftables[table];
+  if (s < t.size() && t.freq(s) != 0) cost[fast_table_cost(table)] += kRansScaleBits - std::log2(t.freq(s));
+}
+
+PSQ_INLINE bool PsqDecoder::Impl::fast_residual(RansDecoder& d, RawReader& rawbits, int table, int64_t* r, int* k,
+                                                bool measure_it) {
+  const int s = d.decode(ftables[table]);
+  if (measure_it) {
+    measure_symbol(table, s);
+    // A position's raw bits are geometry; the rest of the raw block is
+    // connectivity (fast_close_chunk).
+    if (table != kFastTableDistance && s <= kFastLengthEscape)
+      fraw_geometry_bits += s < kFastLengthEscape ? kLengthCodes.c[s].raw_bits : 0;
+  }
+  if (s < kFastLengthEscape) {
+    // Without branches on the symbol: the table gives the leading bits,
+    // and the raw bits the low ones and the sign (zero reads none).
+    const LengthCode& e = kLengthCodes.c[s];
+    *k = e.length;
+    const uint32_t v = rawbits.get(e.raw_bits);
+    const uint64_t mag = e.lead | (v & ((uint32_t{1} << e.low_bits) - 1));
+    const uint64_t neg = 0 - static_cast<uint64_t>((v >> e.low_bits) & 1);
+    *r = static_cast<int64_t>((mag ^ neg) - neg);
+    return true;
+  }
+  if (s > kFastLengthEscape) return false;
+  const int len = 33 + static_cast<int>(rawbits.get(5));
+  const uint64_t second = rawbits.get(1);
+  *k = len;
+  if (measure_it && table != kFastTableDistance) fraw_geometry_bits += 5 + 1 + (len - 2) + 1;
+  const uint64_t mag = uint64_t{1} << (len - 1) | second << (len - 2) | get_raw(rawbits, len - 2);
+  if (rawbits.get(1) == 0) {
+    if (mag >= uint64_t{1} << 63) return false;  // +2^63 is not an i64 (spec 5.6)
+    *r = static_cast<int64_t>(mag);
+  } else {
+    *r = static_cast<int64_t>(0 - mag);
+  }
+  return true;
+}
+
+Status PsqDecoder::Impl::fast_vertex_begin(bool reappears, SequenceEvent* ev) {
+  if (seen_vertices >= chunk_vertices) return corrupt("more vertices than the chunk declares");
+  if (next_out >= 0xffffffffull) return Status(ErrorCode::kLimit, "more than 4294967295 vertices", conn_offset);
+  SequenceVertex& v = ev->vertex;
+  ev->kind = SequenceEvent::Kind::kVertex;
+  v.index = static_cast<uint32_t>(next_out);
+  v.slot = kNoSlot;
+  v.reappears = kNoVertex;
+  if (reappears) {
+    int64_t d;
+    int length;
+    if (!fast_residual(*frans, *fraw, kFastTableDistance, &d, &length, measure) || d < 0 || static_cast<uint64_t>(d) >= next_out)
+      return corrupt("re-appearance of a vertex that does not exist");
+    v.reappears = static_cast<uint32_t>(next_out - 1 - static_cast<uint64_t>(d));
+  }
+  return Status();
+}
+
+PSQ_INLINE Status PsqDecoder::Impl::fast_vertex_position(const int64_t pred[3], int kind, const int extent[3], int64_t pos[3],
+                                              SequenceEvent* ev) {
+  int lengths[3] = {0, 0, 0};
+  for (int i = 0; i < 3; ++i) {
+    int64_t r;
+    const int c = fast_length_context(kind, i, extent[i], std::max(lengths[0], lengths[1]));
+    if (!fast_residual(*frans, *fraw, fast_length_table(kind, i, c), &r, &lengths[i], measure)) return corrupt("bad residual");
+    pos[i] = wrap_add(pred[i], r);
+  }
+  return finish_vertex(pos, ev->vertex);
+}
+
+// The common records: an add, or a fill on the gate's neighbour, every
+// new edge entering, no rotation (B symbols 0, 27 and 30; spec 13.7), after
+// their class and B symbol. The general path (decode_record_fast) would do
+// the same in more steps. kDirect: decode_mesh's loop, which writes the
+// arrays itself (a stream without properties); otherwise the record's
+// events are queued.
+template <bool kDirect>
+PSQ_INLINE Status PsqDecoder::Impl::fast_common(RansDecoder& d, RawReader& bits, int cls, int bsym, uint32_t gate) {
+  FastBoundary& b = fboundary;
+  const BEdge& g = b.edge(gate);
+  const uint32_t p = g.org, q = g.dst;
+  if (bsym == 0) {
+    // An add: the new vertex x, then the triangle (q, p, x).
+    fast_context = fast_a_context_gate(cls, kFastNew);
+    if (seen_vertices >= chunk_vertices) return corrupt("more vertices than the chunk declares");
+    if (next_out >= 0xffffffffull) return Status(ErrorCode::kLimit, "more than 4294967295 vertices", conn_offset);
+    const uint32_t mask = prediction_choices(b, gate);
+    int choice = kChoiceGate;
+    if (mask != 0) {
+      const int table = fast_choice_table(mask, fast_choice);
+      choice = d.decode(ftables[table]);
+      if (!kDirect && measure) measure_symbol(table, choice);
+      if (!fast_choice_allowed(mask, choice)) return corrupt("prediction choice " + std::to_string(choice));
+      fast_choice = choice;
+    }
+    ++stats.predictions[choice];
+    const Prediction pr = predict_new_vertex(b, gate, 0, last_pos, nullptr, nullptr, choice);
+    int64_t pos[3];
+    int lengths[3] = {0, 0, 0};
+    for (int i = 0; i < 3; ++i) {
+      int64_t r;
+      const int c = fast_length_context(pr.kind, i, pr.extent[i], std::max(lengths[0], lengths[1]));
+      if (!fast_residual(d, bits, fast_length_table(pr.kind, i, c), &r, &lengths[i], !kDirect && measure)) return corrupt("bad residual");
+      pos[i] = wrap_add(pr.pos[i], r);
+    }
+    double xyz[3];
+    if (const char* why = position_of(pos, xyz)) return corrupt(why);
+    const uint32_t index = static_cast<uint32_t>(next_out);
+    for (int i = 0; i < 3; ++i) last_pos[i] = pos[i];
+    ++seen_vertices;
+    ++next_out;
+    ++stats.vertices;
+    const uint32_t s = b.new_vertex(index, 0, pos);
+    if (s == kNone) return Status(ErrorCode::kLimit, "more active vertices than the header's boundary limit", conn_offset);
+    fneighbors.vertex_begins(s);
+    if (d.overran() || bits.overran())
+      return Status(ErrorCode::kTruncated, "record " + std::to_string(record_no) + ": coded data ends early",
+                    conn_offset + conn.size());
+    const uint32_t f1 = b.lean_add(gate, s);
+    if (f1 == kNone) return Status(ErrorCode::kLimit, "more open edges than the header's boundary limit", conn_offset);
+    const uint32_t f2 = b.edge(f1).next;
+    ring.push(b, f1);
+    ring.push(b, f2);
+    fneighbors.insert(p, s);
+    fneighbors.insert(s, q);
+    last_op = static_cast<int>(Op::kAdd);
+    ++seen_triangles;
+    ++stats.triangles;
+    if (kDirect) {
+      MeshBuffers& mesh = *direct;
+      *direct_room(direct_index, direct_nv++, 1) = static_cast<uint32_t>(direct_np / 3);
+      float* out = direct_room(mesh.positions, direct_np, 3);
+      for (int i = 0; i < 3; ++i) out[i] = static_cast<float>(xyz[i]);
+      direct_np += 3;
+      uint32_t* t = direct_room(mesh.indices, direct_ni, 3);
+      t[0] = direct_index[b.vertex(q).index];
+      t[1] = direct_index[b.vertex(p).index];
+      t[2] = direct_index[index];
+      direct_ni += 3;
+      return Status();
+    }
+    SequenceEvent& ev = push();
+    ev.kind = SequenceEvent::Kind::kVertex;
+    SequenceVertex& v = ev.vertex;
+    v.index = index;
+    v.slot = s;
+    v.reappears = kNoVertex;
+    for (int i = 0; i < 3; ++i) v.position[i] = xyz[i];
+    props->next_vertex(&v.values);
+    const uint32_t corner[3] = {q, p, s}, eslot[3] = {gate, f1, f2};
+    push_triangle(Op::kAdd, corner, eslot, 4, 0, 1, 6);
+    return Status();
+  }
+  // A fill: "left" (x starts the edge before the gate; edge 1 completes
+  // it, edge 2 enters) or "right" (x ends the edge after it).
+  const bool left = bsym == 27;
+  fast_context = fast_a_context_gate(cls, left ? kFastLeft : kFastRight);
+  const uint32_t c = left ? g.prev : g.next;
+  if (c == kNone) return corrupt(left ? "no boundary edge before the gate" : "no boundary edge after the gate");
+  const uint32_t x = left ? b.edge(c).org : b.edge(c).dst;
+  if (x == p || x == q) return corrupt("triangle repeats a vertex");
+  const uint32_t from = left ? x : p, to = left ? q : x;  // the entering edge
+  if (fneighbors.contains(from, to))
+    return corrupt("an entering edge is open already, completes an edge the record does not name, or is dead");
+  if (d.overran() || bits.overran())
+    return Status(ErrorCode::kTruncated, "record " + std::to_string(record_no) + ": coded data ends early",
+                  conn_offset + conn.size());
+  uint32_t final;
+  const uint32_t f = b.lean_fill(gate, left, &final);
+  if (f == kNone) return Status(ErrorCode::kLimit, "more open edges than the header's boundary limit", conn_offset);
+  ring.push(b, f);
+  fneighbors.insert(from, to);
+  last_op = static_cast<int>(Op::kFill);
+  ++seen_triangles;
+  ++stats.triangles;
+  const uint32_t corner[3] = {q, p, x};
+  if (kDirect) {
+    uint32_t* t = direct_room(direct->indices, direct_ni, 3);
+    for (int k = 0; k < 3; ++k) t[k] = direct_index[b.vertex(corner[k]).index];
+    direct_ni += 3;
+    if (final) {
+      for (int k = 0; k < 3; ++k)
+        if (final >> k & 1) b.free_vertex(corner[k]);
+    }
+    return Status();
+  }
+  const int enters = left ? 2 : 1, completes = 3 - enters;
+  uint32_t eslot[3];
+  eslot[0] = gate;
+  eslot[completes] = c;
+  eslot[enters] = f;
+  push_triangle(Op::kFill, corner, eslot, 0, static_cast<uint8_t>(final), static_cast<uint8_t>(1 | 1 << completes),
+                static_cast<uint8_t>(1 << enters));
+  return Status();
+}
+
+void PsqDecoder::Impl::push_triangle(Op op, const uint32_t corner[3], const uint32_t eslot[3], uint8_t new_mask,
+                                     uint8_t final_mask, uint8_t leaving, uint8_t entering) {
+  FastBoundary& b = fboundary;
+  SequenceEvent& ev = push();
+  ev.kind = SequenceEvent::Kind::kTriangle;
+  SequenceTriangle& t = ev.triangle;
+  t.op = op;
+  for (int k = 0; k < 3; ++k) {
+    t.v[k] = b.vertex(corner[k]).index;
+    t.vslot[k] = corner[k];
+    t.eslot[k] = eslot[k];
+  }
+  t.new_mask = new_mask;
+  t.final_mask = final_mask;
+  t.border_mask = 0;
+  t.nonmanifold_mask = 0;
+  t.leaving_mask = leaving;
+  t.entering_mask = entering;
+  props->next_face(&t.values);
+  if (final_mask) {
+    // Spec 6.4: finalization events and freed slots in corner order.
+    for (int k = 0; k < 3; ++k)
+      if (final_mask >> k & 1) {
+        SequenceEvent& fin = push();
+        fin.kind = SequenceEvent::Kind::kFinalize;
+        fin.finalized = t.v[k];
+      }
+    for (int k = 0; k < 3; ++k)
+      if (final_mask >> k & 1) b.free_vertex(corner[k]);
+  }
+}
+
+Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
+  RansDecoder& d = *frans;
+  RawReader& bits = *fraw;
+  FastBoundary& b = fboundary;
+  if (cls < 0) cls = fast_symbol(d, kFastTableA + fast_context);
+  if (cls >= kFastClasses) return corrupt("record class " + std::to_string(cls));
+  const uint32_t R = b.reference();
+  if (cls == kFastIsolated) {
+    fast_context = kFastAContexts - 2;
+    ++stats.gates[3];
+    SequenceEvent& ev = push();
+    const bool reappears = bits.get(1) != 0;
+    int64_t pos[3];
+    const int64_t pred[3] = {last_pos[0], last_pos[1], last_pos[2]};
+    const int no_extent[3] = {0, 0, 0};
+    PSQ_RETURN_IF_ERROR(fast_vertex_begin(reappears, &ev));
+    PSQ_RETURN_IF_ERROR(fast_vertex_position(pred, kPredOther, no_extent, pos, &ev));
+    SequenceEvent& fin = push();
+    fin.kind = SequenceEvent::Kind::kFinalize;
+    fin.finalized = ev.vertex.index;
+    return Status();
+  }
+  if (seen_triangles >= chunk_triangles) return corrupt("more triangles than the chunk declares");
+  // A gate record: its gate and B symbol first, for the common path.
+  if (cls <= kFastGateFar && bsym < 0) {
+    if (cls == kFastGateFar) {
+      const int rank = fast_symbol(d, kFastTableRank + (R == kNone ? 1 : 0));
+      if (rank >= kFastRanks) return corrupt("far gate rank " + std::to_string(rank));
+      gate = ring.ranked(b, static_cast<uint32_t>(rank));
+      if (gate == kNone) return corrupt("far gate rank beyond the open edges of the ring");
+      ++stats.gates[2];
+    } else {
+      if (R == kNone) return corrupt("gate offset without a reference edge");
+      gate = cls == kFastGateR ? R : cls == kFastGateNext ? b.edge(R).next : b.edge(R).prev;
+      if (gate == kNone) return corrupt("gate offset leaves the boundary");
+      ++stats.gates[cls == kFastGateR ? 0 : 1];
+    }
+    const BEdge& g = b.edge(gate);
+    bsym = fast_symbol(d, kFastTableB + third_context(b.vertex(g.org).degree, b.vertex(g.dst).degree));
+    if (bsym >= kFastBSymbols) return corrupt("third-vertex symbol " + std::to_string(bsym));
+    if (!header.rotation && (bsym == 0 || bsym == 27 || bsym == 30)) return fast_common<false>(*frans, *fraw, cls, bsym, gate);
+  }
+  BTriangle bt;
+  uint32_t intro[3];
+  int nintro = 0;
+  int e[3] = {kFastEnters, kFastEnters, kFastEnters};  // states of edges that do not complete
+  bool completes[3] = {false, false, false};
+  uint32_t reappear_mask = 0;  // by introduction order
+  bool choice_allowed = false;
+  const int sbits = slot_bits(b.edge_capacity());
+  if (cls == kFastStart) {
+    const int s = fast_symbol(d, kFastTableS);
+    if (s >= kFastSSymbols) return corrupt("start symbol " + std::to_string(s));
+    const int m = fast_symbol(d, kFastTableReappear);
+    if (m >= 8) return corrupt("start re-appearance symbol " + std::to_string(m));
+    reappear_mask = static_cast<uint32_t>(m);
+    e[0] = s % 3;
+    e[1] = s / 3 % 3;
+    e[2] = s / 9 % 3;
+    const bool swap = s >= 27;
+    intro[0] = 0;
+    intro[1] = swap ? 2 : 1;
+    intro[2] = swap ? 1 : 2;
+    nintro = 3;
+    for (int k = 0; k < 3; ++k) bt.is_new[k] = true;
+    fast_context = kFastAStartContext;
+    ++stats.gates[3];
+  } else {
+    uint32_t x = kNone;
+    int xkind = 0;  // 0 new, 1 new re-appearing, 2 old
+    if (cls == kFastEscape) {
+      gate = bits.get(sbits);
+      if (!b.edge_live(gate)) return corrupt("escaped gate is not an open edge");
+      xkind = static_cast<int>(bits.get(2));
+      if (xkind == 3) return corrupt("escaped third vertex kind 3");
+      if (xkind == 2) {
+        const uint32_t j = bits.get(sbits);
+        const bool side = bits.get(1) != 0;
+        if (!b.edge_live(j)) return corrupt("escaped third vertex names an edge that is not open");
+        x = side ? b.edge(j).dst : b.edge(j).org;
+        bt.join_edge = j;
+      }
+      for (int k = 1; k < 3; ++k) {
+        const uint32_t st = bits.get(2);
+        if (st == 3) {
+          if (xkind != 2) return corrupt("an edge of a new vertex completes an open edge");
+          bt.completes[k] = bits.get(sbits);
+          completes[k] = true;
+        } else {
+          e[k] = static_cast<int>(st);
+        }
+      }
+      fast_context = kFastAContexts - 1;
+      ++stats.gates[2];
+    } else {
+      const BEdge& g = b.edge(gate);
+      int third;
+      fast_b_split(bsym, &third, &e[1], &e[2]);
+      switch (third) {
+        case kFastNew: xkind = 0; break;
+        case kFastNewReappears: xkind = 1; break;
+        case kFastLeft:
+          if (g.prev == kNone) return corrupt("no boundary edge before the gate");
+          x = b.edge(g.prev).org;
+          bt.completes[1] = g.prev;
+          completes[1] = true;
+          xkind = 2;
+          break;
+        case kFastRight:
+          if (g.next == kNone) return corrupt("no boundary edge after the gate");
+          x = b.edge(g.next).dst;
+          bt.completes[2] = g.next;
+          completes[2] = true;
+          xkind = 2;
+          break;
+        case kFastEnd:
+          if (g.prev == kNone || g.next == kNone || g.prev == g.next || b.edge(g.prev).org != b.edge(g.next).dst)
+            return corrupt("an end on a gate whose neighbours do not meet");
+          x = b.edge(g.prev).org;
+          bt.completes[1] = g.prev;
+          bt.completes[2] = g.next;
+          completes[1] = completes[2] = true;
+          xkind = 2;
+          break;
+        default: {  // join
+          const uint32_t j = bits.get(sbits);
+          const bool side = bits.get(1) != 0;
+          if (!b.edge_live(j)) return corrupt("join names an edge that is not open");
+          x = side ? b.edge(j).dst : b.edge(j).org;
+          bt.join_edge = j;
+          xkind = 2;
+        }
+      }
+      fast_context = fast_a_context_gate(cls, third);
+      choice_allowed = xkind != 2;
+    }
+    const BEdge& g = b.edge(gate);
+    const uint32_t p = g.org, q = g.dst;
+    if (xkind == 2 && (x == p || x == q)) return corrupt("triangle repeats a vertex");
+    bt.c[0] = q;
+    bt.c[1] = p;
+    bt.c[2] = x;
+    bt.gate = gate;
+    bt.completes[0] = gate;
+    completes[0] = true;
+    // An escape names its completions by slot: each must be the open twin
+    // of its edge (spec 6.1.3; the fast boundary has no other check).
+    for (int k = 1; k < 3; ++k)
+      if (completes[k] && cls == kFastEscape) {
+        const uint32_t c = bt.completes[k];
+        if (!b.edge_live(c) || b.edge(c).org != bt.c[(k + 1) % 3] || b.edge(c).dst != bt.c[k] || c == gate ||
+            (k == 2 && completes[1] && bt.completes[1] == c))
+          return corrupt("an escaped completion is not the open twin of its edge");
+      }
+    if (xkind != 2) {
+      bt.is_new[2] = true;
+      intro[0] = 2;
+      nintro = 1;
+      reappear_mask = xkind == 1 ? 1u : 0u;
+    }
+  }
+  uint32_t r = 0;
+  if (header.rotation) {
+    r = static_cast<uint32_t>(fast_symbol(d, kFastTableRotation));
+    if (r > 2) return corrupt("rotation above 2");
+  }
+  // New vertices in the order of introduction (spec 6.3).
+  int64_t first[3] = {0, 0, 0}, second[3] = {0, 0, 0};
+  for (int i = 0; i < nintro; ++i) {
+    const int k = static_cast<int>(intro[i]);
+    SequenceEvent& ev = push();
+    // The distance, the choice, the residuals: the encoder's order.
+    PSQ_RETURN_IF_ERROR(fast_vertex_begin((reappear_mask >> i) & 1, &ev));
+    int choice = kChoiceGate;
+    Prediction pr;
+    int64_t pos[3];
+    if (nintro == 1) {
+      const uint32_t mask = choice_allowed ? prediction_choices(b, gate) : 0;
+      if (mask != 0) {
+        choice = fast_symbol(d, fast_choice_table(mask, fast_choice));
+        if (!fast_choice_allowed(mask, choice))
+          return corrupt("prediction choice " + std::to_string(choice));
+        fast_choice = choice;
+      }
+      ++stats.predictions[choice];
+      pr = predict_new_vertex(b, gate, 0, last_pos, first, second, choice);
+    } else {
+      pr = predict_new_vertex(b, kNone, i, last_pos, first, second);
+    }
+    PSQ_RETURN_IF_ERROR(fast_vertex_position(pr.pos, pr.kind, pr.extent, pos, &ev));
+    for (int a = 0; a < 3; ++a) (i == 0 ? first : second)[a] = pos[a];
+    const uint32_t s = b.new_vertex(ev.vertex.index, 0, pos);
+    if (s == kNone) return Status(ErrorCode::kLimit, "more active vertices than the header's boundary limit", conn_offset);
+    fneighbors.vertex_begins(s);
+    ev.vertex.slot = s;
+    bt.c[k] = s;
+  }
+  // Edge states (spec 13.7.8): named completions, else entering or a
+  // border, a cut border setting the non-manifold flag.
+  uint8_t cut = 0;
+  int completed = 0;
+  for (int k = 0; k < 3; ++k) {
+    if (completes[k]) {
+      bt.state[k] = EdgeState::kCompletes;
+      ++completed;
+      continue;
+    }
+    bt.completes[k] = kNone;
+    bt.border[k] = e[k] != kFastEnters;
+    bt.state[k] = bt.border[k] ? EdgeState::kBorder : EdgeState::kEnters;
+    if (e[k] == kFastCut) cut |= static_cast<uint8_t>(1u << k);
+  }
+  // Entering edges and borders between old vertices (spec 6.1.3): the
+  // fast boundary is told which edges complete, and checks the others.
+  for (int k = 0; k < 3; ++k)
+    if (!completes[k] && !bt.is_new[k] && !bt.is_new[(k + 1) % 3] && fneighbors.contains(bt.c[k], bt.c[(k + 1) % 3]))
+      return corrupt("an entering edge is open already, completes an edge the record does not name, or is dead");
+  const int nnew = bt.is_new[0] + bt.is_new[1] + bt.is_new[2];
+  const Op op = nnew == 3 ? Op::kStart
+                : completed == 1 ? (nnew == 1 ? Op::kAdd : Op::kJoin)
+                : completed == 2 ? Op::kFill
+                                 : Op::kEnd;
+  if (d.overran() || bits.overran())
+    return Status(ErrorCode::kTruncated, "record " + std::to_string(record_no) + ": coded data ends early",
+                  conn_offset + conn.size());
+  if (!b.apply(bt)) return Status(ErrorCode::kLimit, "more open edges than the header's boundary limit", conn_offset);
+  for (int k = 0; k < 3; ++k) {
+    if (bt.state[k] == EdgeState::kEnters) ring.push(b, bt.eslot[k]);
+    if (bt.state[k] != EdgeState::kCompletes) fneighbors.insert(bt.c[k], bt.c[(k + 1) % 3]);
+  }
+  last_op = static_cast<int>(op);
+  emit_triangle(b, bt, op, r, cut);
+  return Status();
+}
+
+}  // namespace psq
+
+namespace psq {
+
+Status PsqDecoder::Impl::fast_direct_records() {
+  FastBoundary& b = fboundary;
+  // The coders' states live in locals for the loop, so that the compiler
+  // can keep them in registers: as members they would be reloaded after
+  // every store to the output arrays, which might alias them. They go back
+  // to the members around every call that decodes through the members.
+  RansDecoder d = *frans;
+  RawReader bits = *fraw;
+  MeshBuffers& mesh = *direct;
+  // Room for the chunk's declared counts, but at most what its coded bytes
+  // could hold at four bits per element, so that a hostile count allocates
+  // nothing on its own.
+  const uint64_t cap = uint64_t{2} * conn.size() + 64;
+  direct_room(mesh.indices, direct_ni, 3 * static_cast<size_t>(std::min<uint64_t>(chunk_triangles, cap)));
+  direct_room(mesh.positions, direct_np, 3 * static_cast<size_t>(std::min<uint64_t>(chunk_vertices, cap)));
+  direct_room(direct_index, direct_nv, static_cast<size_t>(std::min<uint64_t>(chunk_vertices, cap)));
+  const bool rotation = header.rotation;
+  while (records_left > 0) {
+    const int cls = d.decode(ftables[kFastTableA + fast_context]);
+    const uint32_t R = b.reference();
+    int done = 0;  // 1: the record was decoded below
+    if (cls <= kFastGatePrev && R != kNone && seen_triangles < chunk_triangles) {
+      const uint32_t gate = cls == kFastGateR ? R : cls == kFastGateNext ? b.edge(R).next : b.edge(R).prev;
+      if (gate == kNone) return corrupt("gate offset leaves the boundary");
+      ++stats.gates[cls == kFastGateR ? 0 : 1];
+      const BEdge& g = b.edge(gate);
+      const uint32_t p = g.org, q = g.dst;
+      const int bsym = d.decode(ftables[kFastTableB + third_context(b.vertex(p).degree, b.vertex(q).degree)]);
+      if (bsym >= kFastBSymbols) return corrupt("third-vertex symbol " + std::to_string(bsym));
+      if (!rotation && (bsym == 0 || bsym == 27 || bsym == 30)) {
+        PSQ_RETURN_IF_ERROR(fast_common<true>(d, bits, cls, bsym, gate));
+        done = 1;
+      } else {
+        qhead = qcount = 0;
+        *frans = d;
+        *fraw = bits;
+        PSQ_RETURN_IF_ERROR(decode_record_fast(cls, gate, bsym));
+        d = *frans;
+        bits = *fraw;
+      }
+    } else {
+      qhead = qcount = 0;
+      *frans = d;
+      *fraw = bits;
+      PSQ_RETURN_IF_ERROR(decode_record_fast(cls));
+      d = *frans;
+      bits = *fraw;
+    }
+    if (!done) {
+      for (int i = 0; i < qcount; ++i) {
+        const SequenceEvent& e = queue[i];
+        if (e.kind == SequenceEvent::Kind::kVertex) direct_vertex(e.vertex);
+        else if (e.kind == SequenceEvent::Kind::kTriangle) direct_triangle(e.triangle.v);
+      }
+      qhead = qcount = 0;
+    }
+    // advance()'s bookkeeping.
+    ++record_no;
+    stats.max_active_vertices = std::max(stats.max_active_vertices, b.active_vertices());
+    stats.max_open_edges = std::max(stats.max_open_edges, b.open_edges());
+    if (--records_left == 0) {
+      *frans = d;
+      *fraw = bits;
+      PSQ_RETURN_IF_ERROR(fast_close_chunk());
+      if (seen_vertices != chunk_vertices || seen_triangles != chunk_triangles)
+        return Status(ErrorCode::kBadHeader, "chunk declares other vertex or triangle counts than it holds", chunk_offset);
+    }
+  }
+  return Status();
+}
+
+}  // namespace psq

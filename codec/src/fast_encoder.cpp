@@ -1,0 +1,373 @@
+// codec/src/fast_encoder.cpp: the fast profile's records (spec
+// section 13): static rANS symbols and raw
+// bits, coded at the end of each chunk.
+//
+// The encoder keeps format 7's boundary, with its lookups by endpoints: it
+// must check its input and find which open edges a triangle completes. The
+// decoder keeps the same slots and links without the lookups
+// (FastBoundary), because every completion is named in the record.
+#include <algorithm>
+#include <cmath>
+
+#include "container.h"
+#include "encoder_impl.h"
+#include "geometry.h"
+
+namespace psq {
+
+namespace {
+
+// Raw values of up to 64 bits, in pieces of at most 32.
+void put_raw(RawWriter& raw, uint64_t value, int bits) {
+  if (bits > 32) {
+    raw.put(static_cast<uint32_t>(value), 32);
+    raw.put(static_cast<uint32_t>(value >> 32), bits - 32);
+  } else {
+    raw.put(static_cast<uint32_t>(value), bits);
+  }
+}
+
+int edge_state(const BTriangle& bt, const SequenceTriangle& t, int k, int rot) {
+  if (bt.state[k] != EdgeState::kBorder) return kFastEnters;
+  return (t.nonmanifold_mask >> ((rot + k) % 3)) & 1 ? kFastCut : kFastBorder;
+}
+
+}  // namespace
+
+int PsqEncoder::Impl::fast_residual(int table, int64_t r) {
+  const uint64_t raw_before = fast_raw.bits();
+  const uint64_t mag = r < 0 ? 0 - static_cast<uint64_t>(r) : static_cast<uint64_t>(r);
+  const int k = bit_length64(mag);
+  const int sym = fast_length_symbol(k, mag);
+  fast_put(table, sym);
+  if (sym == kFastLengthEscape) {
+    fast_raw.put(static_cast<uint32_t>(k - 33), 5);
+    fast_raw.put(static_cast<uint32_t>((mag >> (k - 2)) & 1), 1);
+  }
+  if (k >= 1) {
+    const int low_bits = k >= 2 ? k - 2 : 0;
+    const uint64_t low = mag & ((uint64_t{1} << low_bits) - 1);
+    put_raw(fast_raw, (static_cast<uint64_t>(r < 0) << low_bits) | low, low_bits + 1);
+  }
+  if (table != kFastTableDistance) fast_raw_geometry += fast_raw.bits() - raw_before;
+  return k;
+}
+
+void PsqEncoder::Impl::fast_vertex(const PendingVertex& v, const int64_t pred[3], int kind, const int extent[3]) {
+  int lengths[3] = {0, 0, 0};
+  for (int i = 0; i < 3; ++i) {
+    const int c = fast_length_context(kind, i, extent[i], std::max(lengths[0], lengths[1]));
+    lengths[i] = fast_residual(fast_length_table(kind, i, c), wrap_sub(v.pos[i], pred[i]));
+  }
+  for (int i = 0; i < 3; ++i) last_pos[i] = v.pos[i];
+}
+
+namespace {
+
+// log2 in 1/65536 bits by integer arithmetic only, so that the encoder's
+// choices, and so its bytes, are the same on every machine (a libm's
+// log2 may round differently). The fraction comes from the top 8 bits
+// below the leading one: within 0.006 bits, enough to rank predictions.
+struct Log2Table {
+  uint32_t frac[256];
+  Log2Table() {
+    for (uint32_t i = 0; i < 256; ++i) {
+      // m = (256 + i) / 256 in Q31; square it 16 times, taking a bit of
+      // the logarithm each time the square reaches 2.
+      uint64_t m = uint64_t{256 + i} << 23;
+      uint32_t f = 0;
+      for (int b = 15; b >= 0; --b) {
+        m = (m * m) >> 31;
+        if (m >= uint64_t{1} << 32) {
+          m >>= 1;
+          f |= 1u << b;
+        }
+      }
+      frac[i] = f;
+    }
+  }
+};
+const Log2Table kLog2;
+
+int64_t fixed_log2(uint64_t x) {  // x >= 1
+  const int msb = 63 - __builtin_clzll(x);
+  const uint32_t top = static_cast<uint32_t>(msb >= 8 ? x >> (msb - 8) : x << (8 - msb)) & 255u;
+  return int64_t{msb} * 65536 + kLog2.frac[top];
+}
+
+}  // namespace
+
+int64_t PsqEncoder::Impl::fast_cost(int table, int symbol) const {
+  // The symbol's cost under the running counts, with half a count for
+  // every symbol of the alphabet so that unseen symbols cost finitely
+  // (counts doubled to stay integers), in 1/65536 bits.
+  const uint64_t n = 2 * uint64_t{fast_count[static_cast<size_t>(table) * 128 + static_cast<size_t>(symbol)]} + 1;
+  const uint64_t total = 2 * uint64_t{fast_total[table]} + static_cast<uint64_t>(fast_table_size(table));
+  return fixed_log2(total) - fixed_log2(n);
+}
+
+// Spec 7.3 leaves the choice to the encoder; this one takes the cheapest
+// under the running counts of the fast tables (the choice symbol, the
+// length symbols and the raw bits), among the candidates whose residuals
+// have no more bits than the gate's (as choose_prediction() does for
+// format 7). Ties go to the lower choice.
+int PsqEncoder::Impl::fast_choose_prediction(uint32_t gate, uint32_t mask, const int64_t pos[3], Prediction* pred) {
+  int best = kChoiceGate;
+  int64_t best_cost = 0;
+  int rough_gate = 0;
+  for (int ch = kChoiceGate; ch < kChoices; ++ch) {
+    if (ch != kChoiceGate && !(mask & (1u << (choice_side(ch) - 1)))) continue;
+    const Prediction pr = predict_new_vertex(boundary, gate, 0, last_pos, nullptr, nullptr, ch);
+    int rough = 0;
+    for (int a = 0; a < 3; ++a) rough += bit_length64(coord_distance(pos[a], pr.pos[a]));
+    if (ch == kChoiceGate) rough_gate = rough;
+    else if (rough > rough_gate) continue;
+    int64_t c = fast_cost(fast_choice_table(mask, fast_choice), ch);
+    int lengths[3] = {0, 0, 0};
+    for (int a = 0; a < 3; ++a) {
+      const int lc = fast_length_context(pr.kind, a, pr.extent[a], std::max(lengths[0], lengths[1]));
+      const int64_t r = wrap_sub(pos[a], pr.pos[a]);
+      const uint64_t mag = r < 0 ? 0 - static_cast<uint64_t>(r) : static_cast<uint64_t>(r);
+      const int k = bit_length64(mag);
+      c += fast_cost(fast_length_table(pr.kind, a, lc), fast_length_symbol(k, mag)) + int64_t{k >= 2 ? k - 1 : k} * 65536;
+      lengths[a] = k;
+    }
+    if (ch == kChoiceGate || c < best_cost) {
+      best = ch;
+      best_cost = c;
+      *pred = pr;
+    }
+  }
+  return best;
+}
+
+Status PsqEncoder::Impl::triangle_fast(const SequenceTriangle& t, const int pend[3], const uint32_t slots_in[3],
+                                       int nnew) {
+  uint32_t slots[3] = {slots_in[0], slots_in[1], slots_in[2]};
+  int rot = 0;  // canonical corner k is input corner (rot + k) % 3
+  int cls = kFastStart;
+  int rank = -1;
+  uint32_t gate = kNone;
+  if (nnew == 3) {
+    rot = pend[0] == 0 ? 0 : pend[1] == 0 ? 1 : 2;  // spec 6.2.4
+  } else {
+    uint32_t cand[3];
+    for (int k = 0; k < 3; ++k) {
+      cand[k] = kNone;
+      if (pend[k] < 0 && pend[(k + 1) % 3] < 0) cand[k] = boundary.find_edge(slots[(k + 1) % 3], slots[k]);
+    }
+    if (cand[0] == kNone && cand[1] == kNone && cand[2] == kNone)
+      return bad_sequence("triangle " + std::to_string(t.v[0]) + " " + std::to_string(t.v[1]) + " " +
+                          std::to_string(t.v[2]) + " completes no boundary edge and introduces " +
+                          std::to_string(nnew) + " vertices");
+    // Draft section 5: R, R's next, R's prev, else a recency rank, else
+    // the escape with the first candidate.
+    cls = kFastEscape;
+    const uint32_t R = boundary.reference();
+    if (R != kNone) {
+      const uint32_t near[3] = {R, boundary.edge(R).next, boundary.edge(R).prev};
+      for (int g = 0; g < 3 && cls == kFastEscape; ++g)
+        for (int k = 0; k < 3; ++k)
+          if (near[g] != kNone && cand[k] == near[g]) {
+            cls = g;
+            rot = k;
+            break;
+          }
+    }
+    for (int k = 0; k < 3 && cls != kFastGateR && cls != kFastGateNext && cls != kFastGatePrev; ++k) {
+      if (cand[k] == kNone) continue;
+      const int r = ring.rank_of(boundary, cand[k]);
+      if (r >= 0 && (rank < 0 || r < rank)) {
+        rank = r;
+        rot = k;
+        cls = kFastGateFar;
+      }
+    }
+    if (cls == kFastEscape) rot = cand[0] != kNone ? 0 : cand[1] != kNone ? 1 : 2;
+    gate = cand[rot];
+  }
+  BTriangle bt;
+  int cp[3];  // pending position of canonical corner k, or -1
+  for (int k = 0; k < 3; ++k) {
+    const int ik = (rot + k) % 3;
+    bt.c[k] = slots[ik];
+    bt.is_new[k] = pend[ik] >= 0;
+    cp[k] = pend[ik];
+    bt.border[k] = (t.border_mask >> ik) & 1;
+  }
+  bt.gate = gate;
+  const int r = (3 - rot) % 3;  // spec 6.2.3
+  if (!boundary.find_completions(bt))
+    return bad_sequence("triangle " + std::to_string(t.v[0]) + " " + std::to_string(t.v[1]) + " " +
+                        std::to_string(t.v[2]) + " uses a directed edge already on the boundary, or a border edge");
+  for (int k = 0; k < 3; ++k)
+    if (bt.state[k] == EdgeState::kCompletes && bt.border[k])
+      return bad_sequence("a border edge completes a boundary edge");
+  const int e[3] = {edge_state(bt, t, 0, rot), edge_state(bt, t, 1, rot), edge_state(bt, t, 2, rot)};
+
+  // The third vertex (spec 13.7.3).
+  int third = kFastNew;
+  uint32_t join = kNone;
+  int join_side = 0;
+  if (nnew == 1) {
+    third = pending[cp[2]].reappears != kNoVertex ? kFastNewReappears : kFastNew;
+  } else if (nnew == 0) {
+    const BEdge& g = boundary.edge(gate);
+    const uint32_t x = bt.c[2];
+    const bool left = g.prev != kNone && boundary.edge(g.prev).org == x;
+    const bool right = g.next != kNone && boundary.edge(g.next).dst == x;
+    const bool c1 = bt.state[1] == EdgeState::kCompletes, c2 = bt.state[2] == EdgeState::kCompletes;
+    if (left && right && c1 && c2 && bt.completes[1] == g.prev && bt.completes[2] == g.next) third = kFastEnd;
+    else if (left && c1 && bt.completes[1] == g.prev && !c2) third = kFastLeft;
+    else if (right && c2 && bt.completes[2] == g.next && !c1) third = kFastRight;
+    else if (!left && !right && !c1 && !c2) third = kFastJoin;
+    else cls = kFastEscape;  // a completion that is not the gate's neighbour
+    if (third == kFastJoin || cls == kFastEscape) {
+      // Spec 6.2.2: an open edge at x names it and the gap the triangle goes
+      // into: its first edge leaving x, else its first entering x.
+      const BVertex& vx = boundary.vertex(x);
+      join = vx.first_out != kNone ? vx.first_out : vx.first_in;
+      if (join == kNone)
+        return bad_sequence("join over vertex " + std::to_string(t.v[(rot + 2) % 3]) +
+                            ", which is not on the boundary");
+      join_side = join == vx.first_out ? 0 : 1;
+      bt.join_edge = join;
+    }
+  }
+
+  // The record's symbols and raw fields.
+  fast_put(kFastTableA + fast_context, cls);
+  uint32_t intro[3];  // canonical corners in the order their vertices are introduced
+  int nintro = 0;
+  const int sbits = slot_bits(boundary.edge_capacity());
+  if (cls == kFastStart) {
+    const bool swap = cp[2] == 1;  // corner 2 was introduced second
+    fast_put(kFastTableS, e[0] + 3 * e[1] + 9 * e[2] + (swap ? 27 : 0));
+    intro[0] = 0;
+    intro[1] = swap ? 2 : 1;
+    intro[2] = swap ? 1 : 2;
+    nintro = 3;
+    int mask = 0;
+    for (int i = 0; i < 3; ++i) mask |= (pending[cp[intro[i]]].reappears != kNoVertex) << i;
+    fast_put(kFastTableReappear, mask);
+    fast_context = kFastAStartContext;
+  } else if (cls == kFastEscape) {
+    fast_raw.put(gate, sbits);
+    const int xkind = nnew == 1 ? (third == kFastNewReappears ? 1 : 0) : 2;
+    fast_raw.put(static_cast<uint32_t>(xkind), 2);
+    if (xkind == 2) {
+      fast_raw.put(join, sbits);
+      fast_raw.put(static_cast<uint32_t>(join_side), 1);
+    }
+    for (int k = 1; k < 3; ++k) {
+      if (bt.state[k] == EdgeState::kCompletes) {
+        fast_raw.put(3, 2);
+        fast_raw.put(bt.completes[k], sbits);
+      } else {
+        fast_raw.put(static_cast<uint32_t>(e[k]), 2);
+      }
+    }
+    fast_context = kFastAContexts - 1;
+  } else {
+    if (cls == kFastGateFar) fast_put(kFastTableRank + (boundary.reference() == kNone ? 1 : 0), rank);
+    const BEdge& g = boundary.edge(gate);
+    fast_put(kFastTableB + third_context(boundary.vertex(g.org).degree, boundary.vertex(g.dst).degree),
+             fast_b_symbol(third, e[1], e[2]));
+    if (third == kFastJoin) {
+      fast_raw.put(join, sbits);
+      fast_raw.put(static_cast<uint32_t>(join_side), 1);
+    }
+    fast_context = fast_a_context_gate(cls, third);
+  }
+  if (nnew == 1) intro[nintro++] = 2;
+  if (header.rotation) fast_put(kFastTableRotation, r);
+
+  // New vertices in the order of introduction, with their predictions.
+  for (int i = 0; i < nintro; ++i) {
+    const int k = static_cast<int>(intro[i]);
+    PendingVertex& v = pending[cp[k]];
+    PSQ_RETURN_IF_ERROR(introduce(v));
+    v.coded = true;
+    if (v.reappears != kNoVertex)
+      (void)fast_residual(kFastTableDistance,
+                          static_cast<int64_t>(out_index_of(v.in_index) - out_index_of(v.reappears)) - 1);
+    Prediction pr;
+    const uint32_t mask = nnew == 1 && cls != kFastEscape ? prediction_choices(boundary, gate) : 0;
+    if (mask != 0) {
+      const int choice = fast_choose_prediction(gate, mask, v.pos, &pr);
+      fast_put(fast_choice_table(mask, fast_choice), choice);
+      fast_choice = choice;
+      ++stats.predictions[choice];
+    } else {
+      const int64_t* first = i >= 1 ? pending[cp[intro[0]]].pos : nullptr;
+      const int64_t* second = i >= 2 ? pending[cp[intro[1]]].pos : nullptr;
+      pr = predict_new_vertex(boundary, nnew == 1 ? gate : kNone, i, last_pos, first, second);
+      if (nnew == 1) ++stats.predictions[kChoiceGate];
+    }
+    fast_vertex(v, pr.pos, pr.kind, pr.extent);
+    PSQ_RETURN_IF_ERROR(register_vertex(v, &bt.c[k]));
+  }
+  ++stats.gates[cls == kFastStart ? 3 : cls == kFastGateR ? 0 : cls == kFastEscape || cls == kFastGateFar ? 2 : 1];
+  return close_triangle(t, bt, nnew);
+}
+
+Status PsqEncoder::Impl::isolated_fast(PendingVertex& v) {
+  fast_put(kFastTableA + fast_context, kFastIsolated);
+  fast_context = kFastAContexts - 2;
+  // An isolated vertex re-appears only in sequences not written by psq's
+  // converter: one raw bit, then the distance.
+  fast_raw.put(v.reappears != kNoVertex, 1);
+  if (v.reappears != kNoVertex)
+    (void)fast_residual(kFastTableDistance,
+                        static_cast<int64_t>(out_index_of(v.in_index) - out_index_of(v.reappears)) - 1);
+  const int no_extent[3] = {0, 0, 0};
+  fast_vertex(v, last_pos, kPredOther, no_extent);
+  ++stats.gates[3];
+  return Status();
+}
+
+void PsqEncoder::Impl::fast_section(std::vector<uint8_t>* section) {
+  // Spec 13.2: the tables of this chunk's symbols, the rANS block,
+  // the raw bits.
+  std::vector<std::vector<uint64_t>> counts(kFastTables);
+  for (int i = 0; i < kFastTables; ++i) counts[i].assign(fast_table_size(i), 0);
+  for (const RansSymbol& s : fast_symbols) ++counts[s.table][s.symbol];
+  std::vector<RansTable> tables(kFastTables);
+  RawWriter tw;
+  for (int i = 0; i < kFastTables; ++i) {
+    bool present = false;
+    for (uint64_t c : counts[i]) present = present || c != 0;
+    tw.put(present, 1);
+    if (present) tables[i].build(counts[i].data(), fast_table_size(i));
+  }
+  if (opt.measure_costs) cost[kCostConnectivity] += kFastTables;  // the presence bits
+  for (int i = 0; i < kFastTables; ++i) {
+    if (tables[i].empty()) continue;
+    const uint64_t before = tw.bits();
+    tables[i].write(tw);
+    if (opt.measure_costs) cost[fast_table_cost(i)] += static_cast<double>(tw.bits() - before);
+  }
+  if (opt.measure_costs) {
+    // Each symbol's information content under its table; the raw bits of
+    // positions are geometry, the other raw bits connectivity.
+    for (const RansSymbol& s : fast_symbols)
+      cost[fast_table_cost(s.table)] += kRansScaleBits - std::log2(tables[s.table].freq(s.symbol));
+    cost[kCostGeometry] += static_cast<double>(fast_raw_geometry);
+    cost[kCostConnectivity] += static_cast<double>(fast_raw.bits() - fast_raw_geometry);
+  }
+  fast_raw_geometry = 0;
+  const std::vector<uint8_t> table_bytes = tw.finish();
+  std::vector<uint8_t> rans_bytes;
+  rans_encode(fast_symbols, tables.data(), &rans_bytes);
+  const std::vector<uint8_t> raw_bytes = fast_raw.finish();
+  Put put(section);
+  put.varint(table_bytes.size());
+  put.varint(rans_bytes.size());
+  put.bytes(table_bytes.data(), table_bytes.size());
+  put.bytes(rans_bytes.data(), rans_bytes.size());
+  put.bytes(raw_bytes.data(), raw_bytes.size());
+  fast_symbols.clear();
+  fast_raw = RawWriter();
+}
+
+}  // namespace psq

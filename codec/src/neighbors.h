@@ -1,0 +1,103 @@
+// codec/src/neighbors.h: which active vertices are joined by an edge, for
+// the fast profile's decoder (spec 13.6.3).
+//
+// The fast decoder is told which open edges a triangle completes; every
+// other edge between two old vertices must be new to the mesh, or the
+// decoded sequence would not be an oriented manifold with borders
+// (psq/sequence.h, spec 6.1.3). Format 7's boundary answers that with
+// per-vertex lists of open edges and dead-edge records, which its decoder
+// keeps up to date at every completion and finalization. Here each vertex
+// slot lists the neighbours its vertex has had (a slot and that slot's
+// generation): two appends per new edge, a scan of one short list per edge
+// between old vertices (a fill has one), and nothing when a vertex is
+// finalized. A neighbour finalized since is stale (its slot's generation
+// moved on) and never matches; a slot's list is cleared when a new vertex
+// takes the slot, and a long list drops its stale entries before it grows,
+// so that a vertex that stays active while many neighbours come and go
+// (the centre of a large fan) lists about as many as are active: the
+// lists' size follows the boundary, not the mesh.
+#ifndef PSQ_CODEC_NEIGHBORS_H_
+#define PSQ_CODEC_NEIGHBORS_H_
+
+#include <algorithm>
+#include <cstdint>
+#include <utility>
+#include <vector>
+
+namespace psq {
+namespace codec {
+
+class Neighbors {
+ public:
+  // Vertex slot `s` now holds a new vertex, with no neighbours yet.
+  void vertex_begins(uint32_t s) {
+    if (s >= slots_.size()) grow(s);
+    Slot& v = slots_[s];
+    ++v.gen;
+    if (v.count > kInline) spill_[s].clear();
+    v.count = 0;
+  }
+  // An edge joins the vertices in slots a and b.
+  __attribute__((always_inline)) void insert(uint32_t a, uint32_t b) {
+    Slot* slots = slots_.data();
+    Slot& va = slots[a];
+    Slot& vb = slots[b];
+    const uint64_t ea = uint64_t{a} << 32 | va.gen, eb = uint64_t{b} << 32 | vb.gen;
+    if (va.count < kInline) va.e[va.count++] = eb;
+    else spill(a, eb);
+    if (vb.count < kInline) vb.e[vb.count++] = ea;
+    else spill(b, ea);
+  }
+  // How many neighbours slot `s` lists, stale ones included (for tests).
+  uint32_t listed(uint32_t s) const { return s < slots_.size() ? slots_[s].count : 0; }
+  // Whether an edge joins the vertices now in slots a and b.
+  bool contains(uint32_t a, uint32_t b) const {
+    // Scan the shorter list for the other vertex as it is now.
+    if (slots_[b].count < slots_[a].count) std::swap(a, b);
+    const Slot& va = slots_[a];
+    const uint64_t want = uint64_t{b} << 32 | slots_[b].gen;
+    const uint32_t n = va.count < kInline ? va.count : kInline;
+    for (uint32_t i = 0; i < n; ++i)
+      if (va.e[i] == want) return true;
+    if (va.count > kInline)
+      for (uint64_t x : spill_[a])
+        if (x == want) return true;
+    return false;
+  }
+
+ private:
+  // Most active vertices have at most this many neighbours: they live in
+  // the slot; the rest of a longer list spills into a vector.
+  static constexpr uint32_t kInline = 10;
+
+  struct Slot {
+    uint32_t gen = 0;    // bumped when a new vertex takes the slot
+    uint32_t count = 0;  // neighbours listed
+    uint64_t e[kInline];  // the first ones: slot << 32 | that slot's generation then
+  };
+
+  __attribute__((noinline)) void spill(uint32_t s, uint64_t entry) {
+    if (s >= spill_.size()) spill_.resize(slots_.size());
+    std::vector<uint64_t>& v = spill_[s];
+    if (v.size() == v.capacity() && v.size() >= 16) {
+      // Before the list grows, drop the neighbours finalized since they
+      // were listed: growth is then geometric in the active neighbours,
+      // and the scan amortized over the entries that made the list full.
+      const Slot* slots = slots_.data();
+      v.erase(std::remove_if(v.begin(), v.end(),
+                             [slots](uint64_t x) { return slots[x >> 32].gen != static_cast<uint32_t>(x); }),
+              v.end());
+    }
+    v.push_back(entry);
+    slots_[s].count = kInline + static_cast<uint32_t>(v.size());
+  }
+  void grow(uint32_t s) { slots_.resize(std::max<size_t>(size_t{s} + 1, 2 * slots_.size())); }
+
+  std::vector<Slot> slots_;
+  std::vector<std::vector<uint64_t>> spill_;  // per slot: entries beyond kInline
+};
+
+}  // namespace codec
+}  // namespace psq
+
+#endif  // PSQ_CODEC_NEIGHBORS_H_

@@ -1,0 +1,157 @@
+// codec/src/rans.cpp: see rans.h.
+#include "rans.h"
+
+#include <algorithm>
+
+namespace psq {
+namespace codec {
+
+namespace {
+
+int bit_length(uint32_t v) { return v == 0 ? 0 : 32 - __builtin_clz(v); }
+
+// Elias gamma code of v >= 1, least significant bit first: n = bit length
+// of v minus 1 zero bits, a one bit, then the low n bits of v.
+void put_gamma(RawWriter& out, uint32_t v) {
+  const int n = bit_length(v) - 1;
+  out.put(0, n);
+  out.put(1, 1);
+  out.put(v, n);
+}
+
+// Reads a gamma code of at most `max_zeros` leading zeros; 0 when longer.
+uint32_t get_gamma(RawReader& in, int max_zeros) {
+  int n = 0;
+  while (in.get(1) == 0) {
+    if (++n > max_zeros) return 0;
+  }
+  return (1u << n) | in.get(n);
+}
+
+}  // namespace
+
+void RansTable::build(const uint64_t* counts, int size) {
+  size_ = size;
+  unsigned __int128 total = 0;
+  for (int s = 0; s < size; ++s) total += counts[s];
+  int64_t sum = 0;
+  for (int s = 0; s < size; ++s) {
+    freq_[s] = 0;
+    if (counts[s] == 0) continue;
+    const uint32_t f = static_cast<uint32_t>((static_cast<unsigned __int128>(counts[s]) * kRansScale) / total);
+    freq_[s] = std::max<uint32_t>(f, 1);
+    sum += freq_[s];
+  }
+  // Rounding left kRansScale - sum: a surplus goes to the first most
+  // counted symbol; a deficit is taken from the largest frequencies, down
+  // to 1 at most.
+  int64_t diff = static_cast<int64_t>(kRansScale) - sum;
+  if (diff > 0) {
+    int top = 0;
+    for (int s = 1; s < size; ++s)
+      if (counts[s] > counts[top]) top = s;
+    freq_[top] += static_cast<uint32_t>(diff);
+  }
+  while (diff < 0) {
+    int top = 0;
+    for (int s = 1; s < size; ++s)
+      if (freq_[s] > freq_[top]) top = s;
+    const int64_t take = std::min<int64_t>(-diff, freq_[top] - 1);
+    freq_[top] -= static_cast<uint32_t>(take);
+    diff += take;
+  }
+  finish();
+}
+
+void RansTable::write(RawWriter& out) const {
+  int last = -1;
+  for (int s = 0; s < size_; ++s) {
+    out.put(freq_[s] != 0, 1);
+    if (freq_[s] != 0) last = s;
+  }
+  for (int s = 0; s < last; ++s)
+    if (freq_[s] != 0) put_gamma(out, freq_[s]);
+}
+
+bool RansTable::read(RawReader& in, int size) {
+  size_ = 0;
+  int last = -1;
+  for (int s = 0; s < size; ++s) {
+    freq_[s] = in.get(1);
+    if (freq_[s] != 0) last = s;
+  }
+  if (last < 0) return false;
+  uint32_t sum = 0;
+  for (int s = 0; s < last; ++s) {
+    if (freq_[s] == 0) continue;
+    // An explicit frequency is below kRansScale: at most kRansScaleBits - 1
+    // leading zeros.
+    freq_[s] = get_gamma(in, kRansScaleBits - 1);
+    if (freq_[s] == 0 || (sum += freq_[s]) >= kRansScale) return false;
+  }
+  freq_[last] = kRansScale - sum;
+  size_ = size;
+  finish();
+  return true;
+}
+
+void RansTable::set_absent() {
+  size_ = 0;
+  for (uint32_t k = 0; k < kRansScale; ++k) sym_[k] = static_cast<uint8_t>(kRansAbsent);
+  fc_[kRansAbsent] = kRansScale;  // the state stays as it is
+}
+
+void RansTable::finish() {
+  cum_[0] = 0;
+  for (int s = 0; s < size_; ++s) cum_[s + 1] = cum_[s] + freq_[s];
+  for (int s = 0; s < size_; ++s) {
+    fc_[s] = freq_[s] | cum_[s] << 16;
+    for (uint32_t k = 0; k < freq_[s]; ++k) sym_[cum_[s] + k] = static_cast<uint8_t>(s);
+  }
+}
+
+void rans_encode(const std::vector<RansSymbol>& symbols, const RansTable* tables, std::vector<uint8_t>* out) {
+  // Symbol i goes through state i mod 2, as the decoder alternates.
+  uint32_t x[2] = {kRansLow, kRansLow};
+  std::vector<uint16_t> words;
+  for (size_t i = symbols.size(); i-- > 0;) {
+    uint32_t& xi = x[i & 1];
+    const RansTable& t = tables[symbols[i].table];
+    const uint32_t f = t.freq(symbols[i].symbol), c = t.cum(symbols[i].symbol);
+    // One renormalization step keeps the next state below 2^32 (x < 2^22 f).
+    const uint64_t x_max = (uint64_t{kRansLow >> kRansScaleBits} << 16) * f;
+    if (xi >= x_max) {
+      words.push_back(static_cast<uint16_t>(xi));
+      xi >>= 16;
+    }
+    xi = ((xi / f) << kRansScaleBits) + (xi % f) + c;
+  }
+  for (int k = 0; k < 2; ++k)
+    for (int i = 0; i < 4; ++i) out->push_back(static_cast<uint8_t>(x[k] >> (8 * i)));
+  for (size_t i = words.size(); i-- > 0;) {
+    out->push_back(static_cast<uint8_t>(words[i]));
+    out->push_back(static_cast<uint8_t>(words[i] >> 8));
+  }
+}
+
+RansDecoder::RansDecoder(const uint8_t* data, size_t size) : data_(data), size_(size) {
+  if (size < 8) {
+    overran_ = true;
+    pos_ = size;
+    x_ = y_ = kRansLow;
+    return;
+  }
+  x_ = data[0] | uint32_t{data[1]} << 8 | uint32_t{data[2]} << 16 | uint32_t{data[3]} << 24;
+  y_ = data[4] | uint32_t{data[5]} << 8 | uint32_t{data[6]} << 16 | uint32_t{data[7]} << 24;
+  pos_ = 8;
+}
+
+std::vector<uint8_t> RawWriter::finish() {
+  if (n_ > 0) flush_word(static_cast<uint32_t>(acc_));
+  acc_ = 0;
+  n_ = 0;
+  return std::move(bytes_);
+}
+
+}  // namespace codec
+}  // namespace psq

@@ -1,0 +1,238 @@
+// codec/src/rans.h: static rANS coding and a raw bit stream, the entropy
+// coder of the fast profile (spec 13.3 to 13.5).
+//
+// rANS (Duda, "Asymmetric numeral systems", 2013) with 32-bit states kept
+// in [2^16, 2^32) and renormalized by 16-bit words, in the style of
+// Giesen's rans_word; two states take turns, symbol i using state i mod 2
+// (Giesen's interleaving), so that decoding one symbol need not wait for
+// the state the symbol before produced. Each context has a frequency table of total
+// 2^kRansScaleBits, fixed for a chunk and sent in it (RansTable::write), so
+// decoding a symbol is one table lookup, one multiplication and a
+// renormalization test: no model update. That is what makes the fast
+// profile decode about twice as fast as Draco on large meshes
+// (bench/RESULTS.md, "A lean codec for large meshes").
+//
+// The encoder codes in reverse: it collects a chunk's symbols first, then
+// builds the tables from their counts and codes the symbols last to first,
+// so that the decoder reads them first to last.
+//
+// Raw bits (signs and low bits of residuals, explicit slots) go to a
+// separate little-endian bit stream (RawWriter, RawReader) instead of
+// through the rANS state: they cost one shift and mask each to read.
+#ifndef PSQ_CODEC_RANS_H_
+#define PSQ_CODEC_RANS_H_
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+namespace psq {
+namespace codec {
+
+constexpr int kRansScaleBits = 10;
+constexpr uint32_t kRansScale = 1u << kRansScaleBits;
+constexpr uint32_t kRansLow = 1u << 16;  // the state's lower bound
+// The largest alphabet of a table: symbols are 0..kRansMaxSymbols - 1.
+constexpr int kRansMaxSymbols = 127;
+// What an absent table decodes (RansTable::set_absent).
+constexpr int kRansAbsent = 127;
+
+class RawWriter;
+class RawReader;
+
+// A frequency table: for each symbol of an alphabet of size() symbols, a
+// frequency (0: the symbol does not occur), summing to kRansScale.
+class RansTable {
+ public:
+  // An empty table (no symbol can be coded with it).
+  RansTable() = default;
+
+  // Frequencies from symbol counts (counts[0..size - 1], any scale, at
+  // least one nonzero; size 1..kRansMaxSymbols): proportional, every
+  // counted symbol at least 1, and the rounding error given to or taken
+  // from the most frequent symbols. Deterministic: the encoder's output
+  // depends on it.
+  void build(const uint64_t* counts, int size);
+
+  // Writes the table: per symbol, a presence bit and, for a present symbol
+  // other than the last present one, its frequency as an Elias gamma code;
+  // the last present symbol's frequency is what remains of kRansScale.
+  void write(RawWriter& out) const;
+  // Reads a table of `size` symbols as write() wrote it. Returns false when
+  // the frequencies are not a valid table: no present symbol, a gamma code
+  // of more than kRansScaleBits - 1 leading zeros, or explicit frequencies that leave nothing for
+  // the last present symbol. The reader's own overrun flag tells whether
+  // the bits ran out.
+  bool read(RawReader& in, int size);
+
+  // A table that a chunk does not send: decoding with it yields
+  // kRansAbsent (outside every alphabet) and leaves the state unchanged, so
+  // the decoder needs no test for absent tables beyond its range checks.
+  void set_absent();
+
+  int size() const { return size_; }
+  bool empty() const { return size_ == 0; }
+  uint32_t freq(int s) const { return freq_[s]; }
+  uint32_t cum(int s) const { return cum_[s]; }
+  // The symbol of a state's low kRansScaleBits bits, and that symbol's
+  // frequency (bits 0..15) and cumulative frequency (bits 16..31); an
+  // absent table's symbol kRansAbsent has frequency kRansScale at 0.
+  uint32_t symbol_at(uint32_t slot) const { return sym_[slot]; }
+  uint32_t freq_cum(uint32_t s) const { return fc_[s]; }
+  // The decoding entry of slot `slot`, as one number: the symbol (bits
+  // 0..6), its frequency (bits 7..18) and the slot's offset within the
+  // symbol's range (bits 19..29).
+  uint32_t entry(uint32_t slot) const {
+    const uint32_t s = sym_[slot], fc = fc_[s];
+    return s | (fc & 0xffffu) << 7 | (slot - (fc >> 16)) << 19;
+  }
+
+ private:
+  void finish();  // cumulative frequencies and decoding entries from freq_
+
+  int size_ = 0;
+  uint32_t freq_[kRansMaxSymbols] = {};
+  uint32_t cum_[kRansMaxSymbols + 1] = {};
+  // Decoding: a byte per slot (1 KiB, a quarter of a table of whole
+  // entries, so that a chunk's tables stay in the cache) and the
+  // frequencies beside it.
+  uint32_t fc_[kRansAbsent + 1] = {};
+  uint8_t sym_[kRansScale] = {};
+};
+
+// A symbol to code: its table (an index into the caller's tables) and value.
+struct RansSymbol {
+  uint16_t table;
+  uint8_t symbol;
+};
+
+// Codes `symbols` with `tables` (each symbol's table must give it a nonzero
+// frequency), symbol i with state i mod 2, and appends the bytes to `out`:
+// the final states of symbols 0 and 1 as 4 bytes each, then the
+// renormalization words, all little-endian, in the order the decoder reads
+// them.
+void rans_encode(const std::vector<RansSymbol>& symbols, const RansTable* tables, std::vector<uint8_t>* out);
+
+class RansDecoder {
+ public:
+  // Decodes from `size` bytes at `data`, which must outlive the decoder.
+  RansDecoder(const uint8_t* data, size_t size);
+
+  // The next symbol, coded with table `t` (built, read or absent).
+  // Symbols alternate between two states, so that the decoding of one
+  // does not wait for the state that the one before produced.
+  __attribute__((always_inline)) int decode(const RansTable& t) {
+    uint32_t x = x_;
+    const uint32_t slot = x & (kRansScale - 1);
+    const uint32_t s = t.symbol_at(slot);
+    const uint32_t fc = t.freq_cum(s);
+    x = (fc & 0xffffu) * (x >> kRansScaleBits) + slot - (fc >> 16);
+    if (x < kRansLow) x = x << 16 | next_word();
+    x_ = y_;
+    y_ = x;
+    return static_cast<int>(s);
+  }
+
+  // True when decoding needed bytes past the end: truncated or corrupt.
+  bool overran() const { return overran_; }
+  // True when every byte was read and the state is back where the encoder
+  // started (2^16): the end of a correctly decoded stream.
+  bool at_clean_end() const { return !overran_ && pos_ == size_ && x_ == kRansLow && y_ == kRansLow; }
+
+ private:
+  uint32_t next_word() {
+    if (size_ - pos_ >= 2) {
+      const uint32_t w = data_[pos_] | uint32_t{data_[pos_ + 1]} << 8;
+      pos_ += 2;
+      return w;
+    }
+    overran_ = true;
+    pos_ = size_;
+    return 0;
+  }
+
+  const uint8_t* data_;
+  size_t size_;
+  size_t pos_ = 0;
+  uint32_t x_ = 0;  // the state of the next symbol
+  uint32_t y_ = 0;  // the state of the symbol after it
+  bool overran_ = false;
+};
+
+// Raw bits, least significant first, in 32-bit little-endian words.
+class RawWriter {
+ public:
+  // Appends the low `bits` bits of `value` (bits 0..32).
+  void put(uint32_t value, int bits) {
+    if (bits == 0) return;
+    acc_ |= static_cast<uint64_t>(value & (bits == 32 ? 0xffffffffu : (1u << bits) - 1)) << n_;
+    n_ += bits;
+    if (n_ >= 32) {
+      flush_word(static_cast<uint32_t>(acc_));
+      acc_ >>= 32;
+      n_ -= 32;
+    }
+  }
+  // Bits written so far.
+  uint64_t bits() const { return bytes_.size() * 8 + static_cast<uint64_t>(n_); }
+  // Pads the last word with zero bits and returns the bytes.
+  std::vector<uint8_t> finish();
+
+ private:
+  void flush_word(uint32_t w) {
+    for (int i = 0; i < 4; ++i) bytes_.push_back(static_cast<uint8_t>(w >> (8 * i)));
+  }
+  std::vector<uint8_t> bytes_;
+  uint64_t acc_ = 0;
+  int n_ = 0;
+};
+
+class RawReader {
+ public:
+  // Reads from `size` bytes at `data` (a multiple of 4 for a stream that
+  // RawWriter wrote), which must outlive the reader.
+  RawReader(const uint8_t* data, size_t size) : data_(data), size_(size) {}
+
+  // The next `bits` bits (0..32). Past the end it returns zero bits and
+  // sets the overrun flag.
+  __attribute__((always_inline)) uint32_t get(int bits) {
+    if (n_ < bits) refill();
+    const uint32_t v = static_cast<uint32_t>(acc_ & ((uint64_t{1} << bits) - 1));
+    acc_ >>= bits;
+    n_ -= bits;
+    return v;
+  }
+  bool overran() const { return overran_; }
+  // Bits read so far.
+  uint64_t consumed_bits() const { return 8 * static_cast<uint64_t>(pos_) - static_cast<uint64_t>(n_); }
+  // True when no whole word is left unread and the bits left in the last
+  // word read are zero (the writer's padding).
+  bool at_clean_end() const { return !overran_ && pos_ == size_ && acc_ == 0; }
+
+ private:
+  void refill() {
+    uint32_t w = 0;
+    if (size_ - pos_ >= 4) {
+      w = data_[pos_] | uint32_t{data_[pos_ + 1]} << 8 | uint32_t{data_[pos_ + 2]} << 16 |
+          uint32_t{data_[pos_ + 3]} << 24;
+      pos_ += 4;
+    } else {
+      overran_ = true;
+      pos_ = size_;
+    }
+    acc_ |= static_cast<uint64_t>(w) << n_;
+    n_ += 32;
+  }
+
+  const uint8_t* data_;
+  size_t size_;
+  size_t pos_ = 0;
+  uint64_t acc_ = 0;
+  int n_ = 0;
+  bool overran_ = false;
+};
+
+}  // namespace codec
+}  // namespace psq
+
+#endif  // PSQ_CODEC_RANS_H_
