@@ -65,6 +65,15 @@ TEST(Neighbors, ListsOfLongLivedVerticesDropFinalizedNeighbours) {
     ASSERT_TRUE(n.contains(s, 0));
   }
   EXPECT_LE(n.listed(0), 10u + 2 * 16u + 8u);
+  // contains() scans the shorter list: give the neighbours longer ones,
+  // so that slot 0's compacted list is the one searched.
+  for (uint32_t s = 1; s <= 8; ++s)
+    for (uint32_t j = 0; j < 60; ++j) {
+      const uint32_t other = 100 + 60 * s + j;
+      n.vertex_begins(other);
+      n.insert(s, other);
+    }
+  for (uint32_t s = 1; s <= 8; ++s) ASSERT_GT(n.listed(s), n.listed(0));
   // A vertex new in a slot has no edges, whatever its slot's past.
   n.vertex_begins(3);
   EXPECT_FALSE(n.contains(0, 3));

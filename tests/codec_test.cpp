@@ -592,37 +592,7 @@ TEST_P(CodecHostile, CraftedRecordsWithValidChecksums) {
   int failures = 0;
   for (int trial = 0; trial < 300; ++trial) {
     std::vector<uint8_t> b = bytes;
-    // Spec 3.1: a varint at `at`, which moves past it.
-    auto varint = [&](size_t& at) {
-      uint64_t v = 0;
-      for (int shift = 0;; shift += 7) {
-        v |= static_cast<uint64_t>(b[at] & 0x7f) << shift;
-        if (!(b[at++] & 0x80)) return v;
-      }
-    };
-    // The first chunk starts after the header (spec 4.2, 4.3).
-    size_t at = 12;
-    const uint64_t payload = varint(at);
-    const size_t chunk = at + payload + 4;
-    ASSERT_EQ(b[chunk], 0x43);
-    at = chunk + 1;
-    uint64_t field[6];
-    for (uint64_t& f : field) f = varint(at);
-    const size_t conn_at = at;
-    const uint64_t conn = field[3], prop = field[4];
-    for (int k = 0; k < 3; ++k) b[conn_at + rng() % conn] = static_cast<uint8_t>(rng());
-    // Re-sign the chunk (CRC-32C, bitwise).
-    auto crc32c = [](const uint8_t* p, size_t n) {
-      uint32_t c = 0xffffffffu;
-      for (size_t i = 0; i < n; ++i) {
-        c ^= p[i];
-        for (int k = 0; k < 8; ++k) c = (c >> 1) ^ (0x82f63b78u & (0u - (c & 1u)));
-      }
-      return ~c;
-    };
-    size_t end = conn_at + conn + prop;
-    uint32_t c = crc32c(b.data() + chunk, end - chunk);
-    for (int k = 0; k < 4; ++k) b[end + k] = static_cast<uint8_t>(c >> (8 * k));
+    test::garble_first_chunk_records(&b, rng(), 3);
     Status s = decode_all(b);
     if (!s.ok()) ++failures;  // garbage is rejected, or (rarely) decodes to another valid prefix
   }

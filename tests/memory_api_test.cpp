@@ -287,6 +287,31 @@ TEST_P(MemoryApiProfiles, FlippedBitsAgreeWithTheEvents) {
   }
 }
 
+// Garbled records in a re-signed chunk (a crafted file; flipped bits alone
+// stop at the chunk checksum): decode_mesh's own loop and the events path
+// must fail with the same error at the same place, or decode the same mesh.
+TEST_P(MemoryApiProfiles, CraftedRecordsFailAsTheEventsDo) {
+  EncodeOptions o = options();
+  const std::vector<uint8_t> good = encode_arrays(nonmanifold_grid(16), o);
+  std::mt19937 rng(11);
+  int failures = 0;
+  for (int trial = 0; trial < 300; ++trial) {
+    std::vector<uint8_t> bytes = good;
+    test::garble_first_chunk_records(&bytes, rng(), 1 + trial % 3);
+    MeshBuffers direct, events;
+    const Status sd = decode_mesh(bytes.data(), bytes.size(), &direct);
+    const Status se = arrays_from_events(bytes, &events);
+    ASSERT_EQ(sd.to_string(), se.to_string()) << "trial " << trial;
+    if (sd.ok()) {
+      EXPECT_EQ(direct.positions, events.positions) << "trial " << trial;
+      EXPECT_EQ(direct.indices, events.indices) << "trial " << trial;
+    } else {
+      ++failures;
+    }
+  }
+  EXPECT_GT(failures, 250);
+}
+
 INSTANTIATE_TEST_SUITE_P(Profiles, MemoryApiProfiles, ::testing::Values(false, true),
                          [](const ::testing::TestParamInfo<bool>& p) { return p.param ? "Fast" : "Compact"; });
 

@@ -1,5 +1,7 @@
 #include "test_util.h"
 
+#include <random>
+
 #include <dirent.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
@@ -124,6 +126,40 @@ Mesh make_grid(int n) {
   m.schema.vertex_count = static_cast<int64_t>(m.positions.size());
   m.schema.triangle_count = static_cast<int64_t>(m.triangles.size());
   return m;
+}
+
+void garble_first_chunk_records(std::vector<uint8_t>* bytes, uint32_t seed, int count) {
+  std::vector<uint8_t>& b = *bytes;
+  std::mt19937 rng(seed);
+  // Spec 3.1: a varint at `at`, which moves past it.
+  auto varint = [&](size_t& at) {
+    uint64_t v = 0;
+    for (int shift = 0;; shift += 7) {
+      v |= static_cast<uint64_t>(b[at] & 0x7f) << shift;
+      if (!(b[at++] & 0x80)) return v;
+    }
+  };
+  // The first chunk starts after the header (spec 4.2, 4.3): tag, six
+  // counts, the records, the properties, the checksum.
+  size_t at = 12;
+  const uint64_t payload = varint(at);
+  const size_t chunk = at + payload + 4;
+  ASSERT_EQ(b[chunk], 0x43);
+  at = chunk + 1;
+  uint64_t field[6];
+  for (uint64_t& f : field) f = varint(at);
+  const size_t conn_at = at;
+  const uint64_t conn = field[3], prop = field[4];
+  for (int k = 0; k < count; ++k) b[conn_at + rng() % conn] = static_cast<uint8_t>(rng());
+  // CRC-32C, bitwise.
+  uint32_t c = 0xffffffffu;
+  const size_t end = conn_at + conn + prop;
+  for (size_t i = chunk; i < end; ++i) {
+    c ^= b[i];
+    for (int k = 0; k < 8; ++k) c = (c >> 1) ^ (0x82f63b78u & (0u - (c & 1u)));
+  }
+  c = ~c;
+  for (int k = 0; k < 4; ++k) b[end + k] = static_cast<uint8_t>(c >> (8 * k));
 }
 
 std::string read_file(const std::string& path) {

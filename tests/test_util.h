@@ -57,6 +57,13 @@ Mesh make_mesh(std::vector<std::array<double, 3>> positions, std::vector<std::ar
 // Sets empty property values for every vertex and triangle and the counts.
 void reset_values(Mesh* mesh);
 
+// Overwrites `count` random bytes of the coded records of a .psq stream's
+// first chunk with random values and re-signs the chunk (its CRC-32C, spec
+// 4.3), as a crafted file would: the decoder's record checks, not the
+// checksum, must catch it. `seed` picks the bytes. The stream checksum of
+// the end record (4.5) is left as it was.
+void garble_first_chunk_records(std::vector<uint8_t>* bytes, uint32_t seed, int count);
+
 // Reads the whole file; fails the test when it cannot.
 std::string read_file(const std::string& path);
 void write_file(const std::string& path, const std::string& contents);

@@ -151,8 +151,6 @@ struct PsqDecoder::Impl {
   const char* position_of(const int64_t pos[3], double x[3]) const;
   template <class B>
   void emit_triangle(B& b, const BTriangle& bt, Op op, uint32_t r, uint8_t cut);
-  // emit_triangle() for a triangle of the fast profile's common path: no
-  // rotation, no border, the masks known from its kind.
   // The triangle event of a common record (fast_common), and the
   // finalizations of the corners in final_mask, whose slots it frees.
   void push_triangle(Op op, const uint32_t corner[3], const uint32_t eslot[3], uint8_t new_mask, uint8_t final_mask,
@@ -208,7 +206,7 @@ struct PsqDecoder::Impl {
   int fast_choice = 0;
   // Reads the record section `conn` of a fast chunk (spec 13.2).
   Status fast_open_chunk();
-  // At the chunk's end: every byte used, the rANS state back at its start.
+  // At the chunk's end: every byte used, both rANS states back at 2^16.
   Status fast_close_chunk();
   // The next record; with `cls` >= 0 its class is decoded already, and
   // with `bsym` >= 0 also its gate and B symbol (a gate record).
@@ -233,6 +231,14 @@ struct PsqDecoder::Impl {
   double fraw_geometry_bits = 0;  // raw bits of position residuals in the chunk, when measuring
   uint64_t fraw_total_bits = 0;   // the chunk's raw block
   // A new vertex's event: its index and, when it re-appears, the distance.
+  // A new vertex fits the chunk's count and the 2^32 - 1 vertices (spec 13.10).
+  Status fast_vertex_room();
+  // "Coded data ends early" for the current record (truncated).
+  Status fast_early_end() const;
+  // The three residuals of a new vertex predicted at `pred` (spec 13.8.1):
+  // its coded position in `pos`.
+  Status fast_position(RansDecoder& d, RawReader& bits, const int64_t pred[3], int kind, const int extent[3],
+                       int64_t pos[3], bool measure_it);
   Status fast_vertex_begin(bool reappears, SequenceEvent* ev);
   // Then its residuals against `pred`, and its position.
   Status fast_vertex_position(const int64_t pred[3], int kind, const int extent[3], int64_t pos[3],

@@ -553,9 +553,10 @@ Status PsqEncoder::Impl::after_record() {
   stats.max_open_edges = std::max(stats.max_open_edges, boundary.open_edges());
   // The fast profile codes a chunk at its end: estimate 4 bits a symbol
   // for the target size. The limit of a chunk's coded records (spec 10)
-  // must hold whatever the symbols cost: no symbol costs more than
-  // kRansScaleBits bits (its frequency is at least 1), and the tables at
-  // most a presence bit and a gamma code per symbol.
+  // must hold whatever the symbols cost: a symbol costs at most about
+  // kRansScaleBits bits (its frequency is at least 1; the states' rounding
+  // adds a fraction of a bit over a chunk), and the tables at most a
+  // presence bit and a gamma code per symbol.
   const size_t coded = fast ? fast_raw.bits() / 8 + fast_symbols.size() / 2 : records.size();
   bool full = false;
   if (fast) {

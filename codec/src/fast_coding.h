@@ -141,14 +141,14 @@ inline int fast_table_cost(int table) {
 // The context of a residual length in the fast profile: the extent along the
 // axis, clamped, for every axis of a predicted vertex, so that the three
 // lengths decode independently; a start's or an isolated vertex's: the
-// largest earlier length (spec 7.4).
+// largest earlier length (spec 13.8.1).
 inline int fast_length_context(int kind, int axis, int extent, int longest_so_far) {
   (void)axis;
   return std::min(kind != kPredOther ? extent : longest_so_far, kLengthContexts - 1);
 }
 inline int fast_length_table(int kind, int axis, int context) {
-  // Axes 1 and 2 share their tables: their contexts mean the same (spec 7.4),
-  // and half as many tables take less of the cache and fewer bytes.
+  // Axes 1 and 2 share their tables (spec 13.5.3): half as many tables take
+  // less of the cache and fewer bytes.
   return kFastTableLength + (kind * 2 + (axis == 0 ? 0 : 1)) * kLengthContexts + context;
 }
 inline int fast_choice_table(uint32_t mask, int previous) {

@@ -146,9 +146,31 @@ PSQ_INLINE bool PsqDecoder::Impl::fast_residual(RansDecoder& d, RawReader& rawbi
   return true;
 }
 
-Status PsqDecoder::Impl::fast_vertex_begin(bool reappears, SequenceEvent* ev) {
+PSQ_INLINE Status PsqDecoder::Impl::fast_vertex_room() {
   if (seen_vertices >= chunk_vertices) return corrupt("more vertices than the chunk declares");
   if (next_out >= 0xffffffffull) return Status(ErrorCode::kLimit, "more than 4294967295 vertices", conn_offset);
+  return Status();
+}
+
+Status PsqDecoder::Impl::fast_early_end() const {
+  return Status(ErrorCode::kTruncated, "record " + std::to_string(record_no) + ": coded data ends early",
+                conn_offset + conn.size());
+}
+
+PSQ_INLINE Status PsqDecoder::Impl::fast_position(RansDecoder& d, RawReader& bits, const int64_t pred[3], int kind,
+                                                  const int extent[3], int64_t pos[3], bool measure_it) {
+  int lengths[3] = {0, 0, 0};
+  for (int i = 0; i < 3; ++i) {
+    int64_t r;
+    const int c = fast_length_context(kind, i, extent[i], std::max(lengths[0], lengths[1]));
+    if (!fast_residual(d, bits, fast_length_table(kind, i, c), &r, &lengths[i], measure_it)) return corrupt("bad residual");
+    pos[i] = wrap_add(pred[i], r);
+  }
+  return Status();
+}
+
+Status PsqDecoder::Impl::fast_vertex_begin(bool reappears, SequenceEvent* ev) {
+  PSQ_RETURN_IF_ERROR(fast_vertex_room());
   SequenceVertex& v = ev->vertex;
   ev->kind = SequenceEvent::Kind::kVertex;
   v.index = static_cast<uint32_t>(next_out);
@@ -166,13 +188,7 @@ Status PsqDecoder::Impl::fast_vertex_begin(bool reappears, SequenceEvent* ev) {
 
 PSQ_INLINE Status PsqDecoder::Impl::fast_vertex_position(const int64_t pred[3], int kind, const int extent[3], int64_t pos[3],
                                               SequenceEvent* ev) {
-  int lengths[3] = {0, 0, 0};
-  for (int i = 0; i < 3; ++i) {
-    int64_t r;
-    const int c = fast_length_context(kind, i, extent[i], std::max(lengths[0], lengths[1]));
-    if (!fast_residual(*frans, *fraw, fast_length_table(kind, i, c), &r, &lengths[i], measure)) return corrupt("bad residual");
-    pos[i] = wrap_add(pred[i], r);
-  }
+  PSQ_RETURN_IF_ERROR(fast_position(*frans, *fraw, pred, kind, extent, pos, measure));
   return finish_vertex(pos, ev->vertex);
 }
 
@@ -190,8 +206,7 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_common(RansDecoder& d, RawReader& bits,
   if (bsym == 0) {
     // An add: the new vertex x, then the triangle (q, p, x).
     fast_context = fast_a_context_gate(cls, kFastNew);
-    if (seen_vertices >= chunk_vertices) return corrupt("more vertices than the chunk declares");
-    if (next_out >= 0xffffffffull) return Status(ErrorCode::kLimit, "more than 4294967295 vertices", conn_offset);
+    PSQ_RETURN_IF_ERROR(fast_vertex_room());
     const uint32_t mask = prediction_choices(b, gate);
     int choice = kChoiceGate;
     if (mask != 0) {
@@ -204,13 +219,7 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_common(RansDecoder& d, RawReader& bits,
     ++stats.predictions[choice];
     const Prediction pr = predict_new_vertex(b, gate, 0, last_pos, nullptr, nullptr, choice);
     int64_t pos[3];
-    int lengths[3] = {0, 0, 0};
-    for (int i = 0; i < 3; ++i) {
-      int64_t r;
-      const int c = fast_length_context(pr.kind, i, pr.extent[i], std::max(lengths[0], lengths[1]));
-      if (!fast_residual(d, bits, fast_length_table(pr.kind, i, c), &r, &lengths[i], !kDirect && measure)) return corrupt("bad residual");
-      pos[i] = wrap_add(pr.pos[i], r);
-    }
+    PSQ_RETURN_IF_ERROR(fast_position(d, bits, pr.pos, pr.kind, pr.extent, pos, !kDirect && measure));
     double xyz[3];
     if (const char* why = position_of(pos, xyz)) return corrupt(why);
     const uint32_t index = static_cast<uint32_t>(next_out);
@@ -221,9 +230,7 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_common(RansDecoder& d, RawReader& bits,
     const uint32_t s = b.new_vertex(index, 0, pos);
     if (s == kNone) return Status(ErrorCode::kLimit, "more active vertices than the header's boundary limit", conn_offset);
     fneighbors.vertex_begins(s);
-    if (d.overran() || bits.overran())
-      return Status(ErrorCode::kTruncated, "record " + std::to_string(record_no) + ": coded data ends early",
-                    conn_offset + conn.size());
+    if (d.overran() || bits.overran()) return fast_early_end();
     const uint32_t f1 = b.lean_add(gate, s);
     if (f1 == kNone) return Status(ErrorCode::kLimit, "more open edges than the header's boundary limit", conn_offset);
     const uint32_t f2 = b.edge(f1).next;
@@ -270,9 +277,7 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_common(RansDecoder& d, RawReader& bits,
   const uint32_t from = left ? x : p, to = left ? q : x;  // the entering edge
   if (fneighbors.contains(from, to))
     return corrupt("an entering edge is open already, completes an edge the record does not name, or is dead");
-  if (d.overran() || bits.overran())
-    return Status(ErrorCode::kTruncated, "record " + std::to_string(record_no) + ": coded data ends early",
-                  conn_offset + conn.size());
+  if (d.overran() || bits.overran()) return fast_early_end();
   uint32_t final;
   const uint32_t f = b.lean_fill(gate, left, &final);
   if (f == kNone) return Status(ErrorCode::kLimit, "more open edges than the header's boundary limit", conn_offset);
@@ -556,9 +561,7 @@ Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
                 : completed == 1 ? (nnew == 1 ? Op::kAdd : Op::kJoin)
                 : completed == 2 ? Op::kFill
                                  : Op::kEnd;
-  if (d.overran() || bits.overran())
-    return Status(ErrorCode::kTruncated, "record " + std::to_string(record_no) + ": coded data ends early",
-                  conn_offset + conn.size());
+  if (d.overran() || bits.overran()) return fast_early_end();
   if (!b.apply(bt)) return Status(ErrorCode::kLimit, "more open edges than the header's boundary limit", conn_offset);
   for (int k = 0; k < 3; ++k) {
     if (bt.state[k] == EdgeState::kEnters) ring.push(b, bt.eslot[k]);
@@ -582,10 +585,11 @@ Status PsqDecoder::Impl::fast_direct_records() {
   RansDecoder d = *frans;
   RawReader bits = *fraw;
   MeshBuffers& mesh = *direct;
-  // Room for the chunk's declared counts, but at most what its coded bytes
-  // could hold at four bits per element, so that a hostile count allocates
-  // nothing on its own.
-  const uint64_t cap = uint64_t{2} * conn.size() + 64;
+  // Room for the chunk's declared counts, but for no more elements than
+  // half its coded bytes, so that a hostile count allocates nothing on its
+  // own (a symbol can cost far less than a bit): a chunk that holds more
+  // grows the arrays geometrically (direct_room).
+  const uint64_t cap = conn.size() / 2 + 64;
   direct_room(mesh.indices, direct_ni, 3 * static_cast<size_t>(std::min<uint64_t>(chunk_triangles, cap)));
   direct_room(mesh.positions, direct_np, 3 * static_cast<size_t>(std::min<uint64_t>(chunk_vertices, cap)));
   direct_room(direct_index, direct_nv, static_cast<size_t>(std::min<uint64_t>(chunk_vertices, cap)));

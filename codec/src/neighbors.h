@@ -81,12 +81,14 @@ class Neighbors {
     std::vector<uint64_t>& v = spill_[s];
     if (v.size() == v.capacity() && v.size() >= 16) {
       // Before the list grows, drop the neighbours finalized since they
-      // were listed: growth is then geometric in the active neighbours,
-      // and the scan amortized over the entries that made the list full.
+      // were listed. When that frees less than half, the capacity doubles
+      // as well, so that the next scan waits for as many new entries as
+      // this one read: every scan is paid for by the pushes before it.
       const Slot* slots = slots_.data();
       v.erase(std::remove_if(v.begin(), v.end(),
                              [slots](uint64_t x) { return slots[x >> 32].gen != static_cast<uint32_t>(x); }),
               v.end());
+      if (v.size() > v.capacity() / 2) v.reserve(2 * v.capacity());
     }
     v.push_back(entry);
     slots_[s].count = kInline + static_cast<uint32_t>(v.size());

@@ -4,27 +4,31 @@
 // FOR_PRODUCTION, see codec/src/decoder.cpp), so mutated records reach the
 // connectivity, geometry and property decoders. The decoder must return an
 // error or a sequence; a sequence it yields must be valid (SequenceChecker)
-// and must not end without its end record having been checked. A crash,
-// hang, sanitizer report, or an invalid sequence traps.
+// and must not end without its end record having been checked, and
+// decode_mesh() must agree with it. A crash, hang, sanitizer report, an
+// invalid sequence or a disagreement traps.
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 
 #include "psq/psq_codec.h"
+#include "psq/psq_memory.h"
 #include "psq/sequence_check.h"
 
-extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+namespace {
+
+// The events path (PsqDecoder::next), every event checked.
+psq::Status decode_events(const uint8_t* data, size_t size) {
   psq::InputStream in;
-  in.open_memory(data, size, "fuzz.psq");
+  in.open_memory(data, size, "<memory>");
   psq::PsqDecoder decoder;
-  if (!decoder.open(&in).ok()) return 0;
+  PSQ_RETURN_IF_ERROR(decoder.open(&in));
   psq::SequenceChecker checker;
   if (!checker.begin(decoder.schema()).ok()) std::abort();
   psq::SequenceEvent e;
   for (;;) {
-    psq::Status s = decoder.next(&e);
-    if (!s.ok()) return 0;  // rejected: fine, as long as it did not crash
+    PSQ_RETURN_IF_ERROR(decoder.next(&e));  // rejected: fine, as long as it did not crash
     psq::Status c;
     switch (e.kind) {
       case psq::SequenceEvent::Kind::kVertex: c = checker.vertex(e.vertex); break;
@@ -37,6 +41,23 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       std::fprintf(stderr, "decoded sequence is invalid: %s\n", c.to_string().c_str());
       std::abort();
     }
-    if (e.kind == psq::SequenceEvent::Kind::kEnd) return 0;
+    if (e.kind == psq::SequenceEvent::Kind::kEnd) return psq::Status();
   }
+}
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  const psq::Status events = decode_events(data, size);
+  // decode_mesh() decodes the common records of a fast stream in a loop of
+  // its own (codec/src/fast_decoder.cpp): it must fail exactly as the
+  // events path does, and leave no mesh behind.
+  psq::MeshBuffers mesh;
+  const psq::Status direct = psq::decode_mesh(data, size, &mesh);
+  if (direct.to_string() != events.to_string()) {
+    std::fprintf(stderr, "decode_mesh: %s\nevents: %s\n", direct.to_string().c_str(), events.to_string().c_str());
+    std::abort();
+  }
+  if (!direct.ok() && (!mesh.positions.empty() || !mesh.indices.empty())) std::abort();
+  return 0;
 }

@@ -208,7 +208,11 @@ int cmd_convert(int argc, char** argv) {
   s = output.open(out, force);
   if (!s.ok()) return report_error(out, s);
   if (profile == "fast") encode_options.fast = true;
-  if (profile == "auto") encode_options.fast = auto_fast(mesh.source->schema());
+  // A .psq input's mesh source declares no counts: its header tells the
+  // profile it was written in, and the decoder's schema the counts it knows.
+  if (profile == "auto")
+    encode_options.fast = mesh.decoder ? mesh.decoder->header().fast || auto_fast(mesh.decoder->schema())
+                                       : auto_fast(mesh.source->schema());
   if (out_format == MeshFormat::kPsq) return to_psq(in, out, mesh, output, encode_options, build_options, threads, quiet, json);
   WriteOptions write_options;
   write_options.ascii = ascii;
