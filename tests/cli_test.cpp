@@ -187,6 +187,9 @@ TEST(Cli, ConvertPicksTheFastProfileForLargeInputs) {
   EXPECT_TRUE(fast_flag(dir.file("large.psq")));
   ASSERT_EQ(run_psq("convert --profile compact " + large + " " + dir.file("c.psq"), &out, &err), 0) << err;
   EXPECT_FALSE(fast_flag(dir.file("c.psq")));
+  // A .psq input keeps its profile under auto.
+  ASSERT_EQ(run_psq("convert --bits 12 " + dir.file("large.psq") + " " + dir.file("r.psq"), &out, &err), 0) << err;
+  EXPECT_TRUE(fast_flag(dir.file("r.psq")));
   ASSERT_EQ(run_psq("convert --profile fast " + small + " " + dir.file("f.psq"), &out, &err), 0) << err;
   EXPECT_TRUE(fast_flag(dir.file("f.psq")));
   ASSERT_EQ(run_psq("info " + dir.file("f.psq"), &out, &err), 0) << err;
