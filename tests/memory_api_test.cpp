@@ -95,16 +95,22 @@ TEST(MemoryApi, QuantizedPositionsAreWithinHalfAStep) {
   }
 }
 
-// A fin (three triangles on one edge) and a bowtie make the converter cut
-// vertices, which re-appear in the stream; decode_mesh merges them back.
-TEST(MemoryApi, NonManifoldVerticesAreMergedBack) {
-  test::Mesh m = test::make_grid(4);
+// A fin (three triangles on one edge) and a bowtie on a grid: borders, and
+// vertices the converter cuts, which re-appear in the stream.
+test::Mesh nonmanifold_grid(int n) {
+  test::Mesh m = test::make_grid(n);
   const uint32_t a = static_cast<uint32_t>(m.positions.size());
   m.positions.push_back({0.5, -0.5, 0.7});
   m.positions.push_back({2.5, 2.5, 1.0});
   m.positions.push_back({2.5, 1.5, 1.0});
   m.triangles.push_back({0, 1, a});
   m.triangles.push_back({6, a + 1, a + 2});
+  return m;
+}
+
+// decode_mesh merges the re-appearing vertices back.
+TEST(MemoryApi, NonManifoldVerticesAreMergedBack) {
+  const test::Mesh m = nonmanifold_grid(4);
   const Arrays in = arrays_of(m);
   EncodeOptions o;
   o.lossless = true;
@@ -210,18 +216,6 @@ std::vector<uint8_t> encode_arrays(const test::Mesh& m, const EncodeOptions& o) 
                                o, &bytes);
   EXPECT_TRUE(s.ok()) << s.to_string();
   return bytes;
-}
-
-// A fin and a bowtie on a grid: borders, cuts and re-appearing vertices.
-test::Mesh nonmanifold_grid(int n) {
-  test::Mesh m = test::make_grid(n);
-  const uint32_t a = static_cast<uint32_t>(m.positions.size());
-  m.positions.push_back({0.5, -0.5, 0.7});
-  m.positions.push_back({2.5, 2.5, 1.0});
-  m.positions.push_back({2.5, 1.5, 1.0});
-  m.triangles.push_back({0, 1, a});
-  m.triangles.push_back({6, a + 1, a + 2});
-  return m;
 }
 
 class MemoryApiProfiles : public ::testing::TestWithParam<bool> {

@@ -414,6 +414,33 @@ bool BasicBoundary<L>::apply_on_gate(BTriangle& t) {
   return true;
 }
 
+// The loop links of an add (fresh f1 then f2 between the gate's old
+// neighbours) and of a fill (fresh f between `before` and `after`), shared
+// by apply_add()/apply_fill() and lean_add()/lean_fill(); the fresh edge
+// that comes first becomes the reference (spec 6.2.1).
+template <bool L>
+PSQ_INLINE void BasicBoundary<L>::splice_add(uint32_t f1, uint32_t f2, uint32_t gate_prev, uint32_t gate_next) {
+  BEdge& e1 = edges_[f1];
+  BEdge& e2 = edges_[f2];
+  e1.prev = gate_prev;
+  e1.next = f2;
+  e2.prev = f1;
+  e2.next = gate_next;
+  if (gate_prev != kNone) edges_[gate_prev].next = f1;
+  if (gate_next != kNone) edges_[gate_next].prev = f2;
+  reference_ = f1;
+}
+
+template <bool L>
+PSQ_INLINE void BasicBoundary<L>::splice_fill(uint32_t f, uint32_t before, uint32_t after) {
+  BEdge& e = edges_[f];
+  e.prev = before;
+  e.next = after;
+  if (before != kNone) edges_[before].next = f;
+  if (after != kNone) edges_[after].prev = f;
+  reference_ = f;
+}
+
 // apply_on_gate() for an add: p->x and x->q enter, the gate closes. The
 // same steps again, with what an add implies resolved: no old link names a
 // completed edge but the gate (the gate is neither its own neighbour nor
@@ -429,16 +456,7 @@ PSQ_INLINE bool BasicBoundary<L>::apply_add(BTriangle& t) {
   const uint32_t gate_prev = edges_[g].prev, gate_next = edges_[g].next;
   compact_recent();
   close_edge(t, 0);  // clears the neighbours' links to the gate
-  // link(f2, gate_next), link(gate_prev, f1) and link(f1, f2) on fresh edges.
-  BEdge& e1 = edges_[f1];
-  BEdge& e2 = edges_[f2];
-  e1.prev = gate_prev;
-  e1.next = f2;
-  e2.prev = f1;
-  e2.next = gate_next;
-  if (gate_prev != kNone) edges_[gate_prev].next = f1;
-  if (gate_next != kNone) edges_[gate_next].prev = f2;
-  reference_ = f1;
+  splice_add(f1, f2, gate_prev, gate_next);
   for (int k = 0; k < 3; ++k) {
     ++vertices_[t.c[k]].degree;
     t.final[k] = false;
@@ -466,12 +484,7 @@ PSQ_INLINE bool BasicBoundary<L>::apply_fill(BTriangle& t, int k) {
   compact_recent();
   close_edge(t, 0);
   close_edge(t, 3 - k);
-  BEdge& e = edges_[f];
-  e.prev = before;
-  e.next = after;
-  if (before != kNone) edges_[before].next = f;
-  if (after != kNone) edges_[after].prev = f;
-  reference_ = f;
+  splice_fill(f, before, after);
   finish_triangle(t);
   return true;
 }
@@ -513,13 +526,7 @@ uint32_t BasicBoundary<L>::lean_add(uint32_t gate, uint32_t x) {
   g.live = false;
   --open_edges_;
   free_edges_.push_back(gate);
-  e1.prev = gate_prev;
-  e1.next = f2;
-  e2.prev = f1;
-  e2.next = gate_next;
-  if (gate_prev != kNone) edges_[gate_prev].next = f1;
-  if (gate_next != kNone) edges_[gate_next].prev = f2;
-  reference_ = f1;
+  splice_add(f1, f2, gate_prev, gate_next);
   return f1;
 }
 
@@ -544,11 +551,7 @@ uint32_t BasicBoundary<L>::lean_fill(uint32_t gate, bool left, uint32_t* final) 
   const uint32_t after = left ? edges_[gate].next : edges_[c].next;
   free_edge(gate);
   free_edge(c);
-  e.prev = before;
-  e.next = after;
-  if (before != kNone) edges_[before].next = f;
-  if (after != kNone) edges_[after].prev = f;
-  reference_ = f;
+  splice_fill(f, before, after);
   const uint32_t corner[3] = {q, p, x};
   uint32_t m = 0;
   for (int k = 0; k < 3; ++k) {

@@ -197,6 +197,8 @@ class BasicBoundary {
   void finish_triangle(BTriangle& t);
   bool apply_on_gate(BTriangle& t);
   bool apply_add(BTriangle& t);
+  void splice_add(uint32_t f1, uint32_t f2, uint32_t gate_prev, uint32_t gate_next);
+  void splice_fill(uint32_t f, uint32_t before, uint32_t after);
   bool apply_fill(BTriangle& t, int k);
   bool is_border(uint32_t a, uint32_t b) const;
   bool classify_old_edge(BTriangle& t, int k) const;

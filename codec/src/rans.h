@@ -80,16 +80,9 @@ class RansTable {
   // absent table's symbol kRansAbsent has frequency kRansScale at 0.
   uint32_t symbol_at(uint32_t slot) const { return sym_[slot]; }
   uint32_t freq_cum(uint32_t s) const { return fc_[s]; }
-  // The decoding entry of slot `slot`, as one number: the symbol (bits
-  // 0..6), its frequency (bits 7..18) and the slot's offset within the
-  // symbol's range (bits 19..29).
-  uint32_t entry(uint32_t slot) const {
-    const uint32_t s = sym_[slot], fc = fc_[s];
-    return s | (fc & 0xffffu) << 7 | (slot - (fc >> 16)) << 19;
-  }
 
  private:
-  void finish();  // cumulative frequencies and decoding entries from freq_
+  void finish();  // cumulative frequencies and the decoding arrays from freq_
 
   int size_ = 0;
   uint32_t freq_[kRansMaxSymbols] = {};
