@@ -75,7 +75,8 @@ Status PsqEncoder::Impl::begin(const MeshSchema& schema) {
   if (!hs.ok()) return Status(hs.code() == ErrorCode::kLimit ? ErrorCode::kLimit : ErrorCode::kBadValue,
                               "cannot encode this mesh: " + hs.message());
   stats.header_bytes = h.size();
-  if (!fast) rc = std::make_unique<RangeEncoder>(&records);
+  if (fast) fast_begin();
+  else rc = std::make_unique<RangeEncoder>(&records);
   chain_crc = crc32c_update(chain_crc, h.data() + h.size() - 4, 4);
   return emit(h);
 }
@@ -644,7 +645,8 @@ const Models& TrainingAccess::models(const PsqEncoder& e) { return e.impl_->mode
 Status PsqEncoder::begin(const MeshSchema& schema) {
   if (!impl_->error.ok()) return impl_->error;
   Status s = impl_->begin(schema);
-  return s.ok() ? s : impl_->fail(s);
+  if (!s.ok()) return impl_->fail(s);
+  return s;
 }
 
 Status PsqEncoder::vertex(const SequenceVertex& v) {
@@ -682,7 +684,8 @@ Status PsqEncoder::triangle(const SequenceTriangle& t) {
   if (!m.error.ok()) return m.error;
   if (!m.begun || m.finished) return m.fail(bad_sequence("triangle event outside begin()..finish()"));
   Status s = m.triangle(t);
-  return s.ok() ? s : m.fail(s);
+  if (!s.ok()) return m.fail(s);
+  return s;
 }
 
 Status PsqEncoder::finalize(uint32_t index) {
@@ -700,7 +703,8 @@ Status PsqEncoder::finalize(uint32_t index) {
   for (size_t i = 0; i < m.pending.size(); ++i)
     if (m.pending[i].in_index == index) {
       Status s = m.isolated(i);
-      return s.ok() ? s : m.fail(s);
+      if (!s.ok()) return m.fail(s);
+      return s;
     }
   return m.fail(bad_sequence("vertex " + std::to_string(index) +
                              " is finalized while boundary edges touch it, or is not active"));
@@ -712,7 +716,8 @@ Status PsqEncoder::finish() {
   if (!m.begun || m.finished) return m.fail(bad_sequence("finish() without begin() or twice"));
   Status s = m.finish();
   m.finished = true;
-  return s.ok() ? s : m.fail(s);
+  if (!s.ok()) return m.fail(s);
+  return s;
 }
 
 const PsqStats& PsqEncoder::stats() const { return impl_->stats; }

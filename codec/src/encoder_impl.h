@@ -131,16 +131,17 @@ struct PsqEncoder::Impl {
   FastRing ring;
   int fast_context = kFastAStartContext;  // the previous record's class (table A)
   int fast_choice = 0;                    // the previous prediction choice
-  // Running symbol counts per table, for pricing the prediction choice.
+  // Running symbol counts, for pricing the prediction choice
+  // (fast_cost()): per table and symbol, its count; per table, twice its
+  // total plus its alphabet size (counts doubled, half a count for every
+  // symbol) and that number's log2 in 1/65536 bits, set up by fast_begin().
   std::vector<uint32_t> fast_count = std::vector<uint32_t>(size_t{kFastTables} * 128, 0);
-  std::vector<uint32_t> fast_total = std::vector<uint32_t>(kFastTables, 0);
+  std::vector<uint64_t> fast_denominator;
+  std::vector<int64_t> fast_log_denominator;
+  void fast_begin();
   Status triangle_fast(const SequenceTriangle& t, const int pend[3], const uint32_t slots[3], int nnew);
   Status isolated_fast(PendingVertex& v);
-  void fast_put(int table, int symbol) {
-    fast_symbols.push_back(RansSymbol{static_cast<uint16_t>(table), static_cast<uint8_t>(symbol)});
-    ++fast_count[static_cast<size_t>(table) * 128 + static_cast<size_t>(symbol)];
-    ++fast_total[table];
-  }
+  void fast_put(int table, int symbol);
   // Codes residual r with length table `table`; returns its bit length.
   int fast_residual(int table, int64_t r);
   void fast_vertex(const PendingVertex& v, const int64_t pred[3], int kind, const int extent[3]);

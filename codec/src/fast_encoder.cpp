@@ -97,13 +97,32 @@ int64_t fixed_log2(uint64_t x) {  // x >= 1
 
 }  // namespace
 
+void PsqEncoder::Impl::fast_begin() {
+  fast_denominator.resize(kFastTables);
+  fast_log_denominator.resize(kFastTables);
+  for (int i = 0; i < kFastTables; ++i) {
+    fast_denominator[i] = static_cast<uint64_t>(fast_table_size(i));
+    fast_log_denominator[i] = fixed_log2(fast_denominator[i]);
+  }
+}
+
+void PsqEncoder::Impl::fast_put(int table, int symbol) {
+  fast_symbols.push_back(RansSymbol{static_cast<uint16_t>(table), static_cast<uint8_t>(symbol)});
+  ++fast_count[static_cast<size_t>(table) * 128 + static_cast<size_t>(symbol)];
+  // fast_cost()'s denominator is kept up to date here, not computed per
+  // price (choosing a prediction prices up to five candidates), for the
+  // tables that it prices: the choices and the residual lengths.
+  fast_denominator[table] += 2;
+  if (table >= kFastTableChoice && table < kFastTableDistance)
+    fast_log_denominator[table] = fixed_log2(fast_denominator[table]);
+}
+
 int64_t PsqEncoder::Impl::fast_cost(int table, int symbol) const {
   // The symbol's cost under the running counts, with half a count for
   // every symbol of the alphabet so that unseen symbols cost finitely
   // (counts doubled to stay integers), in 1/65536 bits.
   const uint64_t n = 2 * uint64_t{fast_count[static_cast<size_t>(table) * 128 + static_cast<size_t>(symbol)]} + 1;
-  const uint64_t total = 2 * uint64_t{fast_total[table]} + static_cast<uint64_t>(fast_table_size(table));
-  return fixed_log2(total) - fixed_log2(n);
+  return fast_log_denominator[table] - fixed_log2(n);
 }
 
 // Spec 7.3 leaves the choice to the encoder; this one takes the cheapest
@@ -112,17 +131,35 @@ int64_t PsqEncoder::Impl::fast_cost(int table, int symbol) const {
 // have no more bits than the gate's (as choose_prediction() does for
 // format 7). Ties go to the lower choice.
 int PsqEncoder::Impl::fast_choose_prediction(uint32_t gate, uint32_t mask, const int64_t pos[3], Prediction* pred) {
+  // The five choices combine three parallelograms and the extents of
+  // three triangles (predict_new_vertex()): each is computed once here.
+  const BEdge& g = boundary.edge(gate);
+  const uint32_t edge[3] = {gate, g.prev, g.next};  // by side
+  int64_t para[3][3];
+  int extent[3][3];
+  for (int side = 0; side < 3; ++side) {
+    if (side != 0 && !(mask & (1u << (side - 1)))) continue;
+    parallelogram(boundary, edge[side], para[side]);
+    triangle_extents(boundary, edge[side], extent[side]);
+  }
+  const int choice_table = fast_choice_table(mask, fast_choice);
   int best = kChoiceGate;
   int64_t best_cost = 0;
   int rough_gate = 0;
   for (int ch = kChoiceGate; ch < kChoices; ++ch) {
-    if (ch != kChoiceGate && !(mask & (1u << (choice_side(ch) - 1)))) continue;
-    const Prediction pr = predict_new_vertex(boundary, gate, 0, last_pos, nullptr, nullptr, ch);
+    const int side = choice_side(ch);
+    if (ch != kChoiceGate && !(mask & (1u << (side - 1)))) continue;
+    Prediction pr;
+    for (int a = 0; a < 3; ++a) {
+      pr.pos[a] = ch >= kChoiceMeanBefore ? midpoint(para[kChoiceGate][a], para[side][a]) : para[side][a];
+      pr.extent[a] = extent[predicting_side(ch)][a];
+    }
+    pr.kind = prediction_kind(ch);
     int rough = 0;
     for (int a = 0; a < 3; ++a) rough += bit_length64(coord_distance(pos[a], pr.pos[a]));
     if (ch == kChoiceGate) rough_gate = rough;
     else if (rough > rough_gate) continue;
-    int64_t c = fast_cost(fast_choice_table(mask, fast_choice), ch);
+    int64_t c = fast_cost(choice_table, ch);
     int lengths[3] = {0, 0, 0};
     for (int a = 0; a < 3; ++a) {
       const int lc = fast_length_context(pr.kind, a, pr.extent[a], std::max(lengths[0], lengths[1]));
