@@ -280,6 +280,19 @@ void PsqEncoder::Impl::code_new_vertex(Encoder& enc, const PendingVertex& v, con
 
 // Codes the input's finalize events that the boundary predicts and checks
 // that the input gives exactly those (spec 6.4).
+Status PsqEncoder::Impl::candidate_gates(const SequenceTriangle& t, const int pend[3], const uint32_t slots[3],
+                                         int nnew, uint32_t cand[3]) const {
+  for (int k = 0; k < 3; ++k) {
+    cand[k] = kNone;
+    if (pend[k] < 0 && pend[(k + 1) % 3] < 0) cand[k] = boundary.find_edge(slots[(k + 1) % 3], slots[k]);
+  }
+  if (cand[0] == kNone && cand[1] == kNone && cand[2] == kNone)
+    return bad_sequence("triangle " + std::to_string(t.v[0]) + " " + std::to_string(t.v[1]) + " " +
+                        std::to_string(t.v[2]) + " completes no boundary edge and introduces " +
+                        std::to_string(nnew) + " vertices");
+  return Status();
+}
+
 Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
   if (!expect_final.empty())
     return bad_sequence("vertex " + std::to_string(expect_final.front()) +
@@ -328,16 +341,8 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
     rot = pend[0] == 0 ? 0 : pend[1] == 0 ? 1 : 2;
     if (!far_reference_none) boundary.depart(boundary.reference());  // spec 6.2.1: a start leaves R
   } else {
-    // Candidate gates: the triangle's edges that complete an open edge.
     uint32_t cand[3];
-    for (int k = 0; k < 3; ++k) {
-      cand[k] = kNone;
-      if (pend[k] < 0 && pend[(k + 1) % 3] < 0) cand[k] = boundary.find_edge(slots[(k + 1) % 3], slots[k]);
-    }
-    if (cand[0] == kNone && cand[1] == kNone && cand[2] == kNone)
-      return bad_sequence("triangle " + std::to_string(t.v[0]) + " " + std::to_string(t.v[1]) + " " +
-                          std::to_string(t.v[2]) + " completes no boundary edge and introduces " +
-                          std::to_string(nnew) + " vertices");
+    PSQ_RETURN_IF_ERROR(candidate_gates(t, pend, slots, nnew, cand));
     // Spec 6.2.1: offsets from the reference edge in the order 0, +1, -1,
     // +2, -2, ...; the first that reaches a candidate is coded.
     gate_sym = kGateFar;

@@ -114,6 +114,12 @@ struct PsqEncoder::Impl {
   Status introduce(const PendingVertex& v);
   // Gives a coded new vertex its boundary slot.
   Status register_vertex(const PendingVertex& v, uint32_t* slot);
+  // The candidate gates of a triangle that introduces `nnew` (0 or 1)
+  // vertices (pend[k] >= 0: corner k is new): per corner k, the open edge
+  // that its edge k (corner k to k + 1) completes, else kNone. An error
+  // when there is none.
+  Status candidate_gates(const SequenceTriangle& t, const int pend[3], const uint32_t slots[3], int nnew,
+                         uint32_t cand[3]) const;
   Status triangle(const SequenceTriangle& t);
   // What triangle() does after the record is coded (both profiles): checks
   // the op, applies the triangle to the boundary, expects the finalized

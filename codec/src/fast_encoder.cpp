@@ -189,16 +189,9 @@ Status PsqEncoder::Impl::triangle_fast(const SequenceTriangle& t, const int pend
     rot = pend[0] == 0 ? 0 : pend[1] == 0 ? 1 : 2;  // spec 6.2.4
   } else {
     uint32_t cand[3];
-    for (int k = 0; k < 3; ++k) {
-      cand[k] = kNone;
-      if (pend[k] < 0 && pend[(k + 1) % 3] < 0) cand[k] = boundary.find_edge(slots[(k + 1) % 3], slots[k]);
-    }
-    if (cand[0] == kNone && cand[1] == kNone && cand[2] == kNone)
-      return bad_sequence("triangle " + std::to_string(t.v[0]) + " " + std::to_string(t.v[1]) + " " +
-                          std::to_string(t.v[2]) + " completes no boundary edge and introduces " +
-                          std::to_string(nnew) + " vertices");
-    // Draft section 5: R, R's next, R's prev, else a recency rank, else
-    // the escape with the first candidate.
+    PSQ_RETURN_IF_ERROR(candidate_gates(t, pend, slots, nnew, cand));
+    // Spec 13.7.1: R, R's next, R's prev, else a recency rank (13.7.4),
+    // else the escape (13.7.5) with the first candidate.
     cls = kFastEscape;
     const uint32_t R = boundary.reference();
     if (R != kNone) {
