@@ -132,7 +132,12 @@ int64_t PsqEncoder::Impl::fast_cost(int table, int symbol) const {
 // format 7). Ties go to the lower choice.
 int PsqEncoder::Impl::fast_choose_prediction(uint32_t gate, uint32_t mask, const int64_t pos[3], Prediction* pred) {
   // The five choices combine three parallelograms and the extents of
-  // three triangles (predict_new_vertex()): each is computed once here.
+  // three triangles as predict_new_vertex() does (spec 7.3): each is
+  // computed once here instead of once per choice. The rule is repeated,
+  // not shared: a helper that both call cost the decoder 1.3% and this
+  // loop 2.6% more instructions (callgrind, iso_ball_200k). A divergence
+  // would code residuals against another prediction than the decoder's,
+  // which every round-trip test would catch.
   const BEdge& g = boundary.edge(gate);
   const uint32_t edge[3] = {gate, g.prev, g.next};  // by side
   int64_t para[3][3];
