@@ -17,29 +17,6 @@ namespace codec {
 // instructions and encoding it 2.9% fewer (bench/instructions.sh); the
 // bytes are the same.
 
-template <bool L>
-uint32_t BasicBoundary<L>::new_vertex(uint32_t index, uint32_t key, const int64_t pos[3]) {
-  uint32_t slot;
-  if (!free_vertices_.empty()) {
-    slot = free_vertices_.back();
-    free_vertices_.pop_back();
-  } else {
-    if (vertices_.size() >= limit_) return kNone;
-    slot = static_cast<uint32_t>(vertices_.size());
-    vertices_.emplace_back();
-    vlive_.push_back(0);
-  }
-  BVertex& v = vertices_[slot];
-  // Every field but the unused inline dead entries.
-  v.index = index;
-  v.key = key;
-  v.first_out = v.first_in = v.first_border = kNone;
-  v.open = v.degree = v.borders = v.ndead = 0;
-  for (int i = 0; i < 3; ++i) v.pos[i] = pos[i];
-  vlive_[slot] = 1;
-  ++active_vertices_;
-  return slot;
-}
 
 template <bool L>
 PSQ_INLINE bool BasicBoundary<L>::is_border(uint32_t a, uint32_t b) const {
@@ -66,8 +43,7 @@ PSQ_INLINE void BasicBoundary<L>::add_border(uint32_t a, uint32_t b) {
   }
   uint32_t r;
   if (!free_borders_.empty()) {
-    r = free_borders_.back();
-    free_borders_.pop_back();
+    r = free_borders_.pop();
   } else {
     r = static_cast<uint32_t>(borders_.size());
     borders_.emplace_back();
@@ -81,62 +57,8 @@ PSQ_INLINE void BasicBoundary<L>::add_border(uint32_t a, uint32_t b) {
   vertices_[b].first_border = r;
 }
 
-template <bool L>
-void BasicBoundary<L>::free_vertex(uint32_t slot) {
-  if constexpr (L) forget_dead_edges(slot);
-  vlive_[slot] = 0;
-  --active_vertices_;
-  free_vertices_.push_back(slot);
-}
 
-template <bool L>
-PSQ_INLINE void BasicBoundary<L>::forget_dead_edges(uint32_t slot) {
-  // Forget its inline dead edges: remove it from each other endpoint's
-  // inline list (order within a list does not matter).
-  BVertex& v = vertices_[slot];
-  for (uint32_t i = 0; i < v.ndead; ++i) {
-    BVertex& o = vertices_[v.dead[i]];
-    uint32_t j = 0;
-    while (o.dead[j] != slot) ++j;
-    o.dead[j] = o.dead[--o.ndead];
-  }
-  v.ndead = 0;
-  // Forget its border edges: unlink each from the other endpoint's list.
-  for (uint32_t r = vertices_[slot].first_border; r != kNone;) {
-    BBorder& e = borders_[r];
-    const int side = e.v[0] == slot ? 0 : 1;
-    const uint32_t other = e.v[1 - side];
-    uint32_t* p = &vertices_[other].first_border;
-    while (*p != r) {
-      BBorder& q = borders_[*p];
-      p = &q.next[q.v[0] == other ? 0 : 1];
-    }
-    *p = e.next[1 - side];
-    const uint32_t next = e.next[side];
-    free_borders_.push_back(r);
-    r = next;
-  }
-  vertices_[slot].first_border = kNone;
-}
 
-template <bool L>
-PSQ_INLINE uint32_t BasicBoundary<L>::alloc_edge() {
-  uint32_t slot;
-  if (!free_edges_.empty()) {
-    slot = free_edges_.back();
-    free_edges_.pop_back();
-  } else {
-    if (edges_.size() >= limit_) return kNone;
-    slot = static_cast<uint32_t>(edges_.size());
-    edges_.emplace_back();
-  }
-  // apply() sets every other field.
-  BEdge& e = edges_[slot];
-  e.next = e.prev = kNone;
-  e.live = true;
-  ++open_edges_;
-  return slot;
-}
 
 template <bool L>
 uint32_t BasicBoundary<L>::find_edge(uint32_t a, uint32_t b) const {
@@ -221,26 +143,6 @@ PSQ_INLINE void BasicBoundary<L>::link(uint32_t p, uint32_t q) {
   }
 }
 
-template <bool L>
-PSQ_INLINE void BasicBoundary<L>::free_edge(uint32_t slot) {
-  BEdge& e = edges_[slot];
-  if (e.next != kNone && edges_[e.next].prev == slot) edges_[e.next].prev = kNone;
-  if (e.prev != kNone && edges_[e.prev].next == slot) edges_[e.prev].next = kNone;
-  if constexpr (L) {
-    // Unlink from the out-list of org and the in-list of dst.
-    uint32_t* p = &vertices_[e.org].first_out;
-    while (*p != slot) p = &edges_[*p].next_out;
-    *p = e.next_out;
-    p = &vertices_[e.dst].first_in;
-    while (*p != slot) p = &edges_[*p].next_in;
-    *p = e.next_in;
-  }
-  --vertices_[e.org].open;
-  --vertices_[e.dst].open;
-  e.live = false;
-  --open_edges_;
-  free_edges_.push_back(slot);
-}
 
 template <bool L>
 PSQ_INLINE uint32_t BasicBoundary<L>::enter_edge(BTriangle& t, int k) {
@@ -414,32 +316,7 @@ bool BasicBoundary<L>::apply_on_gate(BTriangle& t) {
   return true;
 }
 
-// The loop links of an add (fresh f1 then f2 between the gate's old
-// neighbours) and of a fill (fresh f between `before` and `after`), shared
-// by apply_add()/apply_fill() and lean_add()/lean_fill(); the fresh edge
-// that comes first becomes the reference (spec 6.2.1).
-template <bool L>
-PSQ_INLINE void BasicBoundary<L>::splice_add(uint32_t f1, uint32_t f2, uint32_t gate_prev, uint32_t gate_next) {
-  BEdge& e1 = edges_[f1];
-  BEdge& e2 = edges_[f2];
-  e1.prev = gate_prev;
-  e1.next = f2;
-  e2.prev = f1;
-  e2.next = gate_next;
-  if (gate_prev != kNone) edges_[gate_prev].next = f1;
-  if (gate_next != kNone) edges_[gate_next].prev = f2;
-  reference_ = f1;
-}
 
-template <bool L>
-PSQ_INLINE void BasicBoundary<L>::splice_fill(uint32_t f, uint32_t before, uint32_t after) {
-  BEdge& e = edges_[f];
-  e.prev = before;
-  e.next = after;
-  if (before != kNone) edges_[before].next = f;
-  if (after != kNone) edges_[after].prev = f;
-  reference_ = f;
-}
 
 // apply_on_gate() for an add: p->x and x->q enter, the gate closes. The
 // same steps again, with what an add implies resolved: no old link names a
@@ -489,79 +366,7 @@ PSQ_INLINE bool BasicBoundary<L>::apply_fill(BTriangle& t, int k) {
   return true;
 }
 
-// lean_add() and lean_fill(): apply_add() and apply_fill() with the corners
-// of the triangle (q, p, x) known from the gate. The slots are allocated,
-// aged and freed in the same order, so the slot numbers and the ring's
-// ages agree with the encoder's boundary.
-template <bool L>
-uint32_t BasicBoundary<L>::lean_add(uint32_t gate, uint32_t x) {
-  assert(!L);  // no endpoint lists or recency stack to keep
-  const uint32_t p = edges_[gate].org, q = edges_[gate].dst;
-  const uint32_t f1 = alloc_edge();
-  if (f1 == kNone) return kNone;
-  const uint32_t f2 = alloc_edge();
-  if (f2 == kNone) return kNone;
-  BVertex& vp = vertices_[p];
-  BVertex& vq = vertices_[q];
-  BVertex& vx = vertices_[x];
-  BEdge& e1 = edges_[f1];
-  BEdge& e2 = edges_[f2];
-  e1.org = p;
-  e1.dst = x;
-  e2.org = x;
-  e2.dst = q;
-  for (int k = 0; k < 3; ++k) {
-    e1.opp[k] = vq.pos[k];
-    e2.opp[k] = vp.pos[k];
-  }
-  e1.age = entered_++;
-  e2.age = entered_++;
-  // p and q trade the gate for a fresh edge; x has two.
-  vx.open += 2;
-  ++vp.degree;
-  ++vq.degree;
-  ++vx.degree;
-  BEdge& g = edges_[gate];
-  const uint32_t gate_prev = g.prev, gate_next = g.next;
-  g.live = false;
-  --open_edges_;
-  free_edges_.push_back(gate);
-  splice_add(f1, f2, gate_prev, gate_next);
-  return f1;
-}
 
-template <bool L>
-uint32_t BasicBoundary<L>::lean_fill(uint32_t gate, bool left, uint32_t* final) {
-  assert(!L);
-  const uint32_t c = left ? edges_[gate].prev : edges_[gate].next;
-  const uint32_t p = edges_[gate].org, q = edges_[gate].dst;
-  const uint32_t x = left ? edges_[c].org : edges_[c].dst;
-  const uint32_t f = alloc_edge();
-  if (f == kNone) return kNone;
-  // Left: x->q enters, opposite p. Right: p->x enters, opposite q.
-  BEdge& e = edges_[f];
-  e.org = left ? x : p;
-  e.dst = left ? q : x;
-  const BVertex& o = vertices_[left ? p : q];
-  for (int k = 0; k < 3; ++k) e.opp[k] = o.pos[k];
-  e.age = entered_++;
-  ++vertices_[e.org].open;
-  ++vertices_[e.dst].open;
-  const uint32_t before = left ? edges_[c].prev : edges_[gate].prev;
-  const uint32_t after = left ? edges_[gate].next : edges_[c].next;
-  free_edge(gate);
-  free_edge(c);
-  splice_fill(f, before, after);
-  const uint32_t corner[3] = {q, p, x};
-  uint32_t m = 0;
-  for (int k = 0; k < 3; ++k) {
-    BVertex& v = vertices_[corner[k]];
-    ++v.degree;
-    if (v.open == 0) m |= 1u << k;
-  }
-  *final = m;
-  return f;
-}
 
 namespace {
 // The largest coordinate distance of two points (coding.h).
@@ -632,6 +437,13 @@ uint32_t BasicBoundary<L>::recent_edge(uint32_t rank) {
   uint32_t out[kRecentRanks];
   if (rank >= kRecentRanks) return kNone;
   return scan_recent(rank + 1, out) > rank ? out[rank] : kNone;
+}
+
+template <bool L>
+uint32_t BasicBoundary<L>::grow_edges() {
+  if (edges_.size() >= limit_) return kNone;
+  edges_.emplace_back();
+  return static_cast<uint32_t>(edges_.size() - 1);
 }
 
 template class BasicBoundary<true>;

@@ -22,6 +22,7 @@
 #ifndef PSQ_CODEC_BOUNDARY_H_
 #define PSQ_CODEC_BOUNDARY_H_
 
+#include <cassert>
 #include <cstdint>
 #include <vector>
 
@@ -99,6 +100,25 @@ struct BTriangle {
   EdgeState state[3] = {EdgeState::kEnters, EdgeState::kEnters, EdgeState::kEnters};
   uint32_t eslot[3] = {kNone, kNone, kNone};  // completed or entering edge slot
   bool final[3] = {false, false, false};      // corner's vertex has no open edge left
+};
+
+// The free slots of one kind, last freed first (the order the spec's slot
+// numbers follow, section 6.1.1). A plain array and a count: its push and
+// pop stay inline in the decoder's loop, where std::vector's push_back was
+// a call per triangle.
+class SlotStack {
+ public:
+  bool empty() const { return n_ == 0; }
+  __attribute__((always_inline)) uint32_t pop() { return slots_[--n_]; }
+  __attribute__((always_inline)) void push(uint32_t slot) {
+    if (n_ == slots_.size()) grow();
+    slots_[n_++] = slot;
+  }
+
+ private:
+  __attribute__((noinline)) void grow() { slots_.resize(2 * slots_.size() + 64); }
+  std::vector<uint32_t> slots_;
+  size_t n_ = 0;
 };
 
 // kLookups: whether the boundary can find an open edge by its endpoints
@@ -188,6 +208,8 @@ class BasicBoundary {
 
  private:
   uint32_t alloc_edge();
+  // alloc_edge() without a free slot: a new one, or kNone at the limit.
+  uint32_t grow_edges();
   // Pieces of apply(): edge k of t enters (a new slot, or kNone at the
   // limit); drops stale recency entries; edge k completes t.completes[k];
   // degrees and final flags.
@@ -212,12 +234,15 @@ class BasicBoundary {
 
   uint32_t limit_;
   std::vector<BVertex> vertices_;
-  std::vector<uint8_t> vlive_;
-  std::vector<uint32_t> free_vertices_;
+  // Per vertex slot, 1 while a vertex holds it. Not bytes: a store of a byte
+  // may alias anything, and would make the decoder reload every field it
+  // holds in registers.
+  std::vector<uint32_t> vlive_;
+  SlotStack free_vertices_;
   std::vector<BEdge> edges_;
-  std::vector<uint32_t> free_edges_;
+  SlotStack free_edges_;
   std::vector<BBorder> borders_;
-  std::vector<uint32_t> free_borders_;
+  SlotStack free_borders_;
   uint32_t active_vertices_ = 0;
   uint32_t open_edges_ = 0;
   uint32_t reference_ = kNone;
@@ -232,6 +257,211 @@ class BasicBoundary {
   std::vector<Recent> departures_;  // most recent first, at most kDepartures
   bool current(const Recent& r) const { return edges_[r.slot].live && edges_[r.slot].age == r.age; }
 };
+
+// The members that the fast decoder runs once or twice per triangle are
+// defined here, inline, so that they join its loop: as calls into
+// boundary.cpp they cost 15 to 20% more instructions (register saves, and
+// reloads of what a call might have changed).
+
+template <bool L>
+PSQ_INLINE uint32_t BasicBoundary<L>::new_vertex(uint32_t index, uint32_t key, const int64_t pos[3]) {
+  uint32_t slot;
+  if (!free_vertices_.empty()) {
+    slot = free_vertices_.pop();
+  } else {
+    if (vertices_.size() >= limit_) return kNone;
+    slot = static_cast<uint32_t>(vertices_.size());
+    vertices_.emplace_back();
+    vlive_.push_back(0);
+  }
+  BVertex& v = vertices_[slot];
+  // Every field but the unused inline dead entries.
+  v.index = index;
+  v.key = key;
+  v.first_out = v.first_in = v.first_border = kNone;
+  v.open = v.degree = v.borders = v.ndead = 0;
+  for (int i = 0; i < 3; ++i) v.pos[i] = pos[i];
+  vlive_[slot] = 1;
+  ++active_vertices_;
+  return slot;
+}
+
+template <bool L>
+PSQ_INLINE void BasicBoundary<L>::free_vertex(uint32_t slot) {
+  if constexpr (L) forget_dead_edges(slot);
+  vlive_[slot] = 0;
+  --active_vertices_;
+  free_vertices_.push(slot);
+}
+
+template <bool L>
+PSQ_INLINE void BasicBoundary<L>::forget_dead_edges(uint32_t slot) {
+  // Forget its inline dead edges: remove it from each other endpoint's
+  // inline list (order within a list does not matter).
+  BVertex& v = vertices_[slot];
+  for (uint32_t i = 0; i < v.ndead; ++i) {
+    BVertex& o = vertices_[v.dead[i]];
+    uint32_t j = 0;
+    while (o.dead[j] != slot) ++j;
+    o.dead[j] = o.dead[--o.ndead];
+  }
+  v.ndead = 0;
+  // Forget its border edges: unlink each from the other endpoint's list.
+  for (uint32_t r = vertices_[slot].first_border; r != kNone;) {
+    BBorder& e = borders_[r];
+    const int side = e.v[0] == slot ? 0 : 1;
+    const uint32_t other = e.v[1 - side];
+    uint32_t* p = &vertices_[other].first_border;
+    while (*p != r) {
+      BBorder& q = borders_[*p];
+      p = &q.next[q.v[0] == other ? 0 : 1];
+    }
+    *p = e.next[1 - side];
+    const uint32_t next = e.next[side];
+    free_borders_.push(r);
+    r = next;
+  }
+  vertices_[slot].first_border = kNone;
+}
+
+template <bool L>
+PSQ_INLINE uint32_t BasicBoundary<L>::alloc_edge() {
+  uint32_t slot;
+  if (!free_edges_.empty()) {
+    slot = free_edges_.pop();
+  } else {
+    slot = grow_edges();
+    if (slot == kNone) return kNone;
+  }
+  // apply() sets every other field.
+  BEdge& e = edges_[slot];
+  e.next = e.prev = kNone;
+  e.live = true;
+  ++open_edges_;
+  return slot;
+}
+
+template <bool L>
+PSQ_INLINE void BasicBoundary<L>::free_edge(uint32_t slot) {
+  BEdge& e = edges_[slot];
+  if (e.next != kNone && edges_[e.next].prev == slot) edges_[e.next].prev = kNone;
+  if (e.prev != kNone && edges_[e.prev].next == slot) edges_[e.prev].next = kNone;
+  if constexpr (L) {
+    // Unlink from the out-list of org and the in-list of dst.
+    uint32_t* p = &vertices_[e.org].first_out;
+    while (*p != slot) p = &edges_[*p].next_out;
+    *p = e.next_out;
+    p = &vertices_[e.dst].first_in;
+    while (*p != slot) p = &edges_[*p].next_in;
+    *p = e.next_in;
+  }
+  --vertices_[e.org].open;
+  --vertices_[e.dst].open;
+  e.live = false;
+  --open_edges_;
+  free_edges_.push(slot);
+}
+
+// The loop links of an add (fresh f1 then f2 between the gate's old
+// neighbours) and of a fill (fresh f between `before` and `after`), shared
+// by apply_add()/apply_fill() and lean_add()/lean_fill(); the fresh edge
+// that comes first becomes the reference (spec 6.2.1).
+template <bool L>
+PSQ_INLINE void BasicBoundary<L>::splice_add(uint32_t f1, uint32_t f2, uint32_t gate_prev, uint32_t gate_next) {
+  BEdge& e1 = edges_[f1];
+  BEdge& e2 = edges_[f2];
+  e1.prev = gate_prev;
+  e1.next = f2;
+  e2.prev = f1;
+  e2.next = gate_next;
+  if (gate_prev != kNone) edges_[gate_prev].next = f1;
+  if (gate_next != kNone) edges_[gate_next].prev = f2;
+  reference_ = f1;
+}
+
+template <bool L>
+PSQ_INLINE void BasicBoundary<L>::splice_fill(uint32_t f, uint32_t before, uint32_t after) {
+  BEdge& e = edges_[f];
+  e.prev = before;
+  e.next = after;
+  if (before != kNone) edges_[before].next = f;
+  if (after != kNone) edges_[after].prev = f;
+  reference_ = f;
+}
+
+// lean_add() and lean_fill(): apply_add() and apply_fill() with the corners
+// of the triangle (q, p, x) known from the gate. The slots are allocated,
+// aged and freed in the same order, so the slot numbers and the ring's
+// ages agree with the encoder's boundary.
+template <bool L>
+PSQ_INLINE uint32_t BasicBoundary<L>::lean_add(uint32_t gate, uint32_t x) {
+  assert(!L);  // no endpoint lists or recency stack to keep
+  const uint32_t p = edges_[gate].org, q = edges_[gate].dst;
+  const uint32_t f1 = alloc_edge();
+  if (f1 == kNone) return kNone;
+  const uint32_t f2 = alloc_edge();
+  if (f2 == kNone) return kNone;
+  BVertex& vp = vertices_[p];
+  BVertex& vq = vertices_[q];
+  BVertex& vx = vertices_[x];
+  BEdge& e1 = edges_[f1];
+  BEdge& e2 = edges_[f2];
+  e1.org = p;
+  e1.dst = x;
+  e2.org = x;
+  e2.dst = q;
+  for (int k = 0; k < 3; ++k) {
+    e1.opp[k] = vq.pos[k];
+    e2.opp[k] = vp.pos[k];
+  }
+  e1.age = entered_++;
+  e2.age = entered_++;
+  // p and q trade the gate for a fresh edge; x has two.
+  vx.open += 2;
+  ++vp.degree;
+  ++vq.degree;
+  ++vx.degree;
+  BEdge& g = edges_[gate];
+  const uint32_t gate_prev = g.prev, gate_next = g.next;
+  g.live = false;
+  --open_edges_;
+  free_edges_.push(gate);
+  splice_add(f1, f2, gate_prev, gate_next);
+  return f1;
+}
+
+template <bool L>
+PSQ_INLINE uint32_t BasicBoundary<L>::lean_fill(uint32_t gate, bool left, uint32_t* final) {
+  assert(!L);
+  const uint32_t c = left ? edges_[gate].prev : edges_[gate].next;
+  const uint32_t p = edges_[gate].org, q = edges_[gate].dst;
+  const uint32_t x = left ? edges_[c].org : edges_[c].dst;
+  const uint32_t f = alloc_edge();
+  if (f == kNone) return kNone;
+  // Left: x->q enters, opposite p. Right: p->x enters, opposite q.
+  BEdge& e = edges_[f];
+  e.org = left ? x : p;
+  e.dst = left ? q : x;
+  const BVertex& o = vertices_[left ? p : q];
+  for (int k = 0; k < 3; ++k) e.opp[k] = o.pos[k];
+  e.age = entered_++;
+  ++vertices_[e.org].open;
+  ++vertices_[e.dst].open;
+  const uint32_t before = left ? edges_[c].prev : edges_[gate].prev;
+  const uint32_t after = left ? edges_[gate].next : edges_[c].next;
+  free_edge(gate);
+  free_edge(c);
+  splice_fill(f, before, after);
+  const uint32_t corner[3] = {q, p, x};
+  uint32_t m = 0;
+  for (int k = 0; k < 3; ++k) {
+    BVertex& v = vertices_[corner[k]];
+    ++v.degree;
+    if (v.open == 0) m |= 1u << k;
+  }
+  *final = m;
+  return f;
+}
 
 using Boundary = BasicBoundary<true>;
 using FastBoundary = BasicBoundary<false>;

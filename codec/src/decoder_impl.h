@@ -5,6 +5,8 @@
 #ifndef PSQ_CODEC_DECODER_IMPL_H_
 #define PSQ_CODEC_DECODER_IMPL_H_
 
+#include <algorithm>
+#include <cmath>
 #include <memory>
 #include <string>
 #include <vector>
@@ -172,6 +174,51 @@ struct PsqDecoder::Impl {
     if (used + n > v.size()) v.resize(std::max(used + n, 2 * v.size()));
     return v.data() + used;
   }
+  // Whether positions are quantized floats (direct_position() applies).
+  bool direct_float = false;
+  // fast_direct_records()'s view of the arrays, kept in locals so that
+  // the compiler holds it in registers: the lengths in use, the data, and
+  // how many more common records (at most one vertex and one triangle
+  // each) fit before the arrays must grow.
+  struct DirectCursor {
+    float* pos;
+    uint32_t* idx;
+    uint32_t* map;
+    size_t verts, ni, nv;  // positions written (direct_np / 3: no division per vertex), ni, nv
+    size_t room;
+  };
+  // The cursor of the members' arrays and lengths; back into the members.
+  DirectCursor direct_cursor() {
+    const size_t room = std::min({(direct->positions.size() - direct_np) / 3, (direct->indices.size() - direct_ni) / 3,
+                                  direct_index.size() - direct_nv});
+    return DirectCursor{direct->positions.data(), direct->indices.data(), direct_index.data(), direct_np / 3,
+                        direct_ni, direct_nv, room};
+  }
+  void direct_sync(const DirectCursor& c) {
+    direct_np = 3 * c.verts;
+    direct_ni = c.ni;
+    direct_nv = c.nv;
+  }
+  // Grows the arrays for at least one more common record (geometrically).
+  void direct_grow(DirectCursor& c) {
+    direct_sync(c);
+    direct_room(direct->positions, direct_np, 3);
+    direct_room(direct->indices, direct_ni, 3);
+    direct_room(direct_index, direct_nv, 1);
+    c = direct_cursor();
+  }
+  // The float position of quantized float coordinates (spec 7.1) straight
+  // into `out`: position_of() and the cast in one rounding; the same
+  // checks. The caller knows the stream is quantized with float positions.
+  const char* direct_position(const int64_t pos[3], float out[3]) const {
+    for (int i = 0; i < 3; ++i) {
+      if (static_cast<uint64_t>(pos[i]) > static_cast<uint64_t>(grid_max)) return "position outside the quantization grid";
+      const float f = static_cast<float>(header.origin[i] + static_cast<double>(pos[i]) * header.step);
+      if (!std::isfinite(f)) return "position is not finite";
+      out[i] = f;
+    }
+    return nullptr;
+  }
   void direct_vertex(const SequenceVertex& v) {
     uint32_t* di = direct_room(direct_index, direct_nv, 1);
     ++direct_nv;
@@ -211,8 +258,9 @@ struct PsqDecoder::Impl {
   // The next record; with `cls` >= 0 its class is decoded already, and
   // with `bsym` >= 0 also its gate and B symbol (a gate record).
   Status decode_record_fast(int cls = -1, uint32_t gate = kNone, int bsym = -1);
+  // kDirect: the record goes into the arrays at `out` (fast_direct_records).
   template <bool kDirect>
-  Status fast_common(RansDecoder& d, RawReader& bits, int cls, int bsym, uint32_t gate);
+  Status fast_common(RansDecoder& d, RawReader& bits, int cls, int bsym, uint32_t gate, DirectCursor* out);
   // decode_mesh's loop over the rest of a fast chunk's records, when the
   // stream has no properties: adds and fills write the arrays directly,
   // other records go through decode_record_fast() and their events are

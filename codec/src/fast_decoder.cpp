@@ -199,7 +199,8 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_vertex_position(const int64_t pred[3], 
 // arrays itself (a stream without properties); otherwise the record's
 // events are queued.
 template <bool kDirect>
-PSQ_INLINE Status PsqDecoder::Impl::fast_common(RansDecoder& d, RawReader& bits, int cls, int bsym, uint32_t gate) {
+PSQ_INLINE Status PsqDecoder::Impl::fast_common(RansDecoder& d, RawReader& bits, int cls, int bsym, uint32_t gate,
+                                                DirectCursor* out) {
   FastBoundary& b = fboundary;
   const BEdge& g = b.edge(gate);
   const uint32_t p = g.org, q = g.dst;
@@ -221,7 +222,17 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_common(RansDecoder& d, RawReader& bits,
     int64_t pos[3];
     PSQ_RETURN_IF_ERROR(fast_position(d, bits, pr.pos, pr.kind, pr.extent, pos, !kDirect && measure));
     double xyz[3];
-    if (const char* why = position_of(pos, xyz)) return corrupt(why);
+    if (kDirect) {
+      float* f = out->pos + 3 * out->verts;
+      if (direct_float) {
+        if (const char* why = direct_position(pos, f)) return corrupt(why);
+      } else {
+        if (const char* why = position_of(pos, xyz)) return corrupt(why);
+        for (int i = 0; i < 3; ++i) f[i] = static_cast<float>(xyz[i]);
+      }
+    } else {
+      if (const char* why = position_of(pos, xyz)) return corrupt(why);
+    }
     const uint32_t index = static_cast<uint32_t>(next_out);
     for (int i = 0; i < 3; ++i) last_pos[i] = pos[i];
     ++seen_vertices;
@@ -242,16 +253,15 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_common(RansDecoder& d, RawReader& bits,
     ++seen_triangles;
     ++stats.triangles;
     if (kDirect) {
-      MeshBuffers& mesh = *direct;
-      *direct_room(direct_index, direct_nv++, 1) = static_cast<uint32_t>(direct_np / 3);
-      float* out = direct_room(mesh.positions, direct_np, 3);
-      for (int i = 0; i < 3; ++i) out[i] = static_cast<float>(xyz[i]);
-      direct_np += 3;
-      uint32_t* t = direct_room(mesh.indices, direct_ni, 3);
-      t[0] = direct_index[b.vertex(q).index];
-      t[1] = direct_index[b.vertex(p).index];
-      t[2] = direct_index[index];
-      direct_ni += 3;
+      // The position is written; its index, and the triangle.
+      const uint32_t at = static_cast<uint32_t>(out->verts++);
+      out->map[out->nv++] = at;
+      uint32_t* t = out->idx + out->ni;
+      t[0] = out->map[b.vertex(q).index];
+      t[1] = out->map[b.vertex(p).index];
+      t[2] = at;
+      out->ni += 3;
+      --out->room;
       return Status();
     }
     SequenceEvent& ev = push();
@@ -288,9 +298,10 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_common(RansDecoder& d, RawReader& bits,
   ++stats.triangles;
   const uint32_t corner[3] = {q, p, x};
   if (kDirect) {
-    uint32_t* t = direct_room(direct->indices, direct_ni, 3);
-    for (int k = 0; k < 3; ++k) t[k] = direct_index[b.vertex(corner[k]).index];
-    direct_ni += 3;
+    uint32_t* t = out->idx + out->ni;
+    for (int k = 0; k < 3; ++k) t[k] = out->map[b.vertex(corner[k]).index];
+    out->ni += 3;
+    --out->room;
     if (final) {
       for (int k = 0; k < 3; ++k)
         if (final >> k & 1) b.free_vertex(corner[k]);
@@ -379,7 +390,7 @@ Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
     const BEdge& g = b.edge(gate);
     bsym = fast_symbol(d, kFastTableB + third_context(b.vertex(g.org).degree, b.vertex(g.dst).degree));
     if (bsym >= kFastBSymbols) return corrupt("third-vertex symbol " + std::to_string(bsym));
-    if (!header.rotation && (bsym == 0 || bsym == 27 || bsym == 30)) return fast_common<false>(*frans, *fraw, cls, bsym, gate);
+    if (!header.rotation && (bsym == 0 || bsym == 27 || bsym == 30)) return fast_common<false>(*frans, *fraw, cls, bsym, gate, nullptr);
   }
   BTriangle bt;
   uint32_t intro[3];
@@ -593,11 +604,14 @@ Status PsqDecoder::Impl::fast_direct_records() {
   direct_room(mesh.indices, direct_ni, 3 * static_cast<size_t>(std::min<uint64_t>(chunk_triangles, cap)));
   direct_room(mesh.positions, direct_np, 3 * static_cast<size_t>(std::min<uint64_t>(chunk_vertices, cap)));
   direct_room(direct_index, direct_nv, static_cast<size_t>(std::min<uint64_t>(chunk_vertices, cap)));
+  direct_float = !header.lossless && header.schema.position_type == ScalarType::kFloat32;
+  DirectCursor out = direct_cursor();
   const bool rotation = header.rotation;
   while (records_left > 0) {
+    if (out.room == 0) direct_grow(out);
     const int cls = d.decode(ftables[kFastTableA + fast_context]);
     const uint32_t R = b.reference();
-    int done = 0;  // 1: the record was decoded below
+    int done = 0;  // 1: an add decoded below, 2: a fill
     if (cls <= kFastGatePrev && R != kNone && seen_triangles < chunk_triangles) {
       const uint32_t gate = cls == kFastGateR ? R : cls == kFastGateNext ? b.edge(R).next : b.edge(R).prev;
       if (gate == kNone) return corrupt("gate offset leaves the boundary");
@@ -607,8 +621,8 @@ Status PsqDecoder::Impl::fast_direct_records() {
       const int bsym = d.decode(ftables[kFastTableB + third_context(b.vertex(p).degree, b.vertex(q).degree)]);
       if (bsym >= kFastBSymbols) return corrupt("third-vertex symbol " + std::to_string(bsym));
       if (!rotation && (bsym == 0 || bsym == 27 || bsym == 30)) {
-        PSQ_RETURN_IF_ERROR(fast_common<true>(d, bits, cls, bsym, gate));
-        done = 1;
+        PSQ_RETURN_IF_ERROR(fast_common<true>(d, bits, cls, bsym, gate, &out));
+        done = bsym == 0 ? 1 : 2;
       } else {
         qhead = qcount = 0;
         *frans = d;
@@ -626,20 +640,26 @@ Status PsqDecoder::Impl::fast_direct_records() {
       bits = *fraw;
     }
     if (!done) {
+      direct_sync(out);
       for (int i = 0; i < qcount; ++i) {
         const SequenceEvent& e = queue[i];
         if (e.kind == SequenceEvent::Kind::kVertex) direct_vertex(e.vertex);
         else if (e.kind == SequenceEvent::Kind::kTriangle) direct_triangle(e.triangle.v);
       }
       qhead = qcount = 0;
+      out = direct_cursor();
     }
-    // advance()'s bookkeeping.
+    // advance()'s bookkeeping. A fill adds no vertex and closes two open
+    // edges for one, so neither maximum can move.
     ++record_no;
-    stats.max_active_vertices = std::max(stats.max_active_vertices, b.active_vertices());
-    stats.max_open_edges = std::max(stats.max_open_edges, b.open_edges());
+    if (done != 2) {
+      stats.max_active_vertices = std::max(stats.max_active_vertices, b.active_vertices());
+      stats.max_open_edges = std::max(stats.max_open_edges, b.open_edges());
+    }
     if (--records_left == 0) {
       *frans = d;
       *fraw = bits;
+      direct_sync(out);
       PSQ_RETURN_IF_ERROR(fast_close_chunk());
       if (seen_vertices != chunk_vertices || seen_triangles != chunk_triangles)
         return Status(ErrorCode::kBadHeader, "chunk declares other vertex or triangle counts than it holds", chunk_offset);

@@ -30,7 +30,7 @@ namespace codec {
 class Neighbors {
  public:
   // Vertex slot `s` now holds a new vertex, with no neighbours yet.
-  void vertex_begins(uint32_t s) {
+  __attribute__((always_inline)) void vertex_begins(uint32_t s) {
     if (s >= slots_.size()) grow(s);
     Slot& v = slots_[s];
     ++v.gen;
@@ -93,7 +93,7 @@ class Neighbors {
     v.push_back(entry);
     slots_[s].count = kInline + static_cast<uint32_t>(v.size());
   }
-  void grow(uint32_t s) { slots_.resize(std::max<size_t>(size_t{s} + 1, 2 * slots_.size())); }
+  __attribute__((noinline)) void grow(uint32_t s) { slots_.resize(std::max<size_t>(size_t{s} + 1, 2 * slots_.size())); }
 
   std::vector<Slot> slots_;
   std::vector<std::vector<uint64_t>> spill_;  // per slot: entries beyond kInline

@@ -21,15 +21,20 @@ const char* error_name(ErrorCode code) {
   return "unknown";
 }
 
+const std::string& Status::message() const {
+  static const std::string kEmpty;
+  return rep_ ? rep_->message : kEmpty;
+}
+
 std::string Status::to_string() const {
   if (ok()) return "ok";
   std::string out;
-  if (line_ != kNoPlace) {
-    out = "line " + std::to_string(line_) + ": ";
-  } else if (offset_ != kNoPlace) {
-    out = "byte " + std::to_string(offset_) + ": ";
+  if (rep_->line != kNoPlace) {
+    out = "line " + std::to_string(rep_->line) + ": ";
+  } else if (rep_->offset != kNoPlace) {
+    out = "byte " + std::to_string(rep_->offset) + ": ";
   }
-  out += message_;
+  out += rep_->message;
   return out;
 }
 

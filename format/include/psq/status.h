@@ -38,28 +38,55 @@ class Status {
  public:
   static constexpr uint64_t kNoPlace = ~uint64_t{0};
 
-  Status() = default;  // success
+  Status() noexcept = default;  // success
 
   // An error; `offset` is a byte offset into the input, `line` a 1-based line
-  // number of a text input. Either may be kNoPlace.
-  Status(ErrorCode code, std::string message, uint64_t offset = kNoPlace,
-         uint64_t line = kNoPlace)
-      : code_(code), message_(std::move(message)), offset_(offset), line_(line) {}
+  // number of a text input. Either may be kNoPlace. kOk makes a success (the
+  // message and places are dropped).
+  Status(ErrorCode code, std::string message, uint64_t offset = kNoPlace, uint64_t line = kNoPlace)
+      : rep_(code == ErrorCode::kOk ? nullptr : new Rep{code, std::move(message), offset, line}) {}
 
-  bool ok() const { return code_ == ErrorCode::kOk; }
-  ErrorCode code() const { return code_; }
-  const std::string& message() const { return message_; }
-  uint64_t offset() const { return offset_; }
-  uint64_t line() const { return line_; }
+  // A success is one null pointer, so that the hot paths that return one
+  // per triangle pay a store and a test, not a string's construction and
+  // destruction.
+  Status(const Status& o) : rep_(o.rep_ ? new Rep(*o.rep_) : nullptr) {}
+  Status(Status&& o) noexcept : rep_(o.rep_) { o.rep_ = nullptr; }
+  Status& operator=(const Status& o) {
+    if (this != &o) {
+      Rep* copy = o.rep_ ? new Rep(*o.rep_) : nullptr;
+      delete rep_;
+      rep_ = copy;
+    }
+    return *this;
+  }
+  Status& operator=(Status&& o) noexcept {
+    if (this != &o) {
+      delete rep_;
+      rep_ = o.rep_;
+      o.rep_ = nullptr;
+    }
+    return *this;
+  }
+  ~Status() { delete rep_; }
+
+  bool ok() const { return rep_ == nullptr; }
+  ErrorCode code() const { return rep_ ? rep_->code : ErrorCode::kOk; }
+  // Empty for a success.
+  const std::string& message() const;
+  uint64_t offset() const { return rep_ ? rep_->offset : kNoPlace; }
+  uint64_t line() const { return rep_ ? rep_->line : kNoPlace; }
 
   // "line 12: message", "byte 4096: message" or "message"; one line.
   std::string to_string() const;
 
  private:
-  ErrorCode code_ = ErrorCode::kOk;
-  std::string message_;
-  uint64_t offset_ = kNoPlace;
-  uint64_t line_ = kNoPlace;
+  struct Rep {
+    ErrorCode code;
+    std::string message;
+    uint64_t offset;
+    uint64_t line;
+  };
+  Rep* rep_ = nullptr;
 };
 
 // Returns from the enclosing function if `expr` yields an error Status.
