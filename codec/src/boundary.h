@@ -45,7 +45,7 @@ constexpr uint32_t kInlineDead = 5;
 
 struct BVertex {
   uint32_t index = 0;        // dense index in the sequence
-  uint32_t key = 0;          // the encoder's input index (for its map)
+  uint32_t key = 0;          // the encoder's input index (for its map); decode_mesh's mesh index
   uint32_t first_out = kNone;  // open edges leaving it (through BEdge::next_out)
   uint32_t first_in = kNone;   // open edges entering it (through BEdge::next_in)
   uint32_t first_border = kNone;  // dead edges touching it that did not fit inline (through BBorder)

@@ -88,8 +88,13 @@ Status PsqDecoder::Impl::next_chunk() {
   uint32_t crc = crc32c_update(0, &tag, 1);
   crc = crc32c_update(crc, f.data(), f.size());
   conn_offset = in->offset();
-  PSQ_RETURN_IF_ERROR(read_block(conn_size, &conn));
-  crc = crc32c_update(crc, conn.data(), conn.size());
+  csize = static_cast<size_t>(conn_size);
+  cdata = in->view(csize);
+  if (cdata == nullptr) {
+    PSQ_RETURN_IF_ERROR(read_block(conn_size, &conn));
+    cdata = conn.data();
+  }
+  crc = crc32c_update(crc, cdata, csize);
   PSQ_RETURN_IF_ERROR(read_block(prop_size, &packed));
   crc = crc32c_update(crc, packed.data(), packed.size());
   uint8_t c[4];
@@ -106,7 +111,7 @@ Status PsqDecoder::Impl::next_chunk() {
                     conn_offset + conn_size);
   }
   if (fast) PSQ_RETURN_IF_ERROR(fast_open_chunk());
-  else rc = std::make_unique<RangeDecoder>(conn.data(), conn.size());
+  else rc = std::make_unique<RangeDecoder>(cdata, csize);
   records_left = static_cast<uint32_t>(records);
   chunk_vertices = static_cast<uint32_t>(vertices);
   chunk_triangles = static_cast<uint32_t>(triangles);
@@ -347,7 +352,7 @@ Status PsqDecoder::Impl::decode_record(Dec& dec) {
           : completed == 1 ? (nnew == 1 ? Op::kAdd : Op::kJoin)
           : completed == 2 ? Op::kFill
                            : Op::kEnd;
-  if (dec.overran()) return Status(ErrorCode::kTruncated, "record " + std::to_string(record_no) + ": coded data ends early", conn_offset + conn.size());
+  if (dec.overran()) return Status(ErrorCode::kTruncated, "record " + std::to_string(record_no) + ": coded data ends early", conn_offset + csize);
   if (!boundary.apply(bt)) return Status(ErrorCode::kLimit, "more open edges than the header's boundary limit", conn_offset);
   last_op = static_cast<int>(op);
   emit_triangle(boundary, bt, op, r, cut);
@@ -430,11 +435,11 @@ Status PsqDecoder::Impl::advance() {
     if (fast) {
       PSQ_RETURN_IF_ERROR(fast_close_chunk());
     } else {
-      if (rc->overran()) return Status(ErrorCode::kTruncated, "coded records end early", conn_offset + conn.size());
+      if (rc->overran()) return Status(ErrorCode::kTruncated, "coded records end early", conn_offset + csize);
       // Spec 5.8: the records use the section exactly (the encoder's flush
       // writes as many bytes as the decoder reads).
-      if (rc->consumed() != conn.size())
-        return Status(ErrorCode::kBadValue, std::to_string(conn.size() - rc->consumed()) +
+      if (rc->consumed() != csize)
+        return Status(ErrorCode::kBadValue, std::to_string(csize - rc->consumed()) +
                                                 " unused bytes after the chunk's records", conn_offset + rc->consumed());
     }
     if (seen_vertices != chunk_vertices || seen_triangles != chunk_triangles)

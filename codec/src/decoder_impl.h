@@ -60,6 +60,10 @@ struct PsqDecoder::Impl {
 
   // The current chunk.
   std::vector<uint8_t> conn, packed, raw;
+  // The chunk's record section: in place for memory input
+  // (InputStream::view), else read into `conn`.
+  const uint8_t* cdata = nullptr;
+  size_t csize = 0;
   std::unique_ptr<RangeDecoder> rc;
   uint64_t conn_offset = 0, chunk_offset = 0;
   uint32_t records_left = 0, chunk_vertices = 0, chunk_triangles = 0;
@@ -162,11 +166,16 @@ struct PsqDecoder::Impl {
   // their vertex and triangle here instead of queueing events; the other
   // records' events are drained into it by decode_into().
   MeshBuffers* direct = nullptr;
-  std::vector<uint32_t> direct_index;  // dense index -> mesh vertex index
+  // The mesh index of each vertex of the sequence (by dense index). Until
+  // a vertex re-appears, every vertex is a new mesh vertex and the map is
+  // the identity: it is not kept (direct_identity), which spares a store
+  // per vertex and the array's pages. The first re-appearance writes it out.
+  bool direct_identity = true;
+  std::vector<uint32_t> direct_index;
   PropertyValues direct_values;        // face values not returned
   // The arrays are sized ahead and written through pointers; these are the
   // lengths in use (decode_into() trims the arrays to them at the end).
-  size_t direct_np = 0, direct_ni = 0, direct_nv = 0;  // positions, indices, direct_index
+  size_t direct_np = 0, direct_ni = 0;  // positions, indices
   // Room for n more elements after the `used` ones of v (growing it
   // geometrically).
   template <class T>
@@ -174,37 +183,35 @@ struct PsqDecoder::Impl {
     if (used + n > v.size()) v.resize(std::max(used + n, 2 * v.size()));
     return v.data() + used;
   }
+  // The mesh index of the sequence's vertex `dense`.
+  uint32_t direct_mesh_index(uint32_t dense) const { return direct_identity ? dense : direct_index[dense]; }
   // Whether positions are quantized floats (direct_position() applies).
   bool direct_float = false;
   // fast_direct_records()'s view of the arrays, kept in locals so that
   // the compiler holds it in registers: the lengths in use, the data, and
   // how many more common records (at most one vertex and one triangle
-  // each) fit before the arrays must grow.
+  // each) fit before the arrays must grow. Its records take the corners'
+  // mesh indices from the boundary's vertices (BVertex::key).
   struct DirectCursor {
     float* pos;
     uint32_t* idx;
-    uint32_t* map;
-    size_t verts, ni, nv;  // positions written (direct_np / 3: no division per vertex), ni, nv
+    size_t verts, ni;  // positions written (direct_np / 3: no division per vertex), indices
     size_t room;
   };
   // The cursor of the members' arrays and lengths; back into the members.
   DirectCursor direct_cursor() {
-    const size_t room = std::min({(direct->positions.size() - direct_np) / 3, (direct->indices.size() - direct_ni) / 3,
-                                  direct_index.size() - direct_nv});
-    return DirectCursor{direct->positions.data(), direct->indices.data(), direct_index.data(), direct_np / 3,
-                        direct_ni, direct_nv, room};
+    const size_t room = std::min((direct->positions.size() - direct_np) / 3, (direct->indices.size() - direct_ni) / 3);
+    return DirectCursor{direct->positions.data(), direct->indices.data(), direct_np / 3, direct_ni, room};
   }
   void direct_sync(const DirectCursor& c) {
     direct_np = 3 * c.verts;
     direct_ni = c.ni;
-    direct_nv = c.nv;
   }
   // Grows the arrays for at least one more common record (geometrically).
   void direct_grow(DirectCursor& c) {
     direct_sync(c);
     direct_room(direct->positions, direct_np, 3);
     direct_room(direct->indices, direct_ni, 3);
-    direct_room(direct_index, direct_nv, 1);
     c = direct_cursor();
   }
   // The float position of quantized float coordinates (spec 7.1) straight
@@ -219,21 +226,30 @@ struct PsqDecoder::Impl {
     }
     return nullptr;
   }
-  void direct_vertex(const SequenceVertex& v) {
-    uint32_t* di = direct_room(direct_index, direct_nv, 1);
-    ++direct_nv;
+  // A vertex event into the arrays; returns its mesh index. `dense` is its
+  // dense index (the count of vertices before it).
+  uint32_t direct_vertex(const SequenceVertex& v) {
     if (v.reappears != kNoVertex) {
-      *di = direct_index[v.reappears];
-      return;
+      if (direct_identity) {
+        // The map stops being the identity here: write it out.
+        direct_index.resize(v.index);
+        for (uint32_t i = 0; i < v.index; ++i) direct_index[i] = i;
+        direct_identity = false;
+      }
+      const uint32_t at = direct_index[v.reappears];
+      direct_index.push_back(at);
+      return at;
     }
-    *di = static_cast<uint32_t>(direct_np / 3);
+    const uint32_t at = static_cast<uint32_t>(direct_np / 3);
+    if (!direct_identity) direct_index.push_back(at);
     float* p = direct_room(direct->positions, direct_np, 3);
     for (int i = 0; i < 3; ++i) p[i] = static_cast<float>(v.position[i]);
     direct_np += 3;
+    return at;
   }
   void direct_triangle(const uint32_t v[3]) {
     uint32_t* t = direct_room(direct->indices, direct_ni, 3);
-    for (int k = 0; k < 3; ++k) t[k] = direct_index[v[k]];
+    for (int k = 0; k < 3; ++k) t[k] = direct_mesh_index(v[k]);
     direct_ni += 3;
   }
   Status decode_into(MeshBuffers* mesh);

@@ -28,14 +28,14 @@ Status PsqDecoder::Impl::fast_open_chunk() {
     return Status(ErrorCode::kBadValue, "fast record section: " + what, conn_offset + at);
   };
   uint64_t table_bytes = 0, rans_bytes = 0;
-  const int n1 = parse_varint(conn.data(), conn.size(), &table_bytes);
+  const int n1 = parse_varint(cdata, csize, &table_bytes);
   if (n1 <= 0) return bad("malformed table block length", 0);
-  const int n2 = parse_varint(conn.data() + n1, conn.size() - static_cast<size_t>(n1), &rans_bytes);
+  const int n2 = parse_varint(cdata + n1, csize - static_cast<size_t>(n1), &rans_bytes);
   if (n2 <= 0) return bad("malformed rANS block length", static_cast<uint64_t>(n1));
   const size_t at = static_cast<size_t>(n1 + n2);
-  if (table_bytes > conn.size() - at || rans_bytes > conn.size() - at - table_bytes)
+  if (table_bytes > csize - at || rans_bytes > csize - at - table_bytes)
     return bad("block lengths exceed the section", 0);
-  RawReader tables(conn.data() + at, table_bytes);
+  RawReader tables(cdata + at, table_bytes);
   bool present[kFastTables];
   for (int i = 0; i < kFastTables; ++i) present[i] = tables.get(1) != 0;
   for (int i = 0; i < kFastTables; ++i) {
@@ -52,17 +52,17 @@ Status PsqDecoder::Impl::fast_open_chunk() {
   }
   if (measure) cost[kCostConnectivity] += kFastTables;  // the presence bits
   if (!tables.at_clean_end()) return bad("the table block does not end with its last table", at);
-  frans = std::make_unique<RansDecoder>(conn.data() + at + table_bytes, rans_bytes);
+  frans = std::make_unique<RansDecoder>(cdata + at + table_bytes, rans_bytes);
   const size_t raw_at = at + table_bytes + rans_bytes;
-  fraw = std::make_unique<RawReader>(conn.data() + raw_at, conn.size() - raw_at);
-  fraw_total_bits = 8 * static_cast<uint64_t>(conn.size() - raw_at);
+  fraw = std::make_unique<RawReader>(cdata + raw_at, csize - raw_at);
+  fraw_total_bits = 8 * static_cast<uint64_t>(csize - raw_at);
   fraw_geometry_bits = 0;
   return Status();
 }
 
 Status PsqDecoder::Impl::fast_close_chunk() {
   if (frans->overran() || fraw->overran())
-    return Status(ErrorCode::kTruncated, "coded records end early", conn_offset + conn.size());
+    return Status(ErrorCode::kTruncated, "coded records end early", conn_offset + csize);
   if (!frans->at_clean_end())
     return Status(ErrorCode::kBadValue, "the rANS block does not end where the chunk's records do", conn_offset);
   if (!fraw->at_clean_end())
@@ -154,7 +154,7 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_vertex_room() {
 
 Status PsqDecoder::Impl::fast_early_end() const {
   return Status(ErrorCode::kTruncated, "record " + std::to_string(record_no) + ": coded data ends early",
-                conn_offset + conn.size());
+                conn_offset + csize);
 }
 
 PSQ_INLINE Status PsqDecoder::Impl::fast_position(RansDecoder& d, RawReader& bits, const int64_t pred[3], int kind,
@@ -238,7 +238,9 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_common(RansDecoder& d, RawReader& bits,
     ++seen_vertices;
     ++next_out;
     ++stats.vertices;
-    const uint32_t s = b.new_vertex(index, 0, pos);
+    // Direct: the vertex's mesh index rides in its slot's key.
+    const uint32_t at = kDirect ? static_cast<uint32_t>(out->verts) : 0;
+    const uint32_t s = b.new_vertex(index, at, pos);
     if (s == kNone) return Status(ErrorCode::kLimit, "more active vertices than the header's boundary limit", conn_offset);
     fneighbors.vertex_begins(s);
     if (d.overran() || bits.overran()) return fast_early_end();
@@ -254,11 +256,11 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_common(RansDecoder& d, RawReader& bits,
     ++stats.triangles;
     if (kDirect) {
       // The position is written; its index, and the triangle.
-      const uint32_t at = static_cast<uint32_t>(out->verts++);
-      out->map[out->nv++] = at;
+      ++out->verts;
+      if (!direct_identity) direct_index.push_back(at);
       uint32_t* t = out->idx + out->ni;
-      t[0] = out->map[b.vertex(q).index];
-      t[1] = out->map[b.vertex(p).index];
+      t[0] = b.vertex(q).key;
+      t[1] = b.vertex(p).key;
       t[2] = at;
       out->ni += 3;
       --out->room;
@@ -299,7 +301,7 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_common(RansDecoder& d, RawReader& bits,
   const uint32_t corner[3] = {q, p, x};
   if (kDirect) {
     uint32_t* t = out->idx + out->ni;
-    for (int k = 0; k < 3; ++k) t[k] = out->map[b.vertex(corner[k]).index];
+    for (int k = 0; k < 3; ++k) t[k] = b.vertex(corner[k]).key;
     out->ni += 3;
     --out->room;
     if (final) {
@@ -600,10 +602,9 @@ Status PsqDecoder::Impl::fast_direct_records() {
   // half its coded bytes, so that a hostile count allocates nothing on its
   // own (a symbol can cost far less than a bit): a chunk that holds more
   // grows the arrays geometrically (direct_room).
-  const uint64_t cap = conn.size() / 2 + 64;
+  const uint64_t cap = csize / 2 + 64;
   direct_room(mesh.indices, direct_ni, 3 * static_cast<size_t>(std::min<uint64_t>(chunk_triangles, cap)));
   direct_room(mesh.positions, direct_np, 3 * static_cast<size_t>(std::min<uint64_t>(chunk_vertices, cap)));
-  direct_room(direct_index, direct_nv, static_cast<size_t>(std::min<uint64_t>(chunk_vertices, cap)));
   direct_float = !header.lossless && header.schema.position_type == ScalarType::kFloat32;
   DirectCursor out = direct_cursor();
   const bool rotation = header.rotation;
@@ -643,8 +644,12 @@ Status PsqDecoder::Impl::fast_direct_records() {
       direct_sync(out);
       for (int i = 0; i < qcount; ++i) {
         const SequenceEvent& e = queue[i];
-        if (e.kind == SequenceEvent::Kind::kVertex) direct_vertex(e.vertex);
-        else if (e.kind == SequenceEvent::Kind::kTriangle) direct_triangle(e.triangle.v);
+        if (e.kind == SequenceEvent::Kind::kVertex) {
+          const uint32_t at = direct_vertex(e.vertex);
+          if (e.vertex.slot != kNoSlot) b.vertex(e.vertex.slot).key = at;
+        } else if (e.kind == SequenceEvent::Kind::kTriangle) {
+          direct_triangle(e.triangle.v);
+        }
       }
       qhead = qcount = 0;
       out = direct_cursor();

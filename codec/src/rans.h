@@ -204,7 +204,7 @@ class RawReader {
   bool at_clean_end() const { return !overran_ && pos_ == size_ && acc_ == 0; }
 
  private:
-  void refill() {
+  __attribute__((always_inline)) void refill() {
     uint32_t w = 0;
     if (size_ - pos_ >= 4) {
       w = data_[pos_] | uint32_t{data_[pos_ + 1]} << 8 | uint32_t{data_[pos_ + 2]} << 16 |

@@ -149,6 +149,13 @@ void InputStream::open_memory(const void* data, size_t size, std::string name) {
   eof_ = true;
 }
 
+const uint8_t* InputStream::view(size_t n) {
+  if (fd_ >= 0 || n == 0 || data_ == nullptr || end_ - pos_ < n) return nullptr;
+  const uint8_t* p = data_ + pos_;
+  pos_ += n;
+  return p;
+}
+
 Status InputStream::rewind() {
   if (fd_ < 0) {  // memory
     pos_ = 0;

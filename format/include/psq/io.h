@@ -52,6 +52,12 @@ class InputStream {
   size_t buffered() const { return end_ - pos_; }
   void advance(size_t n) { pos_ += n; }
 
+  // For memory input (open_memory): the next `n` bytes in place, valid as
+  // long as that memory, with the cursor moved past them, so that a reader
+  // needs no copy. nullptr for a file or pipe, for n == 0, or when fewer
+  // than n bytes remain (the cursor stays; read_exact() then reports it).
+  const uint8_t* view(size_t n);
+
   // True when rewind() works: a regular file or memory.
   bool can_rewind() const { return size_ >= 0; }
   // Moves the cursor back to offset 0. Errors: kIo (a pipe cannot rewind).
