@@ -134,6 +134,13 @@ class BasicBoundary {
   // once (the header's boundary limit, spec 4.2).
   explicit BasicBoundary(uint32_t limit) : limit_(limit) {}
 
+  // Room for `n` vertex slots and `n` edge slots without moving the arrays
+  // (address space only: nothing is touched).
+  void reserve(uint32_t n) {
+    vertices_.reserve(n);
+    vlive_.reserve(n);
+    edges_.reserve(n);
+  }
   // A new vertex slot, or kNone when `limit` vertices are active.
   uint32_t new_vertex(uint32_t index, uint32_t key, const int64_t pos[3]);
   // Releases a vertex slot (after its finalization) and forgets the dead

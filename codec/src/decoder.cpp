@@ -51,6 +51,13 @@ Status PsqDecoder::Impl::open(InputStream* stream) {
   stats.header_bytes = payload_at + length + 4;
   if (fast) {
     fboundary = FastBoundary(header.boundary_limit);
+    // Address space for the slots that most streams need, so that the
+    // arrays do not move and copy themselves as the boundary grows (each
+    // doubling touches twice the pages). Reserved memory is not touched
+    // until used, and the header's limit bounds it only up to 2^16 slots.
+    const uint32_t slots = std::min<uint32_t>(header.boundary_limit, 1u << 16);
+    fboundary.reserve(slots);
+    fneighbors.reserve(slots);
     for (int i = 0; i < kFastTables; ++i) ftables[i].set_absent();
     std::fill(std::begin(ftable_absent), std::end(ftable_absent), true);
   } else {

@@ -29,6 +29,8 @@ namespace codec {
 
 class Neighbors {
  public:
+  // Room for `n` slots without moving the array (nothing is touched).
+  void reserve(uint32_t n) { slots_.reserve(n); }
   // Vertex slot `s` now holds a new vertex, with no neighbours yet.
   __attribute__((always_inline)) void vertex_begins(uint32_t s) {
     if (s >= slots_.size()) grow(s);
@@ -93,7 +95,13 @@ class Neighbors {
     v.push_back(entry);
     slots_[s].count = kInline + static_cast<uint32_t>(v.size());
   }
-  __attribute__((noinline)) void grow(uint32_t s) { slots_.resize(std::max<size_t>(size_t{s} + 1, 2 * slots_.size())); }
+  // Slots are handed out in order, so within the reserved capacity the
+  // array grows by the slot asked for (touching no page ahead of need);
+  // beyond it, geometrically.
+  __attribute__((noinline)) void grow(uint32_t s) {
+    const size_t want = size_t{s} + 1;
+    slots_.resize(want <= slots_.capacity() ? want : std::max(want, 2 * slots_.size()));
+  }
 
   std::vector<Slot> slots_;
   std::vector<std::vector<uint64_t>> spill_;  // per slot: entries beyond kInline
