@@ -6,6 +6,7 @@
 // must check its input and find which open edges a triangle completes. The
 // decoder keeps the same slots and links without the lookups
 // (FastBoundary), because every completion is named in the record.
+#include <cassert>
 #include <algorithm>
 #include <cmath>
 
@@ -104,25 +105,31 @@ void PsqEncoder::Impl::fast_begin() {
     fast_denominator[i] = static_cast<uint64_t>(fast_table_size(i));
     fast_log_denominator[i] = fixed_log2(fast_denominator[i]);
   }
+  fast_log_count.assign(size_t{kFastTables} * 128, fixed_log2(1));
 }
 
-void PsqEncoder::Impl::fast_put(int table, int symbol) {
+PSQ_INLINE void PsqEncoder::Impl::fast_put(int table, int symbol) {
   fast_symbols.push_back(RansSymbol{static_cast<uint16_t>(table), static_cast<uint8_t>(symbol)});
-  ++fast_count[static_cast<size_t>(table) * 128 + static_cast<size_t>(symbol)];
-  // fast_cost()'s denominator is kept up to date here, not computed per
+  const size_t at = static_cast<size_t>(table) * 128 + static_cast<size_t>(symbol);
+  ++fast_count[at];
+  // fast_cost()'s logarithms are kept up to date here, not computed per
   // price (choosing a prediction prices up to five candidates), for the
   // tables that it prices: the choices and the residual lengths.
   fast_denominator[table] += 2;
-  if (table >= kFastTableChoice && table < kFastTableDistance)
+  if (table >= kFastTableChoice && table < kFastTableDistance) {
     fast_log_denominator[table] = fixed_log2(fast_denominator[table]);
+    fast_log_count[at] = fixed_log2(2 * uint64_t{fast_count[at]} + 1);
+  }
 }
 
-int64_t PsqEncoder::Impl::fast_cost(int table, int symbol) const {
+PSQ_INLINE int64_t PsqEncoder::Impl::fast_cost(int table, int symbol) const {
   // The symbol's cost under the running counts, with half a count for
   // every symbol of the alphabet so that unseen symbols cost finitely
-  // (counts doubled to stay integers), in 1/65536 bits.
-  const uint64_t n = 2 * uint64_t{fast_count[static_cast<size_t>(table) * 128 + static_cast<size_t>(symbol)]} + 1;
-  return fast_log_denominator[table] - fixed_log2(n);
+  // (counts doubled to stay integers), in 1/65536 bits: the log2 of the
+  // denominator minus that of 2 * count + 1. Only the priced tables keep
+  // their logarithms (fast_put).
+  assert(table >= kFastTableChoice && table < kFastTableDistance);
+  return fast_log_denominator[table] - fast_log_count[static_cast<size_t>(table) * 128 + static_cast<size_t>(symbol)];
 }
 
 // Spec 7.3 leaves the choice to the encoder; this one takes the cheapest
