@@ -149,10 +149,13 @@ int PsqEncoder::Impl::fast_choose_prediction(uint32_t gate, uint32_t mask, const
   const uint32_t edge[3] = {gate, g.prev, g.next};  // by side
   int64_t para[3][3];
   int extent[3][3];
+  // A neighbour's extents only when a choice that uses them passes the
+  // rough test below (most do not).
+  bool have_extent[3] = {true, false, false};
+  triangle_extents(boundary, gate, extent[kChoiceGate]);
   for (int side = 0; side < 3; ++side) {
     if (side != 0 && !(mask & (1u << (side - 1)))) continue;
     parallelogram(boundary, edge[side], para[side]);
-    triangle_extents(boundary, edge[side], extent[side]);
   }
   const int choice_table = fast_choice_table(mask, fast_choice);
   int best = kChoiceGate;
@@ -162,15 +165,19 @@ int PsqEncoder::Impl::fast_choose_prediction(uint32_t gate, uint32_t mask, const
     const int side = choice_side(ch);
     if (ch != kChoiceGate && !(mask & (1u << (side - 1)))) continue;
     Prediction pr;
-    for (int a = 0; a < 3; ++a) {
+    for (int a = 0; a < 3; ++a)
       pr.pos[a] = ch >= kChoiceMeanBefore ? midpoint(para[kChoiceGate][a], para[side][a]) : para[side][a];
-      pr.extent[a] = extent[predicting_side(ch)][a];
-    }
     pr.kind = prediction_kind(ch);
     int rough = 0;
     for (int a = 0; a < 3; ++a) rough += bit_length64(coord_distance(pos[a], pr.pos[a]));
     if (ch == kChoiceGate) rough_gate = rough;
     else if (rough > rough_gate) continue;
+    const int ps = predicting_side(ch);
+    if (!have_extent[ps]) {
+      triangle_extents(boundary, edge[ps], extent[ps]);
+      have_extent[ps] = true;
+    }
+    for (int a = 0; a < 3; ++a) pr.extent[a] = extent[ps][a];
     int64_t c = fast_cost(choice_table, ch);
     int lengths[3] = {0, 0, 0};
     for (int a = 0; a < 3; ++a) {
