@@ -81,5 +81,36 @@ TEST(Neighbors, ListsOfLongLivedVerticesDropFinalizedNeighbours) {
   for (uint32_t s = 1; s <= 8; ++s) EXPECT_EQ(n.contains(0, s), s != 3) << s;
 }
 
+// add_vertex(s, p, q) is vertex_begins(s), insert(p, s), insert(s, q):
+// run both ways on the same random adds (slots reused, lists spilling past
+// their inline entries), every pair of slots answers alike.
+TEST(Neighbors, AddVertexIsBeginAndTwoInserts) {
+  codec::Neighbors one, three;
+  uint64_t x = 12345;
+  auto next = [&x](uint32_t n) {
+    x = x * 6364136223846793005ull + 1442695040888963407ull;
+    return static_cast<uint32_t>((x >> 33) % n);
+  };
+  constexpr uint32_t kSlots = 24;
+  for (uint32_t s = 0; s < kSlots; ++s) {
+    one.vertex_begins(s);
+    three.vertex_begins(s);
+  }
+  for (int k = 0; k < 20000; ++k) {
+    const uint32_t s = next(kSlots), p = next(kSlots), q = next(kSlots);
+    if (s == p || s == q || p == q) continue;
+    one.add_vertex(s, p, q);
+    three.vertex_begins(s);
+    three.insert(p, s);
+    three.insert(s, q);
+    if (k % 97 == 0) {
+      for (uint32_t a = 0; a < kSlots; ++a)
+        for (uint32_t b = 0; b < kSlots; ++b) ASSERT_EQ(one.contains(a, b), three.contains(a, b)) << k;
+    }
+    ASSERT_TRUE(one.contains(p, s));
+    ASSERT_TRUE(one.contains(q, s));
+  }
+}
+
 }  // namespace codec
 }  // namespace psq

@@ -242,15 +242,13 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_common(RansDecoder& d, RawReader& bits,
     const uint32_t at = kDirect ? static_cast<uint32_t>(out->verts) : 0;
     const uint32_t s = b.new_vertex(index, at, pos);
     if (s == kNone) return Status(ErrorCode::kLimit, "more active vertices than the header's boundary limit", conn_offset);
-    fneighbors.vertex_begins(s);
     if (d.overran() || bits.overran()) return fast_early_end();
     const uint32_t f1 = b.lean_add(gate, s);
     if (f1 == kNone) return Status(ErrorCode::kLimit, "more open edges than the header's boundary limit", conn_offset);
     const uint32_t f2 = b.edge(f1).next;
     ring.push(b, f1);
     ring.push(b, f2);
-    fneighbors.insert(p, s);
-    fneighbors.insert(s, q);
+    fneighbors.add_vertex(s, p, q);
     last_op = static_cast<int>(Op::kAdd);
     ++seen_triangles;
     ++stats.triangles;
