@@ -39,7 +39,7 @@ void RansTable::build(const uint64_t* counts, int size) {
     freq_[s] = 0;
     if (counts[s] == 0) continue;
     const uint32_t f = static_cast<uint32_t>((static_cast<unsigned __int128>(counts[s]) * kRansScale) / total);
-    freq_[s] = std::max<uint32_t>(f, 1);
+    freq_[s] = static_cast<uint16_t>(std::max<uint32_t>(f, 1));
     sum += freq_[s];
   }
   // Rounding left kRansScale - sum: a surplus goes to the first most
@@ -50,14 +50,14 @@ void RansTable::build(const uint64_t* counts, int size) {
     int top = 0;
     for (int s = 1; s < size; ++s)
       if (counts[s] > counts[top]) top = s;
-    freq_[top] += static_cast<uint32_t>(diff);
+    freq_[top] = static_cast<uint16_t>(freq_[top] + diff);
   }
   while (diff < 0) {
     int top = 0;
     for (int s = 1; s < size; ++s)
       if (freq_[s] > freq_[top]) top = s;
     const int64_t take = std::min<int64_t>(-diff, freq_[top] - 1);
-    freq_[top] -= static_cast<uint32_t>(take);
+    freq_[top] = static_cast<uint16_t>(freq_[top] - take);
     diff += take;
   }
   finish();
@@ -77,7 +77,7 @@ bool RansTable::read(RawReader& in, int size) {
   size_ = 0;
   int last = -1;
   for (int s = 0; s < size; ++s) {
-    freq_[s] = in.get(1);
+    freq_[s] = static_cast<uint16_t>(in.get(1));
     if (freq_[s] != 0) last = s;
   }
   if (last < 0) return false;
@@ -86,10 +86,10 @@ bool RansTable::read(RawReader& in, int size) {
     if (freq_[s] == 0) continue;
     // An explicit frequency is below kRansScale: at most kRansScaleBits - 1
     // leading zeros.
-    freq_[s] = get_gamma(in, kRansScaleBits - 1);
+    freq_[s] = static_cast<uint16_t>(get_gamma(in, kRansScaleBits - 1));  // below 2^kRansScaleBits
     if (freq_[s] == 0 || (sum += freq_[s]) >= kRansScale) return false;
   }
-  freq_[last] = kRansScale - sum;
+  freq_[last] = static_cast<uint16_t>(kRansScale - sum);
   size_ = size;
   finish();
   return true;
@@ -102,11 +102,11 @@ void RansTable::set_absent() {
 }
 
 void RansTable::finish() {
-  cum_[0] = 0;
-  for (int s = 0; s < size_; ++s) cum_[s + 1] = cum_[s] + freq_[s];
+  uint32_t cum = 0;
   for (int s = 0; s < size_; ++s) {
-    fc_[s] = freq_[s] | cum_[s] << 16;
-    for (uint32_t k = 0; k < freq_[s]; ++k) sym_[cum_[s] + k] = static_cast<uint8_t>(s);
+    fc_[s] = freq_[s] | cum << 16;
+    for (uint32_t k = 0; k < freq_[s]; ++k) sym_[cum + k] = static_cast<uint8_t>(s);
+    cum += freq_[s];
   }
 }
 

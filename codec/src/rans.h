@@ -74,7 +74,7 @@ class RansTable {
   int size() const { return size_; }
   bool empty() const { return size_ == 0; }
   uint32_t freq(int s) const { return freq_[s]; }
-  uint32_t cum(int s) const { return cum_[s]; }
+  uint32_t cum(int s) const { return fc_[s] >> 16; }
   // The symbol of a state's low kRansScaleBits bits, and that symbol's
   // frequency (bits 0..15) and cumulative frequency (bits 16..31); an
   // absent table's symbol kRansAbsent has frequency kRansScale at 0.
@@ -85,8 +85,11 @@ class RansTable {
   void finish();  // cumulative frequencies and the decoding arrays from freq_
 
   int size_ = 0;
-  uint32_t freq_[kRansMaxSymbols] = {};
-  uint32_t cum_[kRansMaxSymbols + 1] = {};
+  // Frequencies (at most kRansScale); the cumulative ones live in fc_. A
+  // chunk's 180 tables are built anew for every decoder, so their size is
+  // pages touched per stream: 1.8 KiB each, 2.5 with 32-bit frequencies
+  // and a cumulative array of their own.
+  uint16_t freq_[kRansMaxSymbols] = {};
   // Decoding: a byte per slot (1 KiB, a quarter of a table of whole
   // entries, so that a chunk's tables stay in the cache) and the
   // frequencies beside it.
