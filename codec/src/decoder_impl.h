@@ -226,8 +226,8 @@ struct PsqDecoder::Impl {
     }
     return nullptr;
   }
-  // A vertex event into the arrays; returns its mesh index. `dense` is its
-  // dense index (the count of vertices before it).
+  // A vertex event into the arrays; returns its mesh index (a new position,
+  // or the one of the vertex it re-appears as).
   uint32_t direct_vertex(const SequenceVertex& v) {
     if (v.reappears != kNoVertex) {
       if (direct_identity) {

@@ -597,13 +597,15 @@ Status PsqDecoder::Impl::fast_direct_records() {
   RawReader bits = *fraw;
   MeshBuffers& mesh = *direct;
   // Room for the chunk's declared counts, but for no more than four
-  // vertices or triangles per coded byte, so that a hostile count
-  // allocates at most a bounded multiple of the bytes actually read (a
-  // symbol can cost far less than a bit): a chunk that holds more grows the
-  // arrays geometrically (direct_room). Real chunks take 1 to 8 bytes per
-  // triangle (the cap of half a triangle per byte, before, made the arrays
-  // of most meshes grow once: a copy and twice the pages).
-  const uint64_t cap = 4 * static_cast<uint64_t>(csize) + 64;
+  // vertices or triangles per coded byte and 2^21 in all, so that a hostile
+  // count allocates at most a bounded multiple of the bytes actually read
+  // (a symbol can cost far less than a bit) and never more than 48 MiB: a
+  // chunk that holds more grows the arrays geometrically (direct_room).
+  // Real chunks take 1 to 8 bytes per triangle, and a chunk of the default
+  // size (2^20 coded bytes) about half a million triangles (a cap of half
+  // a triangle per byte, before, made the arrays of most meshes grow once:
+  // a copy and twice the pages).
+  const uint64_t cap = std::min<uint64_t>(4 * static_cast<uint64_t>(csize) + 64, uint64_t{1} << 21);
   direct_room(mesh.indices, direct_ni, 3 * static_cast<size_t>(std::min<uint64_t>(chunk_triangles, cap)));
   direct_room(mesh.positions, direct_np, 3 * static_cast<size_t>(std::min<uint64_t>(chunk_vertices, cap)));
   direct_float = !header.lossless && header.schema.position_type == ScalarType::kFloat32;
