@@ -50,7 +50,7 @@ TEST(CodecInternal, TriangleExtentMatchesItsDefinition) {
 }  // namespace
 // The centre of a fan stays active while 100,000 neighbours come and go
 // through a few slots: its list keeps only the neighbours that are still
-// active (plus the ten inline entries and the growth slack), and answers
+// active (plus the inline entries and the growth slack), and answers
 // like a set of the live edges.
 TEST(Neighbors, ListsOfLongLivedVerticesDropFinalizedNeighbours) {
   codec::Neighbors n;
