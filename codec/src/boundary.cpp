@@ -20,7 +20,7 @@ namespace codec {
 
 template <bool L>
 PSQ_INLINE bool BasicBoundary<L>::is_border(uint32_t a, uint32_t b) const {
-  const BVertex& va = vertices_[a];
+  const BLinks& va = links_[a];
   for (uint32_t i = 0; i < va.ndead; ++i)
     if (va.dead[i] == b) return true;
   for (uint32_t r = va.first_border; r != kNone;) {
@@ -34,8 +34,8 @@ PSQ_INLINE bool BasicBoundary<L>::is_border(uint32_t a, uint32_t b) const {
 
 template <bool L>
 PSQ_INLINE void BasicBoundary<L>::add_border(uint32_t a, uint32_t b) {
-  BVertex& va = vertices_[a];
-  BVertex& vb = vertices_[b];
+  BLinks& va = links_[a];
+  BLinks& vb = links_[b];
   if (va.ndead < kInlineDead && vb.ndead < kInlineDead) {
     va.dead[va.ndead++] = b;
     vb.dead[vb.ndead++] = a;
@@ -51,10 +51,10 @@ PSQ_INLINE void BasicBoundary<L>::add_border(uint32_t a, uint32_t b) {
   BBorder& e = borders_[r];
   e.v[0] = a;
   e.v[1] = b;
-  e.next[0] = vertices_[a].first_border;
-  e.next[1] = vertices_[b].first_border;
-  vertices_[a].first_border = r;
-  vertices_[b].first_border = r;
+  e.next[0] = links_[a].first_border;
+  e.next[1] = links_[b].first_border;
+  links_[a].first_border = r;
+  links_[b].first_border = r;
 }
 
 
@@ -62,7 +62,7 @@ PSQ_INLINE void BasicBoundary<L>::add_border(uint32_t a, uint32_t b) {
 
 template <bool L>
 uint32_t BasicBoundary<L>::find_edge(uint32_t a, uint32_t b) const {
-  for (uint32_t e = vertices_[a].first_out; e != kNone; e = edges_[e].next_out)
+  for (uint32_t e = links_[a].first_out; e != kNone; e = edges_[e].next_out)
     if (edges_[e].dst == b) return e;
   return kNone;
 }
@@ -163,10 +163,12 @@ PSQ_INLINE uint32_t BasicBoundary<L>::enter_edge(BTriangle& t, int k) {
   t.eslot[k] = s;
   e.age = entered_++;
   if constexpr (L) {
-    e.next_out = vo.first_out;
-    vo.first_out = s;
-    e.next_in = vd.first_in;
-    vd.first_in = s;
+    BLinks& lo = links_[org];
+    BLinks& ld = links_[dst];
+    e.next_out = lo.first_out;
+    lo.first_out = s;
+    e.next_in = ld.first_in;
+    ld.first_in = s;
     recent_.push_back(Recent{s, e.age});
   }
   return s;

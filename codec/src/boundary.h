@@ -46,13 +46,19 @@ constexpr uint32_t kInlineDead = 5;
 struct BVertex {
   uint32_t index = 0;        // dense index in the sequence
   uint32_t key = 0;          // the encoder's input index (for its map); decode_mesh's mesh index
-  uint32_t first_out = kNone;  // open edges leaving it (through BEdge::next_out)
-  uint32_t first_in = kNone;   // open edges entering it (through BEdge::next_in)
-  uint32_t first_border = kNone;  // dead edges touching it that did not fit inline (through BBorder)
   uint32_t open = 0;         // open edges touching it
   uint32_t degree = 0;       // triangles that used it so far
   uint32_t borders = 0;      // border edges touching it (context of spec 6.2.5)
   int64_t pos[3] = {0, 0, 0};  // coded coordinates (spec 7.1)
+};
+
+// A vertex's lookups (kLookups only), beside its BVertex rather than in it,
+// so that the fast decoder's vertices take 48 bytes instead of 80 (its
+// boundary's arrays are what it touches at random).
+struct BLinks {
+  uint32_t first_out = kNone;  // open edges leaving it (through BEdge::next_out)
+  uint32_t first_in = kNone;   // open edges entering it (through BEdge::next_in)
+  uint32_t first_border = kNone;  // dead edges touching it that did not fit inline (through BBorder)
   // Dead edges touching it, as the other endpoint's slot: the first few
   // inline (an edge is inline at both endpoints or in BBorder records at
   // both), since most active vertices have none to three.
@@ -138,6 +144,7 @@ class BasicBoundary {
   // (address space only: nothing is touched).
   void reserve(uint32_t n) {
     vertices_.reserve(n);
+    if constexpr (kLookups) links_.reserve(n);
     vlive_.reserve(n);
     edges_.reserve(n);
   }
@@ -148,6 +155,8 @@ class BasicBoundary {
   void free_vertex(uint32_t slot);
 
   BVertex& vertex(uint32_t slot) { return vertices_[slot]; }
+  // A vertex's lookups (kLookups only).
+  const BLinks& links(uint32_t slot) const { return links_[slot]; }
   const BVertex& vertex(uint32_t slot) const { return vertices_[slot]; }
   BEdge& edge(uint32_t slot) { return edges_[slot]; }
   const BEdge& edge(uint32_t slot) const { return edges_[slot]; }
@@ -241,6 +250,7 @@ class BasicBoundary {
 
   uint32_t limit_;
   std::vector<BVertex> vertices_;
+  std::vector<BLinks> links_;  // per vertex slot, kLookups only
   // Per vertex slot, 1 while a vertex holds it. Not bytes: a store of a byte
   // may alias anything, and would make the decoder reload every field it
   // holds in registers.
@@ -279,14 +289,19 @@ PSQ_INLINE uint32_t BasicBoundary<L>::new_vertex(uint32_t index, uint32_t key, c
     if (vertices_.size() >= limit_) return kNone;
     slot = static_cast<uint32_t>(vertices_.size());
     vertices_.emplace_back();
+    if constexpr (L) links_.emplace_back();
     vlive_.push_back(0);
   }
   BVertex& v = vertices_[slot];
   // Every field but the unused inline dead entries.
   v.index = index;
   v.key = key;
-  v.first_out = v.first_in = v.first_border = kNone;
-  v.open = v.degree = v.borders = v.ndead = 0;
+  v.open = v.degree = v.borders = 0;
+  if constexpr (L) {
+    BLinks& k = links_[slot];
+    k.first_out = k.first_in = k.first_border = kNone;
+    k.ndead = 0;
+  }
   for (int i = 0; i < 3; ++i) v.pos[i] = pos[i];
   vlive_[slot] = 1;
   ++active_vertices_;
@@ -305,20 +320,20 @@ template <bool L>
 PSQ_INLINE void BasicBoundary<L>::forget_dead_edges(uint32_t slot) {
   // Forget its inline dead edges: remove it from each other endpoint's
   // inline list (order within a list does not matter).
-  BVertex& v = vertices_[slot];
+  BLinks& v = links_[slot];
   for (uint32_t i = 0; i < v.ndead; ++i) {
-    BVertex& o = vertices_[v.dead[i]];
+    BLinks& o = links_[v.dead[i]];
     uint32_t j = 0;
     while (o.dead[j] != slot) ++j;
     o.dead[j] = o.dead[--o.ndead];
   }
   v.ndead = 0;
   // Forget its border edges: unlink each from the other endpoint's list.
-  for (uint32_t r = vertices_[slot].first_border; r != kNone;) {
+  for (uint32_t r = links_[slot].first_border; r != kNone;) {
     BBorder& e = borders_[r];
     const int side = e.v[0] == slot ? 0 : 1;
     const uint32_t other = e.v[1 - side];
-    uint32_t* p = &vertices_[other].first_border;
+    uint32_t* p = &links_[other].first_border;
     while (*p != r) {
       BBorder& q = borders_[*p];
       p = &q.next[q.v[0] == other ? 0 : 1];
@@ -328,7 +343,7 @@ PSQ_INLINE void BasicBoundary<L>::forget_dead_edges(uint32_t slot) {
     free_borders_.push(r);
     r = next;
   }
-  vertices_[slot].first_border = kNone;
+  links_[slot].first_border = kNone;
 }
 
 template <bool L>
@@ -355,10 +370,10 @@ PSQ_INLINE void BasicBoundary<L>::free_edge(uint32_t slot) {
   if (e.prev != kNone && edges_[e.prev].next == slot) edges_[e.prev].next = kNone;
   if constexpr (L) {
     // Unlink from the out-list of org and the in-list of dst.
-    uint32_t* p = &vertices_[e.org].first_out;
+    uint32_t* p = &links_[e.org].first_out;
     while (*p != slot) p = &edges_[*p].next_out;
     *p = e.next_out;
-    p = &vertices_[e.dst].first_in;
+    p = &links_[e.dst].first_in;
     while (*p != slot) p = &edges_[*p].next_in;
     *p = e.next_in;
   }

@@ -420,7 +420,7 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
     if (third == kThirdJoin) {
       // Spec 6.2.2: an open edge at x names it and the gap the triangle
       // goes into: its first edge leaving x, else its first entering x.
-      const BVertex& vx = boundary.vertex(bt.c[2]);
+      const BLinks& vx = boundary.links(bt.c[2]);
       uint32_t j = vx.first_out != kNone ? vx.first_out : vx.first_in;
       if (j == kNone) return bad_sequence("join over vertex " + std::to_string(t.v[(rot + 2) % 3]) +
                                           ", which is not on the boundary");

@@ -274,7 +274,7 @@ Status PsqEncoder::Impl::triangle_fast(const SequenceTriangle& t, const int pend
     if (third == kFastJoin || cls == kFastEscape) {
       // Spec 6.2.2: an open edge at x names it and the gap the triangle goes
       // into: its first edge leaving x, else its first entering x.
-      const BVertex& vx = boundary.vertex(x);
+      const BLinks& vx = boundary.links(x);
       join = vx.first_out != kNone ? vx.first_out : vx.first_in;
       if (join == kNone)
         return bad_sequence("join over vertex " + std::to_string(t.v[(rot + 2) % 3]) +
