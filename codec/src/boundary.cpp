@@ -17,7 +17,6 @@ namespace codec {
 // instructions and encoding it 2.9% fewer (bench/instructions.sh); the
 // bytes are the same.
 
-
 template <bool L>
 PSQ_INLINE bool BasicBoundary<L>::is_border(uint32_t a, uint32_t b) const {
   const BLinks& va = links_[a];
@@ -56,9 +55,6 @@ PSQ_INLINE void BasicBoundary<L>::add_border(uint32_t a, uint32_t b) {
   links_[a].first_border = r;
   links_[b].first_border = r;
 }
-
-
-
 
 template <bool L>
 uint32_t BasicBoundary<L>::find_edge(uint32_t a, uint32_t b) const {
@@ -142,7 +138,6 @@ PSQ_INLINE void BasicBoundary<L>::link(uint32_t p, uint32_t q) {
     edges_[q].prev = p;
   }
 }
-
 
 template <bool L>
 PSQ_INLINE uint32_t BasicBoundary<L>::enter_edge(BTriangle& t, int k) {
@@ -318,8 +313,6 @@ bool BasicBoundary<L>::apply_on_gate(BTriangle& t) {
   return true;
 }
 
-
-
 // apply_on_gate() for an add: p->x and x->q enter, the gate closes. The
 // same steps again, with what an add implies resolved: no old link names a
 // completed edge but the gate (the gate is neither its own neighbour nor
@@ -368,8 +361,6 @@ PSQ_INLINE bool BasicBoundary<L>::apply_fill(BTriangle& t, int k) {
   return true;
 }
 
-
-
 namespace {
 // The largest coordinate distance of two points (coding.h).
 uint64_t linf_distance(const int64_t* a, const int64_t* b) {
@@ -378,7 +369,6 @@ uint64_t linf_distance(const int64_t* a, const int64_t* b) {
   return m;
 }
 }  // namespace
-
 
 template <class B>
 int third_shape_context(const B& boundary, uint32_t gate) {
@@ -395,8 +385,6 @@ int third_shape_context(const B& boundary, uint32_t gate) {
   const int side = dl <= dr ? 0 : 1;
   return d < (e >> 1) ? 1 + side : d < e ? 3 + side : 0;
 }
-
-
 
 template <bool L>
 uint32_t BasicBoundary<L>::scan_recent(uint32_t want, uint32_t* out) {

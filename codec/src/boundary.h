@@ -277,8 +277,9 @@ class BasicBoundary {
 
 // The members that the fast decoder runs once or twice per triangle are
 // defined here, inline, so that they join its loop: as calls into
-// boundary.cpp they cost 15 to 20% more instructions (register saves, and
-// reloads of what a call might have changed).
+// boundary.cpp they cost the decoder 4% more instructions (812 against 783
+// a triangle on iso_ball_200k: register saves, and reloads of what a call
+// might have changed).
 
 template <bool L>
 PSQ_INLINE uint32_t BasicBoundary<L>::new_vertex(uint32_t index, uint32_t key, const int64_t pos[3]) {

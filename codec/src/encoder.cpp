@@ -278,8 +278,8 @@ void PsqEncoder::Impl::code_new_vertex(Encoder& enc, const PendingVertex& v, con
   for (int i = 0; i < 3; ++i) last_pos[i] = v.pos[i];
 }
 
-// Codes the input's finalize events that the boundary predicts and checks
-// that the input gives exactly those (spec 6.4).
+// Spec 6.2.1: a gate is an open edge that the triangle completes; both
+// profiles' records name one of these.
 Status PsqEncoder::Impl::candidate_gates(const SequenceTriangle& t, const int pend[3], const uint32_t slots[3],
                                          int nnew, uint32_t cand[3]) const {
   for (int k = 0; k < 3; ++k) {

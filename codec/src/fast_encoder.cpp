@@ -6,8 +6,8 @@
 // must check its input and find which open edges a triangle completes. The
 // decoder keeps the same slots and links without the lookups
 // (FastBoundary), because every completion is named in the record.
-#include <cassert>
 #include <algorithm>
+#include <cassert>
 #include <cmath>
 
 #include "container.h"

@@ -32,7 +32,7 @@ class Neighbors {
   // Room for `n` slots without moving the array (nothing is touched).
   void reserve(uint32_t n) { slots_.reserve(n); }
   // Vertex slot `s` now holds a new vertex, with no neighbours yet.
-  __attribute__((always_inline)) void vertex_begins(uint32_t s) {
+  void vertex_begins(uint32_t s) {
     if (s >= slots_.size()) grow(s);
     Slot& v = slots_[s];
     ++v.gen;
@@ -53,15 +53,13 @@ class Neighbors {
   // vertex_begins(s), insert(p, s) and insert(s, q) in one step: an add's
   // new vertex and its two edges (the same lists, with less work).
   __attribute__((always_inline)) void add_vertex(uint32_t s, uint32_t p, uint32_t q) {
-    if (s >= slots_.size()) grow(s);
+    vertex_begins(s);
     Slot* slots = slots_.data();
     Slot& vs = slots[s];
-    const uint32_t gen = ++vs.gen;
-    if (vs.count > kInline) spill_[s].clear();
     vs.e[0] = uint64_t{p} << 32 | slots[p].gen;
     vs.e[1] = uint64_t{q} << 32 | slots[q].gen;
     vs.count = 2;
-    const uint64_t es = uint64_t{s} << 32 | gen;
+    const uint64_t es = uint64_t{s} << 32 | vs.gen;
     Slot& vp = slots[p];
     if (vp.count < kInline) vp.e[vp.count++] = es;
     else spill(p, es);
