@@ -34,7 +34,8 @@ using Face = std::array<Corner, 3>;
 // The triangles as position triples, each rotated to start at its smallest
 // corner (orientation kept), sorted: the mesh without its numbering.
 // Positions are snapped to `step` (0: exact).
-std::vector<Face> faces_of(const std::vector<float>& positions, const std::vector<uint32_t>& indices, float step) {
+template <class Positions, class Indices>
+std::vector<Face> faces_of(const Positions& positions, const Indices& indices, float step) {
   std::vector<Face> faces;
   for (size_t t = 0; t + 2 < indices.size(); t += 3) {
     Face f;
@@ -253,6 +254,15 @@ TEST_P(MemoryApiProfiles, ArraysAreTheEventsMesh) {
     EXPECT_EQ(direct.positions, events.positions) << "case " << i;
     EXPECT_EQ(direct.indices, events.indices) << "case " << i;
     EXPECT_EQ(direct.indices.size(), 3 * cases[i].mesh.triangles.size()) << "case " << i;
+    // Into arrays that held other values: MeshBuffers' allocator does not
+    // zero what resize() adds, so an element that the decoder failed to
+    // write would keep a stale value here.
+    MeshBuffers stale;
+    stale.positions.assign(3 * cases[i].mesh.positions.size() + 100, -7.5f);
+    stale.indices.assign(3 * cases[i].mesh.triangles.size() + 100, 0xdeadbeefu);
+    ASSERT_TRUE(decode_mesh(bytes.data(), bytes.size(), &stale).ok()) << "case " << i;
+    EXPECT_EQ(stale.positions, events.positions) << "case " << i;
+    EXPECT_EQ(stale.indices, events.indices) << "case " << i;
   }
 }
 

@@ -178,8 +178,8 @@ struct PsqDecoder::Impl {
   size_t direct_np = 0, direct_ni = 0;  // positions, indices
   // Room for n more elements after the `used` ones of v (growing it
   // geometrically).
-  template <class T>
-  static T* direct_room(std::vector<T>& v, size_t used, size_t n) {
+  template <class Vector>
+  static typename Vector::value_type* direct_room(Vector& v, size_t used, size_t n) {
     if (used + n > v.size()) v.resize(std::max(used + n, 2 * v.size()));
     return v.data() + used;
   }

@@ -8,6 +8,7 @@
 
 #include "decoder_impl.h"
 #include "geometry.h"
+#include "pages.h"
 
 namespace psq {
 
@@ -605,9 +606,12 @@ Status PsqDecoder::Impl::fast_direct_records() {
   // size (2^20 coded bytes) about half a million triangles (a cap of half
   // a triangle per byte, before, made the arrays of most meshes grow once:
   // a copy and twice the pages).
+  // The room is populated at once (pages.h): honest records write all of it.
   const uint64_t cap = std::min<uint64_t>(4 * static_cast<uint64_t>(csize) + 64, uint64_t{1} << 21);
-  direct_room(mesh.indices, direct_ni, 3 * static_cast<size_t>(std::min<uint64_t>(chunk_triangles, cap)));
-  direct_room(mesh.positions, direct_np, 3 * static_cast<size_t>(std::min<uint64_t>(chunk_vertices, cap)));
+  const size_t ni = 3 * static_cast<size_t>(std::min<uint64_t>(chunk_triangles, cap));
+  const size_t np = 3 * static_cast<size_t>(std::min<uint64_t>(chunk_vertices, cap));
+  codec::populate_for_write(direct_room(mesh.indices, direct_ni, ni), ni * sizeof(uint32_t));
+  codec::populate_for_write(direct_room(mesh.positions, direct_np, np), np * sizeof(float));
   direct_float = !header.lossless && header.schema.position_type == ScalarType::kFloat32;
   DirectCursor out = direct_cursor();
   const bool rotation = header.rotation;

@@ -68,33 +68,6 @@ class ArrayMeshSource : public MeshSource {
   Status error_;
 };
 
-// The decoded sequence as arrays, re-appearing vertices merged back.
-class ArraySink : public SequenceSink {
- public:
-  explicit ArraySink(MeshBuffers* mesh) : mesh_(mesh) {}
-  Status begin(const MeshSchema&) override { return Status(); }
-  Status vertex(const SequenceVertex& v) override {
-    // Dense indices come in order (the decoder checks), and a re-appearance
-    // names an earlier one.
-    if (v.reappears != kNoVertex) {
-      mesh_index_.push_back(mesh_index_[v.reappears]);
-      return Status();
-    }
-    mesh_index_.push_back(static_cast<uint32_t>(mesh_->positions.size() / 3));
-    for (double x : v.position) mesh_->positions.push_back(static_cast<float>(x));
-    return Status();
-  }
-  Status triangle(const SequenceTriangle& t) override {
-    for (uint32_t v : t.v) mesh_->indices.push_back(mesh_index_[v]);
-    return Status();
-  }
-  Status finalize(uint32_t) override { return Status(); }
-  Status finish() override { return Status(); }
-
- private:
-  MeshBuffers* mesh_;
-  std::vector<uint32_t> mesh_index_;  // by dense index
-};
 
 }  // namespace
 
