@@ -8,13 +8,32 @@
 #include <cstdint>
 #include <limits>
 #include <random>
+#include <vector>
 
 #include "coding.h"
+#include "crc32c.h"
 #include "neighbors.h"
 
 namespace psq {
 namespace codec {
 namespace {
+
+// The CRC-32C check value, and the processor's instruction (where
+// crc32c_update() uses it) against the tables: every length from 0 to 80
+// at every alignment within 8 bytes, then in pieces.
+TEST(Crc32c, HardwareAndTablesAgree) {
+  EXPECT_EQ(crc32c_update(0, "123456789", 9), 0xe3069283u);
+  EXPECT_EQ(crc32c_update_portable(0, "123456789", 9), 0xe3069283u);
+  std::mt19937 rng(7);
+  std::vector<uint8_t> bytes(100);
+  for (uint8_t& b : bytes) b = static_cast<uint8_t>(rng());
+  for (size_t at = 0; at < 8; ++at)
+    for (size_t n = 0; at + n <= 88; ++n)
+      ASSERT_EQ(crc32c_update(0x1234u, bytes.data() + at, n), crc32c_update_portable(0x1234u, bytes.data() + at, n))
+          << "at " << at << ", " << n << " bytes";
+  const uint32_t whole = crc32c_update(0, bytes.data(), bytes.size());
+  EXPECT_EQ(crc32c_update(crc32c_update(0, bytes.data(), 13), bytes.data() + 13, bytes.size() - 13), whole);
+}
 
 // Spec 7.4: the bit length of the largest of the three pairwise coordinate
 // distances, each taken modulo 2^64.

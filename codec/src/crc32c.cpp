@@ -1,5 +1,6 @@
 // CRC-32C by table lookup, eight bytes per step ("slicing by 8": eight
-// 256-entry tables, each the previous one advanced by a zero byte).
+// 256-entry tables, each the previous one advanced by a zero byte), or by
+// the CRC32 instruction of SSE 4.2 on x86-64 processors that have it.
 #include "crc32c.h"
 
 #include <cstring>
@@ -26,9 +27,45 @@ const Tables& tables() {
   return kTables;
 }
 
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#define PSQ_CRC32C_HARDWARE 1
+// SSE 4.2's CRC32 instruction computes exactly this CRC (the Castagnoli
+// polynomial, reflected), eight bytes per instruction: on the benchmark
+// machine about a seventh of the table version's instructions per byte.
+// The function is compiled for SSE 4.2 alone and called only when the
+// processor reports it (crc32c_update()), so the library still runs on any
+// x86-64.
+__attribute__((target("sse4.2"))) uint32_t crc32c_sse42(uint32_t crc, const void* data, size_t size) {
+  const uint8_t* p = static_cast<const uint8_t*>(data);
+  uint64_t c = ~crc;
+  while (size >= 8) {
+    uint64_t w;
+    std::memcpy(&w, p, 8);
+    c = __builtin_ia32_crc32di(c, w);
+    p += 8;
+    size -= 8;
+  }
+  uint32_t c32 = static_cast<uint32_t>(c);
+  while (size--) c32 = __builtin_ia32_crc32qi(c32, *p++);
+  return ~c32;
+}
+
+bool have_sse42() {
+  static const bool kHave = __builtin_cpu_supports("sse4.2");
+  return kHave;
+}
+#endif
+
 }  // namespace
 
 uint32_t crc32c_update(uint32_t crc, const void* data, size_t size) {
+#ifdef PSQ_CRC32C_HARDWARE
+  if (have_sse42()) return crc32c_sse42(crc, data, size);
+#endif
+  return crc32c_update_portable(crc, data, size);
+}
+
+uint32_t crc32c_update_portable(uint32_t crc, const void* data, size_t size) {
   const Tables& T = tables();
   const uint8_t* p = static_cast<const uint8_t*>(data);
   uint32_t c = ~crc;
