@@ -620,10 +620,22 @@ Status PsqDecoder::Impl::fast_direct_records() {
     const int cls = d.decode(ftables[kFastTableA + fast_context]);
     const uint32_t R = b.reference();
     int done = 0;  // 1: an add decoded below, 2: a fill
-    if (cls <= kFastGatePrev && R != kNone && seen_triangles < chunk_triangles) {
-      const uint32_t gate = cls == kFastGateR ? R : cls == kFastGateNext ? b.edge(R).next : b.edge(R).prev;
-      if (gate == kNone) return corrupt("gate offset leaves the boundary");
-      ++stats.gates[cls == kFastGateR ? 0 : 1];
+    if (((cls <= kFastGatePrev && R != kNone) || cls == kFastGateFar) && seen_triangles < chunk_triangles) {
+      // The gate (spec 13.7.1): an offset from R, or a far gate's rank
+      // among the ring's open edges (13.7.4), as decode_record_fast()
+      // finds it.
+      uint32_t gate;
+      if (cls == kFastGateFar) {
+        const int rank = d.decode(ftables[kFastTableRank + (R == kNone ? 1 : 0)]);
+        if (rank >= kFastRanks) return corrupt("far gate rank " + std::to_string(rank));
+        gate = ring.ranked(b, static_cast<uint32_t>(rank));
+        if (gate == kNone) return corrupt("far gate rank beyond the open edges of the ring");
+        ++stats.gates[2];
+      } else {
+        gate = cls == kFastGateR ? R : cls == kFastGateNext ? b.edge(R).next : b.edge(R).prev;
+        if (gate == kNone) return corrupt("gate offset leaves the boundary");
+        ++stats.gates[cls == kFastGateR ? 0 : 1];
+      }
       const BEdge& g = b.edge(gate);
       const uint32_t p = g.org, q = g.dst;
       const int bsym = d.decode(ftables[kFastTableB + third_context(b.vertex(p).degree, b.vertex(q).degree)]);
