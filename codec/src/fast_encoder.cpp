@@ -168,8 +168,16 @@ int PsqEncoder::Impl::fast_choose_prediction(uint32_t gate, uint32_t mask, const
     for (int a = 0; a < 3; ++a)
       pr.pos[a] = ch >= kChoiceMeanBefore ? midpoint(para[kChoiceGate][a], para[side][a]) : para[side][a];
     pr.kind = prediction_kind(ch);
+    // The residuals' magnitudes and bit lengths, for the rough test and
+    // then the price.
+    uint64_t mag[3];
+    int len[3];
     int rough = 0;
-    for (int a = 0; a < 3; ++a) rough += bit_length64(coord_distance(pos[a], pr.pos[a]));
+    for (int a = 0; a < 3; ++a) {
+      mag[a] = coord_distance(pos[a], pr.pos[a]);
+      len[a] = bit_length64(mag[a]);
+      rough += len[a];
+    }
     if (ch == kChoiceGate) rough_gate = rough;
     else if (rough > rough_gate) continue;
     const int ps = predicting_side(ch);
@@ -179,14 +187,12 @@ int PsqEncoder::Impl::fast_choose_prediction(uint32_t gate, uint32_t mask, const
     }
     for (int a = 0; a < 3; ++a) pr.extent[a] = extent[ps][a];
     int64_t c = fast_cost(choice_table, ch);
-    int lengths[3] = {0, 0, 0};
     for (int a = 0; a < 3; ++a) {
-      const int lc = fast_length_context(pr.kind, a, pr.extent[a], std::max(lengths[0], lengths[1]));
-      const int64_t r = wrap_sub(pos[a], pr.pos[a]);
-      const uint64_t mag = r < 0 ? 0 - static_cast<uint64_t>(r) : static_cast<uint64_t>(r);
-      const int k = bit_length64(mag);
-      c += fast_cost(fast_length_table(pr.kind, a, lc), fast_length_symbol(k, mag)) + int64_t{k >= 2 ? k - 1 : k} * 65536;
-      lengths[a] = k;
+      // The length context sees the longer of the lengths before (fast_vertex()).
+      const int before = a == 0 ? 0 : a == 1 ? len[0] : std::max(len[0], len[1]);
+      const int lc = fast_length_context(pr.kind, a, pr.extent[a], before);
+      const int k = len[a];
+      c += fast_cost(fast_length_table(pr.kind, a, lc), fast_length_symbol(k, mag[a])) + int64_t{k >= 2 ? k - 1 : k} * 65536;
     }
     if (ch == kChoiceGate || c < best_cost) {
       best = ch;
