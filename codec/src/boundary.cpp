@@ -164,7 +164,7 @@ PSQ_INLINE uint32_t BasicBoundary<L>::enter_edge(BTriangle& t, int k) {
     lo.first_out = s;
     e.next_in = ld.first_in;
     ld.first_in = s;
-    recent_.push_back(Recent{s, e.age});
+    if (keep_recent_) recent_.push_back(Recent{s, e.age});
   }
   return s;
 }
@@ -173,7 +173,7 @@ template <bool L>
 PSQ_INLINE void BasicBoundary<L>::compact_recent() {
   // Keep the recency stack proportional to the boundary: drop every stale
   // entry once they outnumber the open edges (amortized O(1) per edge).
-  if (L && recent_.size() > 2 * static_cast<size_t>(open_edges_) + 64) {
+  if (L && keep_recent_ && recent_.size() > 2 * static_cast<size_t>(open_edges_) + 64) {
     size_t w = 0;
     for (const Recent& r : recent_)
       if (current(r)) recent_[w++] = r;
@@ -388,6 +388,7 @@ int third_shape_context(const B& boundary, uint32_t gate) {
 
 template <bool L>
 uint32_t BasicBoundary<L>::scan_recent(uint32_t want, uint32_t* out) {
+  assert(keep_recent_);
   // Entries above index i were scanned; current ones are kept (at most
   // `want`), stale ones dropped for good.
   want = std::min(want, kRecentRanks);

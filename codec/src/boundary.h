@@ -211,6 +211,11 @@ class BasicBoundary {
   // entries they drop, which each entered once.
   uint32_t recent_edge(uint32_t rank);
   uint32_t recent_edges(uint32_t* out, uint32_t want) { return scan_recent(want, out); }
+  // Stops keeping the recency ranks (before the first edge enters): the
+  // fast profile ranks edges with its own ring (fast_coding.h), and its
+  // encoder keeping them too cost 2% of its instructions. recent_edge()
+  // and recent_edges() must not be called after it.
+  void drop_recency() { keep_recent_ = false; }
 
   // Departure points (spec 6.2.1): where the traversal left a region, most
   // recent first. depart() records the reference edge R before a far gate
@@ -270,6 +275,7 @@ class BasicBoundary {
     uint64_t age;
   };
   std::vector<Recent> recent_;
+  bool keep_recent_ = true;  // false after drop_recency()
   uint64_t entered_ = 0;  // edges that ever entered
   std::vector<Recent> departures_;  // most recent first, at most kDepartures
   bool current(const Recent& r) const { return edges_[r.slot].live && edges_[r.slot].age == r.age; }

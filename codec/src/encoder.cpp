@@ -75,8 +75,12 @@ Status PsqEncoder::Impl::begin(const MeshSchema& schema) {
   if (!hs.ok()) return Status(hs.code() == ErrorCode::kLimit ? ErrorCode::kLimit : ErrorCode::kBadValue,
                               "cannot encode this mesh: " + hs.message());
   stats.header_bytes = h.size();
-  if (fast) fast_begin();
-  else rc = std::make_unique<RangeEncoder>(&records);
+  if (fast) {
+    fast_begin();
+    boundary.drop_recency();
+  } else {
+    rc = std::make_unique<RangeEncoder>(&records);
+  }
   chain_crc = crc32c_update(chain_crc, h.data() + h.size() - 4, 4);
   return emit(h);
 }
