@@ -36,7 +36,7 @@ int edge_state(const BTriangle& bt, const SequenceTriangle& t, int k, int rot) {
 }  // namespace
 
 int PsqEncoder::Impl::fast_residual(int table, int64_t r) {
-  const uint64_t raw_before = fast_raw.bits();
+  const uint64_t raw_before = opt.measure_costs ? fast_raw.bits() : 0;
   const uint64_t mag = r < 0 ? 0 - static_cast<uint64_t>(r) : static_cast<uint64_t>(r);
   const int k = bit_length64(mag);
   const int sym = fast_length_symbol(k, mag);
@@ -50,7 +50,7 @@ int PsqEncoder::Impl::fast_residual(int table, int64_t r) {
     const uint64_t low = mag & ((uint64_t{1} << low_bits) - 1);
     put_raw(fast_raw, (static_cast<uint64_t>(r < 0) << low_bits) | low, low_bits + 1);
   }
-  if (table != kFastTableDistance) fast_raw_geometry += fast_raw.bits() - raw_before;
+  if (opt.measure_costs && table != kFastTableDistance) fast_raw_geometry += fast_raw.bits() - raw_before;
   return k;
 }
 
