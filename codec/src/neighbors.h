@@ -101,9 +101,6 @@ class Neighbors {
   __attribute__((noinline)) void spill(uint32_t s, uint64_t entry) {
     if (s >= spill_.size()) spill_.resize(slots_.size());
     std::vector<uint64_t>& v = spill_[s];
-    // A list's first spill takes room for 16 at once: growing from one
-    // entry by doubling took five allocations (and four frees) per list.
-    if (v.capacity() == 0) v.reserve(16);
     if (v.size() == v.capacity() && v.size() >= 16) {
       // Before the list grows, drop the neighbours finalized since they
       // were listed. When that frees less than half, the capacity doubles
