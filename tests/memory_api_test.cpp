@@ -257,9 +257,11 @@ TEST_P(MemoryApiProfiles, ArraysAreTheEventsMesh) {
     // Into arrays that held other values: MeshBuffers' allocator does not
     // zero what resize() adds, so an element that the decoder failed to
     // write would keep a stale value here.
+    // Four times the sizes: multi-chunk streams grow the arrays by
+    // doubling (direct_room), which must not reach memory without them.
     MeshBuffers stale;
-    stale.positions.assign(3 * cases[i].mesh.positions.size() + 100, -7.5f);
-    stale.indices.assign(3 * cases[i].mesh.triangles.size() + 100, 0xdeadbeefu);
+    stale.positions.assign(12 * cases[i].mesh.positions.size() + 100, -7.5f);
+    stale.indices.assign(12 * cases[i].mesh.triangles.size() + 100, 0xdeadbeefu);
     ASSERT_TRUE(decode_mesh(bytes.data(), bytes.size(), &stale).ok()) << "case " << i;
     EXPECT_EQ(stale.positions, events.positions) << "case " << i;
     EXPECT_EQ(stale.indices, events.indices) << "case " << i;

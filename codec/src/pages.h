@@ -10,8 +10,11 @@ namespace codec {
 // Asks the kernel to back the whole pages within the `bytes` bytes at `p`
 // with memory now, writable, in one call (Linux's MADV_POPULATE_WRITE),
 // instead of one page fault at each page's first write. A hint: nothing
-// happens where the kernel lacks it (before Linux 5.14) or on other
-// systems, and the memory's contents are unchanged either way. Worth it
+// happens where the kernel lacks it (before Linux 5.14; after the first
+// refusal it is not asked again), on other systems, or when psq is built
+// with PSQ_NO_POPULATE defined (for sandboxes whose system call filter
+// kills a process on an advice it does not list); the memory's contents
+// are unchanged either way. Worth it
 // only for memory about to be written in full: decode_mesh()'s arrays,
 // whose first-touch faults cost 1.3 microseconds a page on the benchmark
 // machine, 0.6 when populated in one call (bench/RESULTS.md, "Arrays not

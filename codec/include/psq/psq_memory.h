@@ -19,9 +19,9 @@
 namespace psq {
 
 // The allocator of MeshBuffers' arrays: std::allocator's memory, but an
-// element that resize() adds without a value is default-initialized, which
-// for float and uint32_t means not written at all, where std::allocator
-// zeroes it. decode_mesh() sizes its arrays ahead and then writes every
+// element added without a value (resize(n), emplace_back(), a vector(n))
+// is default-initialized, which for float and uint32_t means not written
+// at all, where std::allocator zeroes it. decode_mesh() sizes its arrays ahead and then writes every
 // element once; zeroing them first was a pass over memory that the
 // decoder then wrote again, 4% of its instructions on a mesh of 200k
 // triangles (bench/RESULTS.md, "Arrays not zeroed"). Everything else behaves
@@ -54,7 +54,9 @@ bool operator!=(const DefaultInitAllocator<T>&, const DefaultInitAllocator<U>&) 
 }
 
 // A triangle mesh in memory. The arrays are std::vectors with the
-// allocator above: resize() leaves new elements unset.
+// allocator above: resize() leaves new elements unset. (They were
+// std::vector<float> and std::vector<uint32_t> until 2026-11-26; code that
+// binds them to those types copies instead.)
 struct MeshBuffers {
   std::vector<float, DefaultInitAllocator<float>> positions;      // x, y, z of each vertex
   std::vector<uint32_t, DefaultInitAllocator<uint32_t>> indices;  // the three vertex indices of each triangle
