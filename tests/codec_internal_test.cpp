@@ -19,7 +19,7 @@ namespace codec {
 namespace {
 
 // The CRC-32C check value, and the processor's instruction (where
-// crc32c_update() uses it) against the tables: every length from 0 to 80
+// crc32c_update() uses it) against the tables: every length from 0 to 88
 // at every alignment within 8 bytes, then in pieces.
 TEST(Crc32c, HardwareAndTablesAgree) {
   EXPECT_EQ(crc32c_update(0, "123456789", 9), 0xe3069283u);

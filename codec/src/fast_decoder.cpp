@@ -623,7 +623,8 @@ Status PsqDecoder::Impl::fast_direct_records() {
     if (((cls <= kFastGatePrev && R != kNone) || cls == kFastGateFar) && seen_triangles < chunk_triangles) {
       // The gate (spec 13.7.1): an offset from R, or a far gate's rank
       // among the ring's open edges (13.7.4), as decode_record_fast()
-      // finds it.
+      // finds it. Repeated, not shared: one inline helper for both cost
+      // this loop 4.5% more instructions (iso_ball_200k, callgrind).
       uint32_t gate;
       if (cls == kFastGateFar) {
         const int rank = d.decode(ftables[kFastTableRank + (R == kNone ? 1 : 0)]);

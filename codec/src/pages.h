@@ -14,11 +14,10 @@ namespace codec {
 // refusal it is not asked again), on other systems, or when psq is built
 // with PSQ_NO_POPULATE defined (for sandboxes whose system call filter
 // kills a process on an advice it does not list); the memory's contents
-// are unchanged either way. Worth it
-// only for memory about to be written in full: decode_mesh()'s arrays,
-// whose first-touch faults cost 1.3 microseconds a page on the benchmark
-// machine, 0.6 when populated in one call (bench/RESULTS.md, "Arrays not
-// zeroed, pages populated").
+// are unchanged either way. Worth it only for memory about to be written
+// in full: decode_mesh()'s arrays, whose first-touch faults cost 1.3
+// microseconds a page on the benchmark machine, 0.6 when populated in one
+// call (bench/RESULTS.md, "Arrays not zeroed, pages populated").
 void populate_for_write(void* p, size_t bytes);
 
 }  // namespace codec
