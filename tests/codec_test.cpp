@@ -402,6 +402,52 @@ TEST(Codec, FarGatesOfEveryKindRoundTrip) {
   expect_same(ev, back, half_step(ev, 14));
 }
 
+// The fast encoder codes most triangles of an input that gives boundary
+// slots (the converter's, the decoders') on a direct path that finds the
+// gate by the input's edge slots (PsqEncoder::Impl::fast_direct()). It must
+// give exactly the bytes of its general path, which finds every edge by
+// its endpoints and is the only one an input without slots takes. An input
+// whose edge slots lie (each names another edge) must give them too: the
+// direct path checks what a slot names and leaves a triangle that fails a
+// check to the general path.
+TEST(Codec, FastDirectPathCodesAsTheGeneralPath) {
+  std::vector<std::pair<const char*, Events>> inputs;
+  inputs.emplace_back("sphere", sequence_of(test::make_sphere(24, 48)));
+  inputs.emplace_back("grid (borders)", sequence_of(test::make_grid(14)));
+  inputs.emplace_back("messy (non-manifold, sorted)", sequence_of(messy_mesh(), /*force_sort=*/true));
+  for (const auto& [name, ev] : inputs) {
+    Events bare = ev, lying = ev;
+    size_t edges_named = 0;
+    for (SequenceEvent& e : bare.events) {
+      if (e.kind == SequenceEvent::Kind::kVertex) e.vertex.slot = kNoSlot;
+      if (e.kind != SequenceEvent::Kind::kTriangle) continue;
+      for (int k = 0; k < 3; ++k) e.triangle.vslot[k] = e.triangle.eslot[k] = kNoSlot;
+    }
+    uint32_t n = 0;
+    for (SequenceEvent& e : lying.events) {
+      if (e.kind != SequenceEvent::Kind::kTriangle) continue;
+      uint32_t* es = e.triangle.eslot;
+      for (int k = 0; k < 3; ++k) edges_named += es[k] != kNoSlot;
+      // Every third triangle names its edges in the wrong order, every
+      // other third names other slots.
+      if (++n % 3 == 1) std::rotate(es, es + 1, es + 3);
+      else if (n % 3 == 2)
+        for (int k = 0; k < 3; ++k) es[k] = es[k] == kNoSlot ? 0 : es[k] ^ 1;
+    }
+    ASSERT_GT(edges_named, 0u) << name;
+    EncodeOptions o;
+    o.bits = 14;
+    o.fast = true;
+    const std::vector<uint8_t> direct = encode(ev, o);
+    EXPECT_EQ(direct, encode(bare, o)) << name;
+    EXPECT_EQ(direct, encode(lying, o)) << name;
+    Events back;
+    Status s = decode(direct, &back);
+    ASSERT_TRUE(s.ok()) << name << ": " << s.to_string();
+    expect_same(ev, back, half_step(ev, 14));
+  }
+}
+
 // Spec 7.3: the encoder predicts some adds across the open edge before or
 // after the gate instead of across the gate, or by a mean of two of these
 // parallelograms, and the decoder follows.

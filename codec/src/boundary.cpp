@@ -17,52 +17,6 @@ namespace codec {
 // instructions and encoding it 2.9% fewer (bench/instructions.sh); the
 // bytes are the same.
 
-template <bool L>
-PSQ_INLINE bool BasicBoundary<L>::is_border(uint32_t a, uint32_t b) const {
-  const BLinks& va = links_[a];
-  for (uint32_t i = 0; i < va.ndead; ++i)
-    if (va.dead[i] == b) return true;
-  for (uint32_t r = va.first_border; r != kNone;) {
-    const BBorder& e = borders_[r];
-    const int side = e.v[0] == a ? 0 : 1;
-    if (e.v[1 - side] == b) return true;
-    r = e.next[side];
-  }
-  return false;
-}
-
-template <bool L>
-PSQ_INLINE void BasicBoundary<L>::add_border(uint32_t a, uint32_t b) {
-  BLinks& va = links_[a];
-  BLinks& vb = links_[b];
-  if (va.ndead < kInlineDead && vb.ndead < kInlineDead) {
-    va.dead[va.ndead++] = b;
-    vb.dead[vb.ndead++] = a;
-    return;
-  }
-  uint32_t r;
-  if (!free_borders_.empty()) {
-    r = free_borders_.pop();
-  } else {
-    r = static_cast<uint32_t>(borders_.size());
-    borders_.emplace_back();
-  }
-  BBorder& e = borders_[r];
-  e.v[0] = a;
-  e.v[1] = b;
-  e.next[0] = links_[a].first_border;
-  e.next[1] = links_[b].first_border;
-  links_[a].first_border = r;
-  links_[b].first_border = r;
-}
-
-template <bool L>
-uint32_t BasicBoundary<L>::find_edge(uint32_t a, uint32_t b) const {
-  for (uint32_t e = links_[a].first_out; e != kNone; e = edges_[e].next_out)
-    if (edges_[e].dst == b) return e;
-  return kNone;
-}
-
 // Edge k of t, whose endpoints are both old: an error when it is open
 // already or dead (spec 6.1.3), else it completes its open twin or, without
 // one, enters or is a border as t.border says.
@@ -167,18 +121,6 @@ PSQ_INLINE uint32_t BasicBoundary<L>::enter_edge(BTriangle& t, int k) {
     if (keep_recent_) recent_.push_back(Recent{s, e.age});
   }
   return s;
-}
-
-template <bool L>
-PSQ_INLINE void BasicBoundary<L>::compact_recent() {
-  // Keep the recency stack proportional to the boundary: drop every stale
-  // entry once they outnumber the open edges (amortized O(1) per edge).
-  if (L && keep_recent_ && recent_.size() > 2 * static_cast<size_t>(open_edges_) + 64) {
-    size_t w = 0;
-    for (const Recent& r : recent_)
-      if (current(r)) recent_[w++] = r;
-    recent_.resize(w);
-  }
 }
 
 template <bool L>

@@ -193,9 +193,18 @@ class BasicBoundary {
   // triangle completes; x->q (left) or p->x (right) enters. Returns the
   // entering edge's slot, or kNone at the limit, and sets *final to the
   // corners (bit k for corner k of q, p, x) whose vertex has no open edge
-  // left.
+  // left. With kLookups (the fast encoder's direct path) they keep the
+  // endpoint lists, dead edges and recency stack as apply() does, in the
+  // same order, so that later lookups and join edges are the same.
   uint32_t lean_add(uint32_t gate, uint32_t x);
   uint32_t lean_fill(uint32_t gate, bool left, uint32_t* final);
+  // Whether a triangle's edge a->b between old vertices would enter the
+  // boundary (kLookups only): no open edge runs a->b or b->a and {a, b} is
+  // no dead edge (find_completions()' test for an edge that does not
+  // complete).
+  bool edge_is_new(uint32_t a, uint32_t b) const {
+    return find_edge(a, b) == kNone && find_edge(b, a) == kNone && !is_border(a, b);
+  }
 
   // The gate reference after the last apply() (spec 6.2.1): the first
   // entering edge of the last triangle in edge order 1, 2, 0, or kNone.
@@ -242,6 +251,9 @@ class BasicBoundary {
   bool apply_add(BTriangle& t);
   void splice_add(uint32_t f1, uint32_t f2, uint32_t gate_prev, uint32_t gate_next);
   void splice_fill(uint32_t f, uint32_t before, uint32_t after);
+  // kLookups: fresh edge s joins the endpoint lists and the recency stack,
+  // as enter_edge() does.
+  void list_entered(uint32_t s);
   bool apply_fill(BTriangle& t, int k);
   bool is_border(uint32_t a, uint32_t b) const;
   bool classify_old_edge(BTriangle& t, int k) const;
@@ -353,6 +365,66 @@ PSQ_INLINE void BasicBoundary<L>::forget_dead_edges(uint32_t slot) {
   links_[slot].first_border = kNone;
 }
 
+// Dead edges and lookups (kLookups only), inline for the fast encoder's
+// direct path (lean_add(), lean_fill(), edge_is_new()).
+template <bool L>
+PSQ_INLINE bool BasicBoundary<L>::is_border(uint32_t a, uint32_t b) const {
+  const BLinks& va = links_[a];
+  for (uint32_t i = 0; i < va.ndead; ++i)
+    if (va.dead[i] == b) return true;
+  for (uint32_t r = va.first_border; r != kNone;) {
+    const BBorder& e = borders_[r];
+    const int side = e.v[0] == a ? 0 : 1;
+    if (e.v[1 - side] == b) return true;
+    r = e.next[side];
+  }
+  return false;
+}
+
+template <bool L>
+PSQ_INLINE void BasicBoundary<L>::add_border(uint32_t a, uint32_t b) {
+  BLinks& va = links_[a];
+  BLinks& vb = links_[b];
+  if (va.ndead < kInlineDead && vb.ndead < kInlineDead) {
+    va.dead[va.ndead++] = b;
+    vb.dead[vb.ndead++] = a;
+    return;
+  }
+  uint32_t r;
+  if (!free_borders_.empty()) {
+    r = free_borders_.pop();
+  } else {
+    r = static_cast<uint32_t>(borders_.size());
+    borders_.emplace_back();
+  }
+  BBorder& e = borders_[r];
+  e.v[0] = a;
+  e.v[1] = b;
+  e.next[0] = links_[a].first_border;
+  e.next[1] = links_[b].first_border;
+  links_[a].first_border = r;
+  links_[b].first_border = r;
+}
+
+template <bool L>
+PSQ_INLINE uint32_t BasicBoundary<L>::find_edge(uint32_t a, uint32_t b) const {
+  for (uint32_t e = links_[a].first_out; e != kNone; e = edges_[e].next_out)
+    if (edges_[e].dst == b) return e;
+  return kNone;
+}
+
+template <bool L>
+PSQ_INLINE void BasicBoundary<L>::compact_recent() {
+  // Keep the recency stack proportional to the boundary: drop every stale
+  // entry once they outnumber the open edges (amortized O(1) per edge).
+  if (L && keep_recent_ && recent_.size() > 2 * static_cast<size_t>(open_edges_) + 64) {
+    size_t w = 0;
+    for (const Recent& r : recent_)
+      if (current(r)) recent_[w++] = r;
+    recent_.resize(w);
+  }
+}
+
 template <bool L>
 PSQ_INLINE uint32_t BasicBoundary<L>::alloc_edge() {
   uint32_t slot;
@@ -423,8 +495,19 @@ PSQ_INLINE void BasicBoundary<L>::splice_fill(uint32_t f, uint32_t before, uint3
 // aged and freed in the same order, so the slot numbers and the ring's
 // ages agree with the encoder's boundary.
 template <bool L>
+PSQ_INLINE void BasicBoundary<L>::list_entered(uint32_t s) {
+  BEdge& e = edges_[s];
+  BLinks& lo = links_[e.org];
+  BLinks& ld = links_[e.dst];
+  e.next_out = lo.first_out;
+  lo.first_out = s;
+  e.next_in = ld.first_in;
+  ld.first_in = s;
+  if (keep_recent_) recent_.push_back(Recent{s, e.age});
+}
+
+template <bool L>
 PSQ_INLINE uint32_t BasicBoundary<L>::lean_add(uint32_t gate, uint32_t x) {
-  assert(!L);  // no endpoint lists or recency stack to keep
   const uint32_t p = edges_[gate].org, q = edges_[gate].dst;
   const uint32_t f1 = alloc_edge();
   if (f1 == kNone) return kNone;
@@ -452,6 +535,20 @@ PSQ_INLINE uint32_t BasicBoundary<L>::lean_add(uint32_t gate, uint32_t x) {
   ++vx.degree;
   BEdge& g = edges_[gate];
   const uint32_t gate_prev = g.prev, gate_next = g.next;
+  if constexpr (L) {
+    // apply_add()'s order: f1 and f2 join the lists, the gate leaves them
+    // and becomes dead (close_edge()).
+    list_entered(f1);
+    list_entered(f2);
+    compact_recent();
+    uint32_t* at = &links_[p].first_out;
+    while (*at != gate) at = &edges_[*at].next_out;
+    *at = g.next_out;
+    at = &links_[q].first_in;
+    while (*at != gate) at = &edges_[*at].next_in;
+    *at = g.next_in;
+    add_border(q, p);
+  }
   g.live = false;
   --open_edges_;
   free_edges_.push(gate);
@@ -461,7 +558,6 @@ PSQ_INLINE uint32_t BasicBoundary<L>::lean_add(uint32_t gate, uint32_t x) {
 
 template <bool L>
 PSQ_INLINE uint32_t BasicBoundary<L>::lean_fill(uint32_t gate, bool left, uint32_t* final) {
-  assert(!L);
   const uint32_t c = left ? edges_[gate].prev : edges_[gate].next;
   const uint32_t p = edges_[gate].org, q = edges_[gate].dst;
   const uint32_t x = left ? edges_[c].org : edges_[c].dst;
@@ -478,8 +574,20 @@ PSQ_INLINE uint32_t BasicBoundary<L>::lean_fill(uint32_t gate, bool left, uint32
   ++vertices_[e.dst].open;
   const uint32_t before = left ? edges_[c].prev : edges_[gate].prev;
   const uint32_t after = left ? edges_[gate].next : edges_[c].next;
-  free_edge(gate);
-  free_edge(c);
+  if constexpr (L) {
+    // apply_fill()'s order: f joins the lists; the gate and then the
+    // neighbour leave them (free_edge()) and become dead (close_edge()).
+    list_entered(f);
+    compact_recent();
+    free_edge(gate);
+    add_border(q, p);
+    free_edge(c);
+    if (left) add_border(p, x);
+    else add_border(x, q);
+  } else {
+    free_edge(gate);
+    free_edge(c);
+  }
   splice_fill(f, before, after);
   const uint32_t corner[3] = {q, p, x};
   uint32_t m = 0;

@@ -298,6 +298,10 @@ Status PsqEncoder::Impl::candidate_gates(const SequenceTriangle& t, const int pe
 }
 
 Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
+  if (fast) {
+    Status s;
+    if (fast_direct(t, &s)) return s;
+  }
   if (!expect_final.empty())
     return bad_sequence("vertex " + std::to_string(expect_final.front()) +
                         " is not finalized right after its last triangle (spec/psq-dump.md A.2)");

@@ -131,7 +131,7 @@ struct PsqEncoder::Impl {
 
   // The fast profile (fast_encoder.cpp, spec section 13).
   bool fast = false;
-  std::vector<RansSymbol> fast_symbols;  // the open chunk's symbols, in order
+  RansSymbols fast_symbols;  // the open chunk's symbols, in order
   RawWriter fast_raw;                    // and its raw bits
   uint64_t fast_raw_geometry = 0;        // of those, position residuals' (measure_costs)
   FastRing ring;
@@ -150,6 +150,35 @@ struct PsqEncoder::Impl {
   std::vector<int64_t> fast_log_count;
   void fast_begin();
   Status triangle_fast(const SequenceTriangle& t, const int pend[3], const uint32_t slots[3], int nnew);
+  // Spec 13.7.1: the class of a gate record among the candidate gates
+  // cand (per input corner k, as candidate_gates() gives them): R, its
+  // next or prev, else the lowest recency rank (kFastGateFar, *rank set),
+  // else kFastEscape. Sets *rot to the input corner of the chosen gate's
+  // canonical corner 0 (the first candidate for an escape).
+  int fast_gate_class(const uint32_t cand[3], int* rot, int* rank) const;
+  // The fast profile's direct path for the common triangle of an input
+  // that gives boundary slots (the converter's and the decoders'): an add
+  // or a fill on a gate of class 0 to 3, without borders, re-appearances
+  // or face properties. It finds the gate and the completed neighbour
+  // from the input's edge slots (checked against the boundary: an open
+  // edge between two vertices in one direction is unique), codes the
+  // record as triangle_fast() would, with the same bytes, and applies it
+  // with lean_add() or lean_fill(). Returns false, having changed nothing,
+  // for any other triangle or any check that fails: the general path then
+  // codes it, or reports the error. Otherwise sets *status.
+  bool fast_direct(const SequenceTriangle& t, Status* status);
+  // Input edge slot -> edge slot of the open edge it named when it
+  // entered (fast_direct()'s lookups; a stale entry fails its check).
+  std::vector<uint32_t> by_ineslot;
+  // Remembers that input edge slot `in` (kNoSlot: none) names edge slot
+  // `slot`; note_input_edges() for a triangle's entering edges (canonical
+  // order, input corner rot first).
+  void note_input_edge(uint32_t in, uint32_t slot) {
+    if (in < by_ineslot.size()) by_ineslot[in] = slot;
+    else note_input_edge_grow(in, slot);
+  }
+  PSQ_NOINLINE void note_input_edge_grow(uint32_t in, uint32_t slot);
+  void note_input_edges(const SequenceTriangle& t, int rot, const uint32_t eslot[3], const EdgeState state[3]);
   Status isolated_fast(PendingVertex& v);
   void fast_put(int table, int symbol);
   // Codes residual r with length table `table`; returns its bit length.

@@ -109,7 +109,7 @@ void PsqEncoder::Impl::fast_begin() {
 }
 
 PSQ_INLINE void PsqEncoder::Impl::fast_put(int table, int symbol) {
-  fast_symbols.push_back(RansSymbol{static_cast<uint16_t>(table), static_cast<uint8_t>(symbol)});
+  fast_symbols.push(RansSymbol{static_cast<uint16_t>(table), static_cast<uint8_t>(symbol)});
   const size_t at = static_cast<size_t>(table) * 128 + static_cast<size_t>(symbol);
   ++fast_count[at];
   // fast_cost()'s logarithms are kept up to date here, not computed per
@@ -203,6 +203,48 @@ int PsqEncoder::Impl::fast_choose_prediction(uint32_t gate, uint32_t mask, const
   return best;
 }
 
+int PsqEncoder::Impl::fast_gate_class(const uint32_t cand[3], int* rot, int* rank) const {
+  // Spec 13.7.1: R, R's next, R's prev, else a recency rank (13.7.4),
+  // else the escape (13.7.5) with the first candidate.
+  const uint32_t R = boundary.reference();
+  if (R != kNone) {
+    const uint32_t near[3] = {R, boundary.edge(R).next, boundary.edge(R).prev};
+    for (int g = 0; g < 3; ++g)
+      for (int k = 0; k < 3; ++k)
+        if (near[g] != kNone && cand[k] == near[g]) {
+          *rot = k;
+          return g;
+        }
+  }
+  int cls = kFastEscape;
+  for (int k = 0; k < 3; ++k) {
+    if (cand[k] == kNone) continue;
+    const int r = ring.rank_of(boundary, cand[k]);
+    if (r >= 0 && (*rank < 0 || r < *rank)) {
+      *rank = r;
+      *rot = k;
+      cls = kFastGateFar;
+    }
+  }
+  if (cls == kFastEscape) *rot = cand[0] != kNone ? 0 : cand[1] != kNone ? 1 : 2;
+  return cls;
+}
+
+void PsqEncoder::Impl::note_input_edge_grow(uint32_t in, uint32_t slot) {
+  // The input's slots stay below the size of its working set
+  // (psq/sequence.h); one far beyond those it used so far (or kNoSlot) is
+  // not worth an array: its edge takes the general path.
+  if (in > 4 * by_ineslot.size() + 4096) return;
+  by_ineslot.resize(std::max<size_t>(size_t{in} + 1, 2 * by_ineslot.size()), kNone);
+  by_ineslot[in] = slot;
+}
+
+void PsqEncoder::Impl::note_input_edges(const SequenceTriangle& t, int rot, const uint32_t eslot[3],
+                                        const EdgeState state[3]) {
+  for (int k = 0; k < 3; ++k)
+    if (state[k] == EdgeState::kEnters) note_input_edge(t.eslot[(rot + k) % 3], eslot[k]);
+}
+
 Status PsqEncoder::Impl::triangle_fast(const SequenceTriangle& t, const int pend[3], const uint32_t slots_in[3],
                                        int nnew) {
   uint32_t slots[3] = {slots_in[0], slots_in[1], slots_in[2]};
@@ -215,30 +257,7 @@ Status PsqEncoder::Impl::triangle_fast(const SequenceTriangle& t, const int pend
   } else {
     uint32_t cand[3];
     PSQ_RETURN_IF_ERROR(candidate_gates(t, pend, slots, nnew, cand));
-    // Spec 13.7.1: R, R's next, R's prev, else a recency rank (13.7.4),
-    // else the escape (13.7.5) with the first candidate.
-    cls = kFastEscape;
-    const uint32_t R = boundary.reference();
-    if (R != kNone) {
-      const uint32_t near[3] = {R, boundary.edge(R).next, boundary.edge(R).prev};
-      for (int g = 0; g < 3 && cls == kFastEscape; ++g)
-        for (int k = 0; k < 3; ++k)
-          if (near[g] != kNone && cand[k] == near[g]) {
-            cls = g;
-            rot = k;
-            break;
-          }
-    }
-    for (int k = 0; k < 3 && cls != kFastGateR && cls != kFastGateNext && cls != kFastGatePrev; ++k) {
-      if (cand[k] == kNone) continue;
-      const int r = ring.rank_of(boundary, cand[k]);
-      if (r >= 0 && (rank < 0 || r < rank)) {
-        rank = r;
-        rot = k;
-        cls = kFastGateFar;
-      }
-    }
-    if (cls == kFastEscape) rot = cand[0] != kNone ? 0 : cand[1] != kNone ? 1 : 2;
+    cls = fast_gate_class(cand, &rot, &rank);
     gate = cand[rot];
   }
   BTriangle bt;
@@ -363,7 +382,151 @@ Status PsqEncoder::Impl::triangle_fast(const SequenceTriangle& t, const int pend
     PSQ_RETURN_IF_ERROR(register_vertex(v, &bt.c[k]));
   }
   ++stats.gates[cls == kFastStart ? 3 : cls == kFastGateR ? 0 : cls == kFastEscape || cls == kFastGateFar ? 2 : 1];
-  return close_triangle(t, bt, nnew);
+  PSQ_RETURN_IF_ERROR(close_triangle(t, bt, nnew));
+  note_input_edges(t, rot, bt.eslot, bt.state);
+  return Status();
+}
+
+bool PsqEncoder::Impl::fast_direct(const SequenceTriangle& t, Status* status) {
+  const size_t np = pending.size();
+  if (np > 1 || !expect_final.empty() || header.rotation || t.border_mask != 0 ||
+      t.op != (np == 1 ? Op::kAdd : Op::kFill) || t.v[0] == t.v[1] || t.v[1] == t.v[2] || t.v[0] == t.v[2])
+    return false;
+  // The corners: the pending vertex (an add's new one, input corner j), and
+  // active vertices by the input's vertex slots, as triangle() finds them.
+  int j = -1;
+  uint32_t slots[3];
+  for (int k = 0; k < 3; ++k) {
+    if (np == 1 && pending[0].in_index == t.v[k]) {
+      j = k;
+      slots[k] = kNone;
+      continue;
+    }
+    const uint32_t hint = t.vslot[k];
+    if (hint >= by_inslot.size()) return false;
+    const uint32_t s = by_inslot[hint];
+    if (s == kNone || !boundary.vertex_live(s) || boundary.vertex(s).key != t.v[k]) return false;
+    slots[k] = s;
+  }
+  if (np == 1 && (j < 0 || pending[0].reappears != kNoVertex)) return false;
+  // The open edge that input edge k (corner k to k + 1) completes, by the
+  // input's slot for it: the edge it maps to, if that is open and runs
+  // the other way. There is at most one such open edge, so this is what
+  // candidate_gates() finds by the endpoints; else kNone.
+  auto completed = [&](int k) {
+    const uint32_t in = t.eslot[k];
+    if (in >= by_ineslot.size()) return kNone;
+    const uint32_t e = by_ineslot[in];
+    if (e == kNone || !boundary.edge_live(e)) return kNone;
+    const BEdge& E = boundary.edge(e);
+    return E.org == slots[k == 2 ? 0 : k + 1] && E.dst == slots[k] ? e : kNone;
+  };
+  uint32_t cand[3] = {kNone, kNone, kNone};
+  int open_k = -1;  // a fill's edge between old vertices that must enter
+  if (np == 1) {
+    const int k = j == 2 ? 0 : j + 1;  // the edge between the old corners
+    cand[k] = completed(k);
+    if (cand[k] == kNone) return false;
+  } else {
+    for (int k = 0; k < 3; ++k) {
+      cand[k] = (t.leaving_mask >> k) & 1 ? completed(k) : kNone;
+      if (cand[k] == kNone) {
+        if (open_k >= 0) return false;
+        open_k = k;
+      }
+    }
+    if (open_k < 0) return false;
+    const uint32_t a = slots[open_k], b = slots[open_k == 2 ? 0 : open_k + 1];
+    if (!boundary.edge_is_new(a, b)) return false;
+  }
+  int rot = 0, rank = -1;
+  const int cls = fast_gate_class(cand, &rot, &rank);
+  if (cls == kFastEscape) return false;
+  const uint32_t gate = cand[rot];
+  const BEdge& g = boundary.edge(gate);
+  const uint32_t p = g.org, q = g.dst;
+  // Canonical corners q, p, x are input corners rot, rot + 1, rot + 2; a
+  // fill's other completion is canonical edge 1 or 2.
+  const int in1 = rot == 2 ? 0 : rot + 1, in2 = rot == 0 ? 2 : rot - 1;
+  int third = kFastNew;
+  if (np == 0) {
+    if (cand[in1] != kNone && cand[in1] == g.prev) third = kFastLeft;
+    else if (cand[in2] != kNone && cand[in2] == g.next) third = kFastRight;
+    else return false;  // named by an escape (13.7.5)
+  }
+
+  // The record (spec 13.7.3), as triangle_fast() codes it.
+  fast_put(kFastTableA + fast_context, cls);
+  if (cls == kFastGateFar) fast_put(kFastTableRank + (boundary.reference() == kNone ? 1 : 0), rank);
+  fast_put(kFastTableB + third_context(boundary.vertex(p).degree, boundary.vertex(q).degree),
+           fast_b_symbol(third, kFastEnters, kFastEnters));
+  fast_context = fast_a_context_gate(cls, third);
+  ++stats.gates[cls == kFastGateR ? 0 : cls == kFastGateFar ? 2 : 1];
+  if (np == 1) {
+    PendingVertex& v = pending[0];
+    Status s = introduce(v);
+    if (!s.ok()) return *status = std::move(s), true;
+    v.coded = true;
+    Prediction pr;
+    const uint32_t mask = prediction_choices(boundary, gate);
+    if (mask != 0) {
+      const int choice = fast_choose_prediction(gate, mask, v.pos, &pr);
+      fast_put(fast_choice_table(mask, fast_choice), choice);
+      fast_choice = choice;
+      ++stats.predictions[choice];
+    } else {
+      pr = predict_new_vertex(boundary, gate, 0, last_pos, nullptr, nullptr);
+      ++stats.predictions[kChoiceGate];
+    }
+    fast_vertex(v, pr.pos, pr.kind, pr.extent);
+    uint32_t x;
+    s = register_vertex(v, &x);
+    if (!s.ok()) return *status = std::move(s), true;
+    const uint32_t f1 = boundary.lean_add(gate, x);
+    if (f1 == kNone) {
+      *status = Status(ErrorCode::kLimit, "more than " + std::to_string(opt.boundary_limit) +
+                                              " open edges (the boundary limit)");
+      return true;
+    }
+    const uint32_t f2 = boundary.edge(f1).next;
+    ring.push(boundary, f1);
+    ring.push(boundary, f2);
+    note_input_edge(t.eslot[in1], f1);
+    note_input_edge(t.eslot[in2], f2);
+    last_op = static_cast<int>(Op::kAdd);
+  } else {
+    const bool left = third == kFastLeft;
+    const uint32_t x = slots[in2];
+    uint32_t final;
+    const uint32_t f = boundary.lean_fill(gate, left, &final);
+    if (f == kNone) {
+      *status = Status(ErrorCode::kLimit, "more than " + std::to_string(opt.boundary_limit) +
+                                              " open edges (the boundary limit)");
+      return true;
+    }
+    ring.push(boundary, f);
+    note_input_edge(t.eslot[left ? in2 : in1], f);
+    last_op = static_cast<int>(Op::kFill);
+    // Spec 6.4: finalized in canonical corner order (close_triangle()).
+    const uint32_t corner[3] = {q, p, x};
+    for (int k = 0; k < 3; ++k)
+      if (final >> k & 1) {
+        const BVertex& v = boundary.vertex(corner[k]);
+        expect_final.push_back(v.key);
+        if (!slot_of.empty()) slot_of.erase(v.key);
+        boundary.free_vertex(corner[k]);
+      }
+  }
+  pending.clear();
+  if (!props->add_face(t.values)) {
+    *status = Status(ErrorCode::kBadValue, "face property values do not match the schema or their types");
+    return true;
+  }
+  ++stats.triangles;
+  ++chunk_triangles;
+  Status s = after_record();
+  if (!s.ok()) *status = std::move(s);
+  return true;
 }
 
 Status PsqEncoder::Impl::isolated_fast(PendingVertex& v) {
@@ -413,7 +576,7 @@ void PsqEncoder::Impl::fast_section(std::vector<uint8_t>* section) {
   fast_raw_geometry = 0;
   const std::vector<uint8_t> table_bytes = tw.finish();
   std::vector<uint8_t> rans_bytes;
-  rans_encode(fast_symbols, tables.data(), &rans_bytes);
+  rans_encode(fast_symbols.data(), fast_symbols.size(), tables.data(), &rans_bytes);
   const std::vector<uint8_t> raw_bytes = fast_raw.finish();
   Put put(section);
   put.varint(table_bytes.size());

@@ -1,6 +1,8 @@
 // codec/src/rans.cpp: see rans.h.
 #include "rans.h"
 
+#include <memory>
+
 #include <algorithm>
 
 namespace psq {
@@ -110,27 +112,34 @@ void RansTable::finish() {
   }
 }
 
-void rans_encode(const std::vector<RansSymbol>& symbols, const RansTable* tables, std::vector<uint8_t>* out) {
+void rans_encode(const RansSymbol* symbols, size_t count, const RansTable* tables, std::vector<uint8_t>* out) {
   // Symbol i goes through state i mod 2, as the decoder alternates.
   uint32_t x[2] = {kRansLow, kRansLow};
-  std::vector<uint16_t> words;
-  for (size_t i = symbols.size(); i-- > 0;) {
+  // At most one renormalization word per symbol: written through a
+  // pointer, without a capacity test per word.
+  std::unique_ptr<uint16_t[]> word_buffer(new uint16_t[count]);  // not zeroed
+  uint16_t* words = word_buffer.get();
+  size_t nwords = 0;
+  for (size_t i = count; i-- > 0;) {
     uint32_t& xi = x[i & 1];
     const RansTable& t = tables[symbols[i].table];
     const uint32_t f = t.freq(symbols[i].symbol), c = t.cum(symbols[i].symbol);
     // One renormalization step keeps the next state below 2^32 (x < 2^22 f).
     const uint64_t x_max = (uint64_t{kRansLow >> kRansScaleBits} << 16) * f;
     if (xi >= x_max) {
-      words.push_back(static_cast<uint16_t>(xi));
+      words[nwords++] = static_cast<uint16_t>(xi);
       xi >>= 16;
     }
     xi = ((xi / f) << kRansScaleBits) + (xi % f) + c;
   }
+  const size_t at = out->size();
+  out->resize(at + 8 + 2 * nwords);
+  uint8_t* o = out->data() + at;
   for (int k = 0; k < 2; ++k)
-    for (int i = 0; i < 4; ++i) out->push_back(static_cast<uint8_t>(x[k] >> (8 * i)));
-  for (size_t i = words.size(); i-- > 0;) {
-    out->push_back(static_cast<uint8_t>(words[i]));
-    out->push_back(static_cast<uint8_t>(words[i] >> 8));
+    for (int i = 0; i < 4; ++i) *o++ = static_cast<uint8_t>(x[k] >> (8 * i));
+  for (size_t i = nwords; i-- > 0;) {
+    *o++ = static_cast<uint8_t>(words[i]);
+    *o++ = static_cast<uint8_t>(words[i] >> 8);
   }
 }
 
