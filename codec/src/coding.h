@@ -232,9 +232,11 @@ const float* bit_cost_table();
 // otherwise leaves as calls in the encoder's large functions.
 #if defined(__GNUC__)
 #define PSQ_INLINE inline __attribute__((always_inline))
+#define PSQ_LAMBDA_INLINE __attribute__((always_inline))
 #define PSQ_NOINLINE __attribute__((noinline))
 #else
 #define PSQ_INLINE inline
+#define PSQ_LAMBDA_INLINE
 #define PSQ_NOINLINE
 #endif
 

@@ -164,17 +164,14 @@ int PsqEncoder::Impl::fast_choose_prediction(uint32_t gate, uint32_t mask, const
   for (int ch = kChoiceGate; ch < kChoices; ++ch) {
     const int side = choice_side(ch);
     if (ch != kChoiceGate && !(mask & (1u << (side - 1)))) continue;
-    Prediction pr;
-    for (int a = 0; a < 3; ++a)
-      pr.pos[a] = ch >= kChoiceMeanBefore ? midpoint(para[kChoiceGate][a], para[side][a]) : para[side][a];
-    pr.kind = prediction_kind(ch);
     // The residuals' magnitudes and bit lengths, for the rough test and
     // then the price.
     uint64_t mag[3];
     int len[3];
     int rough = 0;
     for (int a = 0; a < 3; ++a) {
-      mag[a] = coord_distance(pos[a], pr.pos[a]);
+      const int64_t pa = ch >= kChoiceMeanBefore ? midpoint(para[kChoiceGate][a], para[side][a]) : para[side][a];
+      mag[a] = coord_distance(pos[a], pa);
       len[a] = bit_length64(mag[a]);
       rough += len[a];
     }
@@ -185,25 +182,30 @@ int PsqEncoder::Impl::fast_choose_prediction(uint32_t gate, uint32_t mask, const
       triangle_extents(boundary, edge[ps], extent[ps]);
       have_extent[ps] = true;
     }
-    for (int a = 0; a < 3; ++a) pr.extent[a] = extent[ps][a];
+    // fast_vertex()'s tables for these residuals: a prediction that is not
+    // kPredOther takes its length context from the extent alone.
+    const int kind = prediction_kind(ch);
     int64_t c = fast_cost(choice_table, ch);
     for (int a = 0; a < 3; ++a) {
-      // The length context sees the longer of the lengths before (fast_vertex()).
-      const int before = a == 0 ? 0 : a == 1 ? len[0] : std::max(len[0], len[1]);
-      const int lc = fast_length_context(pr.kind, a, pr.extent[a], before);
+      const int table = fast_length_table(kind, a, std::min(extent[ps][a], kLengthContexts - 1));
       const int k = len[a];
-      c += fast_cost(fast_length_table(pr.kind, a, lc), fast_length_symbol(k, mag[a])) + int64_t{k >= 2 ? k - 1 : k} * 65536;
+      c += fast_cost(table, fast_length_symbol(k, mag[a])) + int64_t{k >= 2 ? k - 1 : k} * 65536;
     }
     if (ch == kChoiceGate || c < best_cost) {
       best = ch;
       best_cost = c;
-      *pred = pr;
     }
   }
+  const int side = choice_side(best), ps = predicting_side(best);
+  for (int a = 0; a < 3; ++a) {
+    pred->pos[a] = best >= kChoiceMeanBefore ? midpoint(para[kChoiceGate][a], para[side][a]) : para[side][a];
+    pred->extent[a] = extent[ps][a];
+  }
+  pred->kind = prediction_kind(best);
   return best;
 }
 
-int PsqEncoder::Impl::fast_gate_class(const uint32_t cand[3], int* rot, int* rank) const {
+PSQ_INLINE int PsqEncoder::Impl::fast_gate_class(const uint32_t cand[3], int* rot, int* rank) const {
   // Spec 13.7.1: R, R's next, R's prev, else a recency rank (13.7.4),
   // else the escape (13.7.5) with the first candidate.
   const uint32_t R = boundary.reference();
@@ -413,7 +415,7 @@ bool PsqEncoder::Impl::fast_direct(const SequenceTriangle& t, Status* status) {
   // input's slot for it: the edge it maps to, if that is open and runs
   // the other way. There is at most one such open edge, so this is what
   // candidate_gates() finds by the endpoints; else kNone.
-  auto completed = [&](int k) {
+  auto completed = [&](int k) PSQ_LAMBDA_INLINE {
     const uint32_t in = t.eslot[k];
     if (in >= by_ineslot.size()) return kNone;
     const uint32_t e = by_ineslot[in];

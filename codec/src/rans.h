@@ -26,6 +26,8 @@
 #include <cstdint>
 #include <vector>
 
+#include "psq/psq_memory.h"  // DefaultInitAllocator
+
 namespace psq {
 namespace codec {
 
@@ -131,7 +133,8 @@ class RansSymbols {
 
  private:
   __attribute__((noinline)) void grow() { v_.resize(2 * v_.size() + 4096); }
-  std::vector<RansSymbol> v_;
+  // Grown without zeroing: every element is written before it is read.
+  std::vector<RansSymbol, DefaultInitAllocator<RansSymbol>> v_;
   size_t n_ = 0;
 };
 
