@@ -549,9 +549,18 @@ Status PsqEncoder::Impl::isolated_fast(PendingVertex& v) {
 void PsqEncoder::Impl::fast_section(std::vector<uint8_t>* section) {
   // Spec 13.2: the tables of this chunk's symbols, the rANS block,
   // the raw bits.
+  // The chunk's counts are the running counts (fast_put()) less those at
+  // the chunk's start: no pass over its symbols.
   std::vector<std::vector<uint64_t>> counts(kFastTables);
-  for (int i = 0; i < kFastTables; ++i) counts[i].assign(fast_table_size(i), 0);
-  for (const RansSymbol& s : fast_symbols) ++counts[s.table][s.symbol];
+  fast_chunk_base.resize(fast_count.size(), 0);
+  for (int i = 0; i < kFastTables; ++i) {
+    counts[i].resize(fast_table_size(i));
+    for (int sym = 0; sym < fast_table_size(i); ++sym) {
+      const size_t at = static_cast<size_t>(i) * 128 + static_cast<size_t>(sym);
+      counts[i][sym] = fast_count[at] - fast_chunk_base[at];
+      fast_chunk_base[at] = fast_count[at];
+    }
+  }
   std::vector<RansTable> tables(kFastTables);
   RawWriter tw;
   for (int i = 0; i < kFastTables; ++i) {
