@@ -22,6 +22,7 @@
 #ifndef PSQ_CODEC_RANS_H_
 #define PSQ_CODEC_RANS_H_
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -130,9 +131,13 @@ class RansSymbols {
   const RansSymbol* begin() const { return v_.data(); }
   const RansSymbol* end() const { return v_.data() + n_; }
   void clear() { n_ = 0; }
+  // Room for n symbols without moving them (address space: pages are
+  // touched as symbols arrive).
+  void reserve(size_t n) { v_.reserve(n); }
 
  private:
-  __attribute__((noinline)) void grow() { v_.resize(2 * v_.size() + 4096); }
+  // Up to the capacity reserved, else twice as many.
+  __attribute__((noinline)) void grow() { v_.resize(std::max(v_.capacity(), 2 * v_.size() + 4096)); }
   // Grown without zeroing: every element is written before it is read.
   std::vector<RansSymbol, DefaultInitAllocator<RansSymbol>> v_;
   size_t n_ = 0;
