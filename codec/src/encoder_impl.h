@@ -144,11 +144,13 @@ struct PsqEncoder::Impl {
   std::vector<uint32_t> fast_count = std::vector<uint32_t>(size_t{kFastTables} * 128, 0);
   std::vector<uint32_t> fast_chunk_base;  // fast_count when the open chunk began (fast_section())
   std::vector<uint64_t> fast_denominator;
-  std::vector<int64_t> fast_log_denominator;
+  std::vector<int32_t> fast_log_denominator;
   // For the priced tables, the log2 of each symbol's doubled count plus
   // one (fast_cost()'s numerator), kept by fast_put(): a price then takes
   // no logarithm (choosing a prediction prices up to 20 symbols a vertex).
-  std::vector<int64_t> fast_log_count;
+  // (int32: a log2 below 64 in 1/65536 bits fits, and the tables take
+  // half the cache.)
+  std::vector<int32_t> fast_log_count;
   void fast_begin();
   Status triangle_fast(const SequenceTriangle& t, const int pend[3], const uint32_t slots[3], int nnew);
   // Spec 13.7.1: the class of a gate record among the candidate gates

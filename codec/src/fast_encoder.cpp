@@ -106,9 +106,9 @@ void PsqEncoder::Impl::fast_begin() {
   fast_log_denominator.resize(kFastTables);
   for (int i = 0; i < kFastTables; ++i) {
     fast_denominator[i] = static_cast<uint64_t>(fast_table_size(i));
-    fast_log_denominator[i] = fixed_log2(fast_denominator[i]);
+    fast_log_denominator[i] = static_cast<int32_t>(fixed_log2(fast_denominator[i]));
   }
-  fast_log_count.assign(size_t{kFastTables} * 128, fixed_log2(1));
+  fast_log_count.assign(size_t{kFastTables} * 128, static_cast<int32_t>(fixed_log2(1)));
   // after_record() closes a chunk before it holds 2 * chunk_bytes
   // symbols: reserved, the array never moves (copying it as it grew was
   // 1.2% of the encoder's instructions on iso_ball_200k).
@@ -124,8 +124,8 @@ PSQ_INLINE void PsqEncoder::Impl::fast_put(int table, int symbol) {
   // tables that it prices: the choices and the residual lengths.
   fast_denominator[table] += 2;
   if (table >= kFastTableChoice && table < kFastTableDistance) {
-    fast_log_denominator[table] = fixed_log2(fast_denominator[table]);
-    fast_log_count[at] = fixed_log2(2 * uint64_t{fast_count[at]} + 1);
+    fast_log_denominator[table] = static_cast<int32_t>(fixed_log2(fast_denominator[table]));
+    fast_log_count[at] = static_cast<int32_t>(fixed_log2(2 * uint64_t{fast_count[at]} + 1));
   }
 }
 
@@ -136,7 +136,8 @@ PSQ_INLINE int64_t PsqEncoder::Impl::fast_cost(int table, int symbol) const {
   // denominator minus that of 2 * count + 1. Only the priced tables keep
   // their logarithms (fast_put).
   assert(table >= kFastTableChoice && table < kFastTableDistance);
-  return fast_log_denominator[table] - fast_log_count[static_cast<size_t>(table) * 128 + static_cast<size_t>(symbol)];
+  return int64_t{fast_log_denominator[table]} -
+         fast_log_count[static_cast<size_t>(table) * 128 + static_cast<size_t>(symbol)];
 }
 
 // Spec 7.3 leaves the choice to the encoder; this one takes the cheapest
