@@ -604,7 +604,7 @@ void PsqEncoder::Impl::fast_section(std::vector<uint8_t>* section) {
   put.bytes(rans_bytes.data(), rans_bytes.size());
   put.bytes(raw_bytes.data(), raw_bytes.size());
   fast_symbols.clear();
-  fast_raw = RawWriter();
+  // (finish() started fast_raw over, keeping its array.)
 }
 
 }  // namespace psq

@@ -156,10 +156,14 @@ RansDecoder::RansDecoder(const uint8_t* data, size_t size) : data_(data), size_(
 }
 
 std::vector<uint8_t> RawWriter::finish() {
-  if (n_ > 0) flush_word(static_cast<uint32_t>(acc_));
+  if (n_ > 0) push_word(static_cast<uint32_t>(acc_));
+  std::vector<uint8_t> bytes(4 * nwords_);
+  for (size_t i = 0; i < nwords_; ++i)
+    for (int k = 0; k < 4; ++k) bytes[4 * i + k] = static_cast<uint8_t>(words_[i] >> (8 * k));
+  nwords_ = 0;
   acc_ = 0;
   n_ = 0;
-  return std::move(bytes_);
+  return bytes;
 }
 
 }  // namespace codec

@@ -193,26 +193,33 @@ class RansDecoder {
 class RawWriter {
  public:
   // Appends the low `bits` bits of `value` (bits 0..32).
-  void put(uint32_t value, int bits) {
-    if (bits == 0) return;
-    acc_ |= static_cast<uint64_t>(value & (bits == 32 ? 0xffffffffu : (1u << bits) - 1)) << n_;
+  __attribute__((always_inline)) void put(uint32_t value, int bits) {
+    // n_ < 32 and bits <= 32: the accumulator never overflows, and the
+    // 64-bit mask needs no case for 0 or 32 bits.
+    acc_ |= (static_cast<uint64_t>(value) & ((uint64_t{1} << bits) - 1)) << n_;
     n_ += bits;
     if (n_ >= 32) {
-      flush_word(static_cast<uint32_t>(acc_));
+      push_word(static_cast<uint32_t>(acc_));
       acc_ >>= 32;
       n_ -= 32;
     }
   }
   // Bits written so far.
-  uint64_t bits() const { return bytes_.size() * 8 + static_cast<uint64_t>(n_); }
-  // Pads the last word with zero bits and returns the bytes.
+  uint64_t bits() const { return uint64_t{nwords_} * 32 + static_cast<uint64_t>(n_); }
+  // Pads the last word with zero bits, returns the bytes (each word
+  // little-endian) and starts over.
   std::vector<uint8_t> finish();
 
  private:
-  void flush_word(uint32_t w) {
-    for (int i = 0; i < 4; ++i) bytes_.push_back(static_cast<uint8_t>(w >> (8 * i)));
+  // Whole words go to an array and a count, as RansSymbols' symbols do:
+  // four byte push_backs a word were calls in the encoder's loop.
+  __attribute__((always_inline)) void push_word(uint32_t w) {
+    if (nwords_ == words_.size()) grow();
+    words_[nwords_++] = w;
   }
-  std::vector<uint8_t> bytes_;
+  __attribute__((noinline)) void grow() { words_.resize(2 * words_.size() + 1024); }
+  std::vector<uint32_t, DefaultInitAllocator<uint32_t>> words_;
+  size_t nwords_ = 0;
   uint64_t acc_ = 0;
   int n_ = 0;
 };
