@@ -490,8 +490,8 @@ bool PsqEncoder::Impl::fast_direct(const SequenceTriangle& t, Status* status) {
     }
     fast_vertex(v, pr.pos, pr.kind, pr.extent);
     uint32_t x;
-    s = register_vertex(v, &x);
-    if (!s.ok()) return *status = std::move(s), true;
+    Status r = register_vertex(v, &x);
+    if (!r.ok()) return *status = std::move(r), true;
     const uint32_t f1 = boundary.lean_add(gate, x);
     if (f1 == kNone) {
       *status = Status(ErrorCode::kLimit, "more than " + std::to_string(opt.boundary_limit) +
