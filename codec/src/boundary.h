@@ -490,10 +490,6 @@ PSQ_INLINE void BasicBoundary<L>::splice_fill(uint32_t f, uint32_t before, uint3
   reference_ = f;
 }
 
-// lean_add() and lean_fill(): apply_add() and apply_fill() with the corners
-// of the triangle (q, p, x) known from the gate. The slots are allocated,
-// aged and freed in the same order, so the slot numbers and the ring's
-// ages agree with the encoder's boundary.
 template <bool L>
 PSQ_INLINE void BasicBoundary<L>::list_entered(uint32_t s) {
   BEdge& e = edges_[s];
@@ -506,6 +502,10 @@ PSQ_INLINE void BasicBoundary<L>::list_entered(uint32_t s) {
   if (keep_recent_) recent_.push_back(Recent{s, e.age});
 }
 
+// lean_add() and lean_fill(): apply_add() and apply_fill() with the corners
+// of the triangle (q, p, x) known from the gate. The slots are allocated,
+// aged and freed in the same order, so the slot numbers and the ring's
+// ages agree with the encoder's boundary.
 template <bool L>
 PSQ_INLINE uint32_t BasicBoundary<L>::lean_add(uint32_t gate, uint32_t x) {
   const uint32_t p = edges_[gate].org, q = edges_[gate].dst;

@@ -319,10 +319,17 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
     const uint32_t hint = t.vslot[k];
     if (hint != kNoSlot) {
       const uint32_t s = hint < by_inslot.size() ? by_inslot[hint] : kNone;
-      if (s == kNone || !boundary.vertex_live(s) || boundary.vertex(s).key != t.v[k])
+      if (s != kNone && boundary.vertex_live(s) && boundary.vertex(s).key == t.v[k]) {
+        slots[k] = s;
+        continue;
+      }
+      // A vertex whose slot was too large for the array (register_vertex())
+      // is in the map.
+      auto it = slot_of.find(t.v[k]);
+      if (it == slot_of.end())
         return bad_sequence("triangle uses vertex " + std::to_string(t.v[k]) + " with boundary slot " +
                             std::to_string(hint) + ", which is not its active vertex's");
-      slots[k] = s;
+      slots[k] = it->second;
       continue;
     }
     auto it = slot_of.find(t.v[k]);
@@ -496,7 +503,10 @@ Status PsqEncoder::Impl::register_vertex(const PendingVertex& v, uint32_t* slot)
     return Status(ErrorCode::kLimit, "more than " + std::to_string(opt.boundary_limit) +
                                          " active vertices (the boundary limit)");
   *slot = s;
-  if (v.in_slot != kNoSlot) {
+  // The input's slots stay below the number of vertices it introduced
+  // (psq/sequence.h: a slot is handed out before it is reused); a larger
+  // one goes to the map, so that no input can make the array huge.
+  if (v.in_slot != kNoSlot && v.in_slot <= next_in + 4096) {
     if (v.in_slot >= by_inslot.size()) by_inslot.resize(std::max<size_t>(v.in_slot + 1, 2 * by_inslot.size()), kNone);
     by_inslot[v.in_slot] = s;
   } else {

@@ -131,7 +131,7 @@ struct PsqEncoder::Impl {
 
   // The fast profile (fast_encoder.cpp, spec section 13).
   bool fast = false;
-  RansSymbols fast_symbols;  // the open chunk's symbols, in order
+  RansSymbols fast_symbols;              // the open chunk's symbols, in order
   RawWriter fast_raw;                    // and its raw bits
   uint64_t fast_raw_geometry = 0;        // of those, position residuals' (measure_costs)
   FastRing ring;
@@ -157,7 +157,8 @@ struct PsqEncoder::Impl {
   // cand (per input corner k, as candidate_gates() gives them): R, its
   // next or prev, else the lowest recency rank (kFastGateFar, *rank set),
   // else kFastEscape. Sets *rot to the input corner of the chosen gate's
-  // canonical corner 0 (the first candidate for an escape).
+  // canonical corner 0 (the first candidate for an escape). *rank must be
+  // -1 on entry.
   int fast_gate_class(const uint32_t cand[3], int* rot, int* rank) const;
   // The fast profile's direct path for the common triangle of an input
   // that gives boundary slots (the converter's and the decoders'): an add

@@ -112,7 +112,9 @@ void PsqEncoder::Impl::fast_begin() {
   // after_record() closes a chunk before it holds 2 * chunk_bytes
   // symbols: reserved, the array never moves (copying it as it grew was
   // 1.2% of the encoder's instructions on iso_ball_200k).
-  fast_symbols.reserve(2 * size_t{opt.chunk_bytes} + 4096);
+  // (At most 2^22 symbols, 16 MiB of address space, for large --chunk
+  // sizes; beyond, the array doubles.)
+  fast_symbols.reserve(std::min<size_t>(2 * size_t{opt.chunk_bytes} + 4096, size_t{1} << 22));
 }
 
 PSQ_INLINE void PsqEncoder::Impl::fast_put(int table, int symbol) {
@@ -241,10 +243,11 @@ PSQ_INLINE int PsqEncoder::Impl::fast_gate_class(const uint32_t cand[3], int* ro
 }
 
 void PsqEncoder::Impl::note_input_edge_grow(uint32_t in, uint32_t slot) {
-  // The input's slots stay below the size of its working set
-  // (psq/sequence.h); one far beyond those it used so far (or kNoSlot) is
-  // not worth an array: its edge takes the general path.
-  if (in > 4 * by_ineslot.size() + 4096) return;
+  // The input's edge slots stay below the number of edges that entered
+  // (a slot is handed out before it is reused, psq/sequence.h), at most
+  // three a triangle. A larger one (or kNoSlot) is not remembered, so that
+  // no input can make the array huge: its edge takes the general path.
+  if (in >= 3 * stats.triangles + 4096) return;
   by_ineslot.resize(std::max<size_t>(size_t{in} + 1, 2 * by_ineslot.size()), kNone);
   by_ineslot[in] = slot;
 }
@@ -471,7 +474,7 @@ bool PsqEncoder::Impl::fast_direct(const SequenceTriangle& t, Status* status) {
   fast_put(kFastTableB + third_context(boundary.vertex(p).degree, boundary.vertex(q).degree),
            fast_b_symbol(third, kFastEnters, kFastEnters));
   fast_context = fast_a_context_gate(cls, third);
-  ++stats.gates[cls == kFastGateR ? 0 : cls == kFastGateFar ? 2 : 1];
+  const int gate_stat = cls == kFastGateR ? 0 : cls == kFastGateFar ? 2 : 1;
   if (np == 1) {
     PendingVertex& v = pending[0];
     Status s = introduce(v);
@@ -492,6 +495,7 @@ bool PsqEncoder::Impl::fast_direct(const SequenceTriangle& t, Status* status) {
     uint32_t x;
     Status r = register_vertex(v, &x);
     if (!r.ok()) return *status = std::move(r), true;
+    ++stats.gates[gate_stat];  // where triangle_fast() counts it
     const uint32_t f1 = boundary.lean_add(gate, x);
     if (f1 == kNone) {
       *status = Status(ErrorCode::kLimit, "more than " + std::to_string(opt.boundary_limit) +
@@ -508,6 +512,7 @@ bool PsqEncoder::Impl::fast_direct(const SequenceTriangle& t, Status* status) {
     const bool left = third == kFastLeft;
     const uint32_t x = slots[in2];
     uint32_t final;
+    ++stats.gates[gate_stat];
     const uint32_t f = boundary.lean_fill(gate, left, &final);
     if (f == kNone) {
       *status = Status(ErrorCode::kLimit, "more than " + std::to_string(opt.boundary_limit) +

@@ -1,9 +1,8 @@
 // codec/src/rans.cpp: see rans.h.
 #include "rans.h"
 
-#include <memory>
-
 #include <algorithm>
+#include <memory>
 
 namespace psq {
 namespace codec {
