@@ -503,10 +503,11 @@ Status PsqEncoder::Impl::register_vertex(const PendingVertex& v, uint32_t* slot)
     return Status(ErrorCode::kLimit, "more than " + std::to_string(opt.boundary_limit) +
                                          " active vertices (the boundary limit)");
   *slot = s;
-  // The input's slots stay below the number of vertices it introduced
-  // (psq/sequence.h: a slot is handed out before it is reused); a larger
-  // one goes to the map, so that no input can make the array huge.
-  if (v.in_slot != kNoSlot && v.in_slot <= next_in + 4096) {
+  // The input's slots stay below the size of its working set
+  // (psq/sequence.h: the converter's waiting area, or the boundary); one
+  // beyond the vertices introduced so far plus 2^20 goes to the map, so
+  // that no input can make the array much larger than the stream.
+  if (v.in_slot != kNoSlot && v.in_slot <= next_in + (uint64_t{1} << 20)) {
     if (v.in_slot >= by_inslot.size()) by_inslot.resize(std::max<size_t>(v.in_slot + 1, 2 * by_inslot.size()), kNone);
     by_inslot[v.in_slot] = s;
   } else {

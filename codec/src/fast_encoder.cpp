@@ -243,11 +243,13 @@ PSQ_INLINE int PsqEncoder::Impl::fast_gate_class(const uint32_t cand[3], int* ro
 }
 
 void PsqEncoder::Impl::note_input_edge_grow(uint32_t in, uint32_t slot) {
-  // The input's edge slots stay below the number of edges that entered
-  // (a slot is handed out before it is reused, psq/sequence.h), at most
-  // three a triangle. A larger one (or kNoSlot) is not remembered, so that
-  // no input can make the array huge: its edge takes the general path.
-  if (in >= 3 * stats.triangles + 4096) return;
+  // The input's edge slots stay below the size of its working set
+  // (psq/sequence.h): the converter's waiting area, ahead of the
+  // triangles it has sent, or the boundary. One beyond three slots a
+  // triangle sent plus 2^20 (or kNoSlot) is not remembered, so that no
+  // input can make the array much larger than the stream: its edge takes
+  // the general path.
+  if (in >= 3 * stats.triangles + (uint64_t{1} << 20)) return;
   by_ineslot.resize(std::max<size_t>(size_t{in} + 1, 2 * by_ineslot.size()), kNone);
   by_ineslot[in] = slot;
 }
