@@ -190,6 +190,10 @@ struct PsqEncoder::Impl {
   void fast_vertex(const PendingVertex& v, const int64_t pred[3], int kind, const int extent[3]);
   int64_t fast_cost(int table, int symbol) const;  // in 1/65536 bits
   int fast_choose_prediction(uint32_t gate, uint32_t mask, const int64_t pos[3], Prediction* pred);
+  // Codes the new vertex v of a triangle on `gate` (spec 13.8): the
+  // prediction choice among the gate's neighbours when `choices` (not for
+  // an escape, 13.7.5) and there are any, then its residuals.
+  void fast_gate_vertex(const PendingVertex& v, uint32_t gate, bool choices);
   // The fast profile's record section of the open chunk (spec 13.2).
   void fast_section(std::vector<uint8_t>* section);
   Status finish();

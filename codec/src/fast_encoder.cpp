@@ -260,6 +260,21 @@ void PsqEncoder::Impl::note_input_edges(const SequenceTriangle& t, int rot, cons
     if (state[k] == EdgeState::kEnters) note_input_edge(t.eslot[(rot + k) % 3], eslot[k]);
 }
 
+void PsqEncoder::Impl::fast_gate_vertex(const PendingVertex& v, uint32_t gate, bool choices) {
+  Prediction pr;
+  const uint32_t mask = choices ? prediction_choices(boundary, gate) : 0;
+  if (mask != 0) {
+    const int choice = fast_choose_prediction(gate, mask, v.pos, &pr);
+    fast_put(fast_choice_table(mask, fast_choice), choice);
+    fast_choice = choice;
+    ++stats.predictions[choice];
+  } else {
+    pr = predict_new_vertex(boundary, gate, 0, last_pos, nullptr, nullptr);
+    ++stats.predictions[kChoiceGate];
+  }
+  fast_vertex(v, pr.pos, pr.kind, pr.extent);
+}
+
 Status PsqEncoder::Impl::triangle_fast(const SequenceTriangle& t, const int pend[3], const uint32_t slots_in[3],
                                        int nnew) {
   uint32_t slots[3] = {slots_in[0], slots_in[1], slots_in[2]};
@@ -380,20 +395,14 @@ Status PsqEncoder::Impl::triangle_fast(const SequenceTriangle& t, const int pend
     if (v.reappears != kNoVertex)
       (void)fast_residual(kFastTableDistance,
                           static_cast<int64_t>(out_index_of(v.in_index) - out_index_of(v.reappears)) - 1);
-    Prediction pr;
-    const uint32_t mask = nnew == 1 && cls != kFastEscape ? prediction_choices(boundary, gate) : 0;
-    if (mask != 0) {
-      const int choice = fast_choose_prediction(gate, mask, v.pos, &pr);
-      fast_put(fast_choice_table(mask, fast_choice), choice);
-      fast_choice = choice;
-      ++stats.predictions[choice];
+    if (nnew == 1) {
+      fast_gate_vertex(v, gate, cls != kFastEscape);
     } else {
       const int64_t* first = i >= 1 ? pending[cp[intro[0]]].pos : nullptr;
       const int64_t* second = i >= 2 ? pending[cp[intro[1]]].pos : nullptr;
-      pr = predict_new_vertex(boundary, nnew == 1 ? gate : kNone, i, last_pos, first, second);
-      if (nnew == 1) ++stats.predictions[kChoiceGate];
+      const Prediction pr = predict_new_vertex(boundary, kNone, i, last_pos, first, second);
+      fast_vertex(v, pr.pos, pr.kind, pr.extent);
     }
-    fast_vertex(v, pr.pos, pr.kind, pr.extent);
     PSQ_RETURN_IF_ERROR(register_vertex(v, &bt.c[k]));
   }
   ++stats.gates[cls == kFastStart ? 3 : cls == kFastGateR ? 0 : cls == kFastEscape || cls == kFastGateFar ? 2 : 1];
@@ -482,18 +491,7 @@ bool PsqEncoder::Impl::fast_direct(const SequenceTriangle& t, Status* status) {
     Status s = introduce(v);
     if (!s.ok()) return *status = std::move(s), true;
     v.coded = true;
-    Prediction pr;
-    const uint32_t mask = prediction_choices(boundary, gate);
-    if (mask != 0) {
-      const int choice = fast_choose_prediction(gate, mask, v.pos, &pr);
-      fast_put(fast_choice_table(mask, fast_choice), choice);
-      fast_choice = choice;
-      ++stats.predictions[choice];
-    } else {
-      pr = predict_new_vertex(boundary, gate, 0, last_pos, nullptr, nullptr);
-      ++stats.predictions[kChoiceGate];
-    }
-    fast_vertex(v, pr.pos, pr.kind, pr.extent);
+    fast_gate_vertex(v, gate, true);
     uint32_t x;
     Status r = register_vertex(v, &x);
     if (!r.ok()) return *status = std::move(r), true;
