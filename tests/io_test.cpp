@@ -1,7 +1,10 @@
 // InputStream, OutputFile and SpoolFile: offsets, line ends, atomic output.
 #include <gtest/gtest.h>
 
+#include <cstdint>
+#include <cstring>
 #include <string>
+#include <vector>
 
 #include "psq/io.h"
 #include "test_util.h"
@@ -124,6 +127,42 @@ TEST(SpoolFile, WritesAndReadsBackLargeData) {
   bool end;
   ASSERT_TRUE(spool.stream().at_end(&end).ok());
   EXPECT_TRUE(end);
+}
+
+// load() reads the contents into memory when they fit; read_at() gives the
+// same bytes and the same errors either way.
+TEST(SpoolFile, ReadsAtOffsetsFromTheFileOrFromMemory) {
+  test::TempDir dir;
+  SpoolFile spool;
+  ASSERT_TRUE(spool.create(dir.path()).ok());
+  std::vector<uint8_t> data(100000);
+  for (size_t i = 0; i < data.size(); ++i) data[i] = static_cast<uint8_t>(i * 7 + i / 251);
+  ASSERT_TRUE(spool.write(data.data(), data.size()).ok());
+  ASSERT_TRUE(spool.rewind().ok());
+  auto check = [&](const char* mode) {
+    SCOPED_TRACE(mode);
+    for (uint64_t at : {uint64_t{0}, uint64_t{1}, uint64_t{4095}, uint64_t{65536}, uint64_t{99990}}) {
+      uint8_t buf[10];
+      ASSERT_TRUE(spool.read_at(at, buf, 10).ok());
+      EXPECT_EQ(0, std::memcmp(buf, data.data() + at, 10));
+    }
+    uint8_t buf[10];
+    EXPECT_EQ(spool.read_at(99995, buf, 10).code(), ErrorCode::kTruncated);
+    EXPECT_EQ(spool.read_at(200000, buf, 1).code(), ErrorCode::kTruncated);
+    EXPECT_TRUE(spool.read_at(100000, buf, 0).ok());
+  };
+  check("from the file");
+  bool loaded = true;
+  ASSERT_TRUE(spool.load(99999, &loaded).ok());
+  EXPECT_FALSE(loaded) << "larger than allowed";
+  check("from the file, not loaded");
+  ASSERT_TRUE(spool.load(100000, &loaded).ok());
+  EXPECT_TRUE(loaded);
+  check("from memory");
+  // The stream still reads the file from where it was.
+  uint8_t first[4];
+  ASSERT_TRUE(spool.stream().read_exact(first, 4).ok());
+  EXPECT_EQ(0, std::memcmp(first, data.data(), 4));
 }
 
 TEST(Status, ToStringNamesThePlace) {

@@ -403,7 +403,21 @@ Status SpoolFile::rewind() {
 }
 
 Status SpoolFile::read_at(uint64_t offset, void* dst, size_t n) const {
-  return detail::pread_exact(fd_, offset, dst, n);
+  if (!is_loaded_) return detail::pread_exact(fd_, offset, dst, n);
+  if (offset > loaded_.size() || n > loaded_.size() - offset)
+    return Status(ErrorCode::kTruncated, "temporary file ends early", std::min<uint64_t>(offset, loaded_.size()));
+  if (n > 0) std::memcpy(dst, loaded_.data() + offset, n);
+  return Status();
+}
+
+Status SpoolFile::load(uint64_t max_bytes, bool* loaded) {
+  *loaded = is_loaded_;
+  if (is_loaded_ || written_ > max_bytes) return Status();
+  std::vector<uint8_t> data(static_cast<size_t>(written_));
+  PSQ_RETURN_IF_ERROR(detail::pread_exact(fd_, 0, data.data(), data.size()));
+  loaded_.swap(data);
+  is_loaded_ = *loaded = true;
+  return Status();
 }
 
 }  // namespace psq
