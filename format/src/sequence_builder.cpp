@@ -46,16 +46,20 @@ uint32_t sortable(float f) {
   return (u & 0x80000000u) ? ~u : (u | 0x80000000u);
 }
 
+// The sort path's records carry what the merge feeds the converter (the
+// position, the corners), so that a mesh without properties is merged from
+// sequential reads only; the offsets find a record's property values.
 struct VertexKey {
   uint32_t key;     // position along the sweep axis
   uint32_t index;   // input index: ties, and identity
   uint64_t offset;  // of the record in the vertex spool
+  double pos[3];
   bool operator<(const VertexKey& o) const { return key != o.key ? key < o.key : index < o.index; }
 };
 
 struct TriangleKey {
   uint32_t rank;    // smallest rank of its vertices
-  uint32_t pad = 0;
+  uint32_t idx[3];
   uint64_t offset;  // of the record in the triangle spool (also a unique tie-break)
   bool operator<(const TriangleKey& o) const { return rank != o.rank ? rank < o.rank : offset < o.offset; }
 };
@@ -173,20 +177,26 @@ Status feed_sorted(Spooled& s, const BuildOptions& options, SequenceConverter& c
   so.tmpdir = options.tmpdir;
   // 1. Vertices by their coordinate along the longest axis.
   ExternalSorter<VertexKey> vsort(so);
+  bool vertex_values = false;  // some vertex record has property values
   {
     InputStream& vin = s.vertices.stream();
-    double pos[3];
+    VertexKey vk{};
     PropertyValues values;
     uint64_t offset = 0;
     for (uint64_t i = 0; i < s.nv; ++i) {
-      PSQ_RETURN_IF_ERROR(vin.read_exact(pos, 24));
+      PSQ_RETURN_IF_ERROR(vin.read_exact(vk.pos, 24));
       PSQ_RETURN_IF_ERROR(get_values(vin, &values));
-      PSQ_RETURN_IF_ERROR(vsort.add(VertexKey{sortable(static_cast<float>(pos[axis])), static_cast<uint32_t>(i), offset}));
+      vk.key = sortable(static_cast<float>(vk.pos[axis]));
+      vk.index = static_cast<uint32_t>(i);
+      vk.offset = offset;
+      PSQ_RETURN_IF_ERROR(vsort.add(vk));
       offset += 24 + 4 + 8 * values.size();
+      vertex_values = vertex_values || !values.empty();
     }
   }
   PSQ_RETURN_IF_ERROR(vsort.finish());
-  // 2. Ranks, and the vertices in rank order spooled as (index, offset).
+  // 2. Ranks, and the vertices in rank order spooled as (index, offset,
+  // position).
   std::vector<uint32_t> rank(s.nv);
   SpoolFile order;
   PSQ_RETURN_IF_ERROR(order.create(options.tmpdir));
@@ -198,38 +208,42 @@ Status feed_sorted(Spooled& s, const BuildOptions& options, SequenceConverter& c
     rank[vk.index] = r;
     PSQ_RETURN_IF_ERROR(order.write(&vk.index, 4));
     PSQ_RETURN_IF_ERROR(order.write(&vk.offset, 8));
+    PSQ_RETURN_IF_ERROR(order.write(vk.pos, 24));
   }
   vsort = ExternalSorter<VertexKey>(so);  // release its buffers
   PSQ_RETURN_IF_ERROR(order.rewind());
   // 3. Triangles by the smallest rank of their vertices.
   ExternalSorter<TriangleKey> tsort(so);
+  bool triangle_values = false;
   {
     InputStream& tin = s.triangles.stream();
-    uint32_t idx[3];
+    TriangleKey tk{};
     PropertyValues values;
     uint64_t offset = 0;
     for (uint64_t t = 0; t < s.nt; ++t) {
-      PSQ_RETURN_IF_ERROR(tin.read_exact(idx, 12));
+      PSQ_RETURN_IF_ERROR(tin.read_exact(tk.idx, 12));
       PSQ_RETURN_IF_ERROR(get_values(tin, &values));
-      uint32_t r = std::min({rank[idx[0]], rank[idx[1]], rank[idx[2]]});
-      PSQ_RETURN_IF_ERROR(tsort.add(TriangleKey{r, 0, offset}));
+      tk.rank = std::min({rank[tk.idx[0]], rank[tk.idx[1]], rank[tk.idx[2]]});
+      tk.offset = offset;
+      PSQ_RETURN_IF_ERROR(tsort.add(tk));
       offset += 12 + 4 + 8 * values.size();
+      triangle_values = triangle_values || !values.empty();
     }
   }
   PSQ_RETURN_IF_ERROR(tsort.finish());
-  // The ranks are done with: their share of the budget (a quarter, beside
-  // the sort's half and the converter's quarter) takes the spooled
-  // vertices and triangles when they fit, so that the merge below reads
-  // its records from memory in rank order instead of with a pread each
-  // (psq convert of bunny_closed_loop1, 302k triangles: 0.65 s, half of it
-  // in the kernel, before; 0.34 s; bench/RESULTS.md, "The sort path's
-  // merge from memory").
+  // Property values are read at their records' offsets, in rank order. The
+  // ranks are done with: their share of the budget (a quarter, beside the
+  // sort's half and the converter's quarter) takes the spools that have
+  // values when they fit, so that the merge reads them from memory instead
+  // of with a pread each (bench/RESULTS.md, "The sort path's merge from
+  // memory").
   std::vector<uint32_t>().swap(rank);
   const uint64_t share = options.memory_budget / 4;
-  bool loaded = false;
-  if (s.vertices.size() + s.triangles.size() <= share) {
-    PSQ_RETURN_IF_ERROR(s.vertices.load(share, &loaded));
-    PSQ_RETURN_IF_ERROR(s.triangles.load(share - s.vertices.size(), &loaded));
+  const uint64_t want = (vertex_values ? s.vertices.size() : 0) + (triangle_values ? s.triangles.size() : 0);
+  if (want > 0 && want <= share) {
+    bool loaded = false;
+    if (vertex_values) PSQ_RETURN_IF_ERROR(s.vertices.load(share, &loaded));
+    if (triangle_values) PSQ_RETURN_IF_ERROR(s.triangles.load(share, &loaded));
   }
   // 4. Merge: for each vertex in rank order, the vertex, the triangles whose
   // first vertex it is, and its finalization: all its triangles are in.
@@ -244,14 +258,14 @@ Status feed_sorted(Spooled& s, const BuildOptions& options, SequenceConverter& c
     uint64_t offset;
     PSQ_RETURN_IF_ERROR(oin.read_exact(&index, 4));
     PSQ_RETURN_IF_ERROR(oin.read_exact(&offset, 8));
-    PSQ_RETURN_IF_ERROR(s.vertices.read_at(offset, pos, 24));
-    PSQ_RETURN_IF_ERROR(get_values_at(s.vertices, offset + 24, &values));
+    PSQ_RETURN_IF_ERROR(oin.read_exact(pos, 24));
+    if (vertex_values) PSQ_RETURN_IF_ERROR(get_values_at(s.vertices, offset + 24, &values));
+    else values.clear();
     PSQ_RETURN_IF_ERROR(conv.vertex(index, pos, values));
     while (!t_done && next_t.rank == r) {
-      uint32_t idx[3];
-      PSQ_RETURN_IF_ERROR(s.triangles.read_at(next_t.offset, idx, 12));
-      PSQ_RETURN_IF_ERROR(get_values_at(s.triangles, next_t.offset + 12, &values));
-      PSQ_RETURN_IF_ERROR(conv.triangle(idx, values));
+      if (triangle_values) PSQ_RETURN_IF_ERROR(get_values_at(s.triangles, next_t.offset + 12, &values));
+      else values.clear();
+      PSQ_RETURN_IF_ERROR(conv.triangle(next_t.idx, values));
       PSQ_RETURN_IF_ERROR(tsort.next(&next_t, &t_done));
     }
     PSQ_RETURN_IF_ERROR(conv.finalize(index));

@@ -148,10 +148,10 @@ class SpoolFile {
   // moving stream(). Errors: kIo, kTruncated past the end.
   Status read_at(uint64_t offset, void* dst, size_t n) const;
   // After rewind(): when the contents take at most `max_bytes`, reads them
-  // into memory, so that read_at() costs no system call (random access by
-  // record, as the sort path of build_sequence() merges, made one pread
-  // per record: half the time of converting a 300k-triangle mesh). Sets
-  // *loaded to whether it did. stream() still reads the file. Errors: kIo.
+  // into memory, so that read_at() costs no system call (the sort path of
+  // build_sequence() reads property values by record, in another order
+  // than they were written). Sets *loaded to whether it did. stream()
+  // still reads the file. Errors: kIo.
   Status load(uint64_t max_bytes, bool* loaded);
   InputStream& stream() { return in_; }
 
