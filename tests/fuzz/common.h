@@ -1,11 +1,15 @@
-// Shared pieces of psq's libFuzzer targets: a sink that discards, and the
-// "every accepted mesh gives a valid processing sequence" oracle.
+// Shared pieces of psq's libFuzzer targets: a sink that discards, a soup
+// source, a sequence recorder, and the "every accepted mesh gives a valid
+// processing sequence" oracle.
 #ifndef PSQ_TESTS_FUZZ_COMMON_H_
 #define PSQ_TESTS_FUZZ_COMMON_H_
 
+#include <array>
+#include <cstddef>
 #include <cstdint>
 #include <cstdio>
 #include <string>
+#include <vector>
 
 #include "psq/indexed_mesh.h"
 #include "psq/io.h"
@@ -54,6 +58,101 @@ class RecordingChecker : public SequenceSink {
       first_error = s;
     }
     return s;
+  }
+};
+
+// An index soup of up to 64 vertices: vertex i at (i, i*i mod 7, i mod 3),
+// optionally with a uchar vertex property (i mod 256) and an int face
+// property (minus the triangle's number), vertices before triangles or
+// after them (fuzz_sequence, fuzz_encoder).
+struct Soup {
+  uint32_t n = 0;
+  bool faces_first = false;
+  bool with_values = false;
+  std::vector<std::array<uint32_t, 3>> triangles;
+};
+
+class SoupSource : public MeshSource {
+ public:
+  explicit SoupSource(const Soup& soup) : soup_(soup) {
+    schema_.position_type = ScalarType::kFloat32;
+    schema_.vertex_count = soup.n;
+    schema_.triangle_count = static_cast<int64_t>(soup.triangles.size());
+    if (soup.with_values) {
+      Property q;
+      q.name = "quality";
+      q.type = ScalarType::kUInt8;
+      schema_.vertex_properties.push_back(q);
+      Property id;
+      id.name = "face_id";
+      id.type = ScalarType::kInt32;
+      schema_.face_properties.push_back(id);
+    }
+  }
+
+  const MeshSchema& schema() const override { return schema_; }
+  const SourceReport& report() const override { return report_; }
+
+  Status next(MeshItem* item) override {
+    const size_t nv = soup_.n, nt = soup_.triangles.size();
+    if (at_ >= nv + nt) {
+      item->kind = MeshItem::Kind::kEnd;
+      item->values.clear();
+      return Status();
+    }
+    const size_t k = at_++;
+    const bool vertex = soup_.faces_first ? k >= nt : k < nv;
+    item->values.clear();
+    if (vertex) {
+      const uint32_t i = static_cast<uint32_t>(soup_.faces_first ? k - nt : k);
+      item->kind = MeshItem::Kind::kVertex;
+      item->position[0] = i;
+      item->position[1] = (i * i) % 7;
+      item->position[2] = i % 3;
+      if (soup_.with_values) item->values.push_back(i % 256);
+    } else {
+      const size_t t = soup_.faces_first ? k : k - nv;
+      item->kind = MeshItem::Kind::kTriangle;
+      for (int c = 0; c < 3; ++c) item->index[c] = soup_.triangles[t][c];
+      if (soup_.with_values) item->values.push_back(-static_cast<double>(t));
+    }
+    return Status();
+  }
+
+ private:
+  const Soup& soup_;
+  MeshSchema schema_;
+  SourceReport report_;
+  size_t at_ = 0;
+};
+
+// Records a sequence's schema and events.
+struct SequenceRecorder : SequenceSink {
+  Status begin(const MeshSchema& s) override {
+    schema = s;
+    return Status();
+  }
+  Status vertex(const SequenceVertex& v) override {
+    push(SequenceEvent::Kind::kVertex).vertex = v;
+    return Status();
+  }
+  Status triangle(const SequenceTriangle& t) override {
+    push(SequenceEvent::Kind::kTriangle).triangle = t;
+    return Status();
+  }
+  Status finalize(uint32_t index) override {
+    push(SequenceEvent::Kind::kFinalize).finalized = index;
+    return Status();
+  }
+  Status finish() override { return Status(); }
+  MeshSchema schema;
+  std::vector<SequenceEvent> events;
+
+ private:
+  SequenceEvent& push(SequenceEvent::Kind kind) {
+    events.emplace_back();
+    events.back().kind = kind;
+    return events.back();
   }
 };
 

@@ -55,94 +55,8 @@ namespace {
 
 constexpr size_t kMaxTriangles = 120;
 constexpr size_t kMaxMutations = 48;
-
-struct Soup {
-  uint32_t n = 0;
-  bool faces_first = false;
-  bool with_values = false;
-  std::vector<std::array<uint32_t, 3>> triangles;
-};
-
-class SoupSource : public psq::MeshSource {
- public:
-  explicit SoupSource(const Soup& soup) : soup_(soup) {
-    schema_.position_type = psq::ScalarType::kFloat32;
-    schema_.vertex_count = soup.n;
-    schema_.triangle_count = static_cast<int64_t>(soup.triangles.size());
-    if (soup.with_values) {
-      psq::Property q;
-      q.name = "quality";
-      q.type = psq::ScalarType::kUInt8;
-      schema_.vertex_properties.push_back(q);
-      psq::Property id;
-      id.name = "face_id";
-      id.type = psq::ScalarType::kInt32;
-      schema_.face_properties.push_back(id);
-    }
-  }
-  const psq::MeshSchema& schema() const override { return schema_; }
-  const psq::SourceReport& report() const override { return report_; }
-  psq::Status next(psq::MeshItem* item) override {
-    const size_t nv = soup_.n, nt = soup_.triangles.size();
-    if (at_ >= nv + nt) {
-      item->kind = psq::MeshItem::Kind::kEnd;
-      item->values.clear();
-      return psq::Status();
-    }
-    const size_t k = at_++;
-    const bool vertex = soup_.faces_first ? k >= nt : k < nv;
-    item->values.clear();
-    if (vertex) {
-      const uint32_t i = static_cast<uint32_t>(soup_.faces_first ? k - nt : k);
-      item->kind = psq::MeshItem::Kind::kVertex;
-      item->position[0] = i;
-      item->position[1] = (i * i) % 7;
-      item->position[2] = i % 3;
-      if (soup_.with_values) item->values.push_back(i % 256);
-    } else {
-      const size_t t = soup_.faces_first ? k : k - nv;
-      item->kind = psq::MeshItem::Kind::kTriangle;
-      for (int c = 0; c < 3; ++c) item->index[c] = soup_.triangles[t][c];
-      if (soup_.with_values) item->values.push_back(-static_cast<double>(t));
-    }
-    return psq::Status();
-  }
-
- private:
-  const Soup& soup_;
-  psq::MeshSchema schema_;
-  psq::SourceReport report_;
-  size_t at_ = 0;
-};
-
-// Records a sequence.
-struct Recorder : psq::SequenceSink {
-  psq::Status begin(const psq::MeshSchema& s) override {
-    schema = s;
-    return psq::Status();
-  }
-  psq::Status vertex(const psq::SequenceVertex& v) override {
-    events.emplace_back();
-    events.back().kind = psq::SequenceEvent::Kind::kVertex;
-    events.back().vertex = v;
-    return psq::Status();
-  }
-  psq::Status triangle(const psq::SequenceTriangle& t) override {
-    events.emplace_back();
-    events.back().kind = psq::SequenceEvent::Kind::kTriangle;
-    events.back().triangle = t;
-    return psq::Status();
-  }
-  psq::Status finalize(uint32_t index) override {
-    events.emplace_back();
-    events.back().kind = psq::SequenceEvent::Kind::kFinalize;
-    events.back().finalized = index;
-    return psq::Status();
-  }
-  psq::Status finish() override { return psq::Status(); }
-  psq::MeshSchema schema;
-  std::vector<psq::SequenceEvent> events;
-};
+using psq::fuzz::Soup;
+using psq::fuzz::SoupSource;
 
 // Mutation `kind` of event `at` (mod the count) with `value`. Kinds 0 to 4
 // only change slot hints (the sequence stays what it was); 5 to 9 change
@@ -274,7 +188,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     soup.triangles.push_back({data[at] % soup.n, data[at + 1] % soup.n, data[at + 2] % soup.n});
 
   SoupSource source(soup);
-  Recorder seq;
+  psq::fuzz::SequenceRecorder seq;
   psq::BuildOptions bo;
   psq::BuildReport report;
   if (!psq::build_sequence(source, seq, bo, &report).ok()) return 0;  // fuzz_sequence's concern

@@ -24,68 +24,8 @@
 namespace {
 
 constexpr size_t kMaxTriangles = 200;
-
-struct Soup {
-  uint32_t n = 0;
-  bool faces_first = false;
-  bool with_values = false;
-  std::vector<std::array<uint32_t, 3>> triangles;
-};
-
-class SoupSource : public psq::MeshSource {
- public:
-  explicit SoupSource(const Soup& soup) : soup_(soup) {
-    schema_.position_type = psq::ScalarType::kFloat32;
-    schema_.vertex_count = soup.n;
-    schema_.triangle_count = static_cast<int64_t>(soup.triangles.size());
-    if (soup.with_values) {
-      psq::Property q;
-      q.name = "quality";
-      q.type = psq::ScalarType::kUInt8;
-      schema_.vertex_properties.push_back(q);
-      psq::Property id;
-      id.name = "face_id";
-      id.type = psq::ScalarType::kInt32;
-      schema_.face_properties.push_back(id);
-    }
-  }
-
-  const psq::MeshSchema& schema() const override { return schema_; }
-  const psq::SourceReport& report() const override { return report_; }
-
-  psq::Status next(psq::MeshItem* item) override {
-    const size_t nv = soup_.n, nt = soup_.triangles.size();
-    const size_t total = nv + nt;
-    if (at_ >= total) {
-      item->kind = psq::MeshItem::Kind::kEnd;
-      item->values.clear();
-      return psq::Status();
-    }
-    size_t k = at_++;
-    bool vertex = soup_.faces_first ? k >= nt : k < nv;
-    item->values.clear();
-    if (vertex) {
-      uint32_t i = static_cast<uint32_t>(soup_.faces_first ? k - nt : k);
-      item->kind = psq::MeshItem::Kind::kVertex;
-      item->position[0] = i;
-      item->position[1] = (i * i) % 7;
-      item->position[2] = i % 3;
-      if (soup_.with_values) item->values.push_back(i % 256);
-    } else {
-      size_t t = soup_.faces_first ? k : k - nv;
-      item->kind = psq::MeshItem::Kind::kTriangle;
-      for (int c = 0; c < 3; ++c) item->index[c] = soup_.triangles[t][c];
-      if (soup_.with_values) item->values.push_back(-static_cast<double>(t));
-    }
-    return psq::Status();
-  }
-
- private:
-  const Soup& soup_;
-  psq::MeshSchema schema_;
-  psq::SourceReport report_;
-  size_t at_ = 0;
-};
+using psq::fuzz::Soup;
+using psq::fuzz::SoupSource;
 
 void run(const Soup& soup, uint64_t degenerate, const psq::BuildOptions& options, const char* what) {
   SoupSource source(soup);
