@@ -58,6 +58,49 @@ TEST(RawBits, NonzeroPaddingIsNotACleanEnd) {
   EXPECT_FALSE(r.at_clean_end());
 }
 
+// The reader fills its accumulator 8 bytes at a time away from the end
+// and a byte at a time near it: against a reader of one bit at a time, on
+// streams of every length up to 40 bytes (whole words or not), read in
+// random widths until well past the end.
+TEST(RawBits, MatchesABitAtATimeReaderUpToAndPastTheEnd) {
+  std::mt19937 rng(3);
+  for (size_t size = 0; size <= 40; ++size) {
+    for (int trial = 0; trial < 20; ++trial) {
+      std::vector<uint8_t> data(size);
+      for (auto& b : data) b = static_cast<uint8_t>(rng());
+      const uint64_t whole = 8 * static_cast<uint64_t>(size & ~size_t{3});
+      RawReader r(data.data(), data.size());
+      uint64_t at = 0;
+      while (at < whole + 100) {
+        const int bits = static_cast<int>(rng() % 33);
+        uint32_t expect = 0;
+        for (int i = 0; i < bits; ++i) {
+          const uint64_t b = at + static_cast<uint64_t>(i);
+          if (b < whole && (data[b >> 3] >> (b & 7) & 1)) expect |= 1u << i;
+        }
+        ASSERT_EQ(r.get(bits), expect) << "size " << size << " at bit " << at;
+        at += static_cast<uint64_t>(bits);
+        ASSERT_EQ(r.consumed_bits(), at);
+        ASSERT_EQ(r.overran(), at > whole);
+      }
+    }
+  }
+}
+
+TEST(RawBits, AWordLeftUnreadIsNotACleanEnd) {
+  const uint8_t data[8] = {0x01, 0, 0, 0, 0, 0, 0, 0};
+  RawReader r(data, sizeof data);
+  EXPECT_EQ(r.get(1), 1u);
+  EXPECT_FALSE(r.at_clean_end());  // the second word is unread
+  EXPECT_EQ(r.get(31), 0u);
+  EXPECT_FALSE(r.at_clean_end());
+  EXPECT_EQ(r.get(1), 0u);
+  EXPECT_TRUE(r.at_clean_end());
+  const uint8_t empty[1] = {0};
+  EXPECT_TRUE(RawReader(empty, 0).at_clean_end());
+  EXPECT_FALSE(RawReader(empty, 1).at_clean_end());  // not a whole word
+}
+
 TEST(RansTable, BuildSumsToTheScaleAndKeepsEveryCountedSymbol) {
   std::mt19937_64 rng(2);
   for (int trial = 0; trial < 200; ++trial) {

@@ -31,6 +31,28 @@ uint32_t get_gamma(RawReader& in, int max_zeros) {
 
 }  // namespace
 
+void RawReader::top_up_near_end() {
+  // As top_up(), a byte at a time: the bytes past words_ are zeros, and
+  // pos_ goes on counting them so that consumed_bits() stays exact.
+  while (n_ <= 55) {
+    const uint64_t byte = pos_ < words_ ? data_[pos_] : 0;
+    acc_ |= byte << n_;
+    ++pos_;
+    n_ += 8;
+  }
+}
+
+bool RawReader::at_clean_end() const {
+  if (size_ != words_ || overran()) return false;
+  const uint64_t total = 8 * static_cast<uint64_t>(words_), used = consumed_bits();
+  // The last word must have been reached (no whole word left unread) ...
+  if (words_ != 0 && used + 32 <= total) return false;
+  // ... and the bits after the last one read must be zeros.
+  for (uint64_t b = used; b < total; ++b)
+    if (data_[b >> 3] >> (b & 7) & 1) return false;
+  return true;
+}
+
 void RansTable::build(const uint64_t* counts, int size) {
   size_ = size;
   unsigned __int128 total = 0;
