@@ -58,10 +58,11 @@ Status PsqDecoder::Impl::open(InputStream* stream) {
     const uint32_t slots = std::min<uint32_t>(header.boundary_limit, 1u << 16);
     fboundary.reserve(slots);
     fneighbors.reserve(slots);
-    for (int i = 0; i < kFastTables; ++i) ftables[i].set_absent();
+    ftables.resize(kFastTables);  // absent until a chunk sends them
     std::fill(std::begin(ftable_absent), std::end(ftable_absent), true);
   } else {
     boundary = Boundary(header.boundary_limit);
+    models = std::make_unique<Models>();
   }
   props = std::make_unique<PropertyUnpacker>(header.schema.vertex_properties, header.schema.face_properties);
   if (!header.lossless) {
@@ -173,10 +174,10 @@ Status PsqDecoder::Impl::new_vertex(Dec& dec, const int64_t pred[3], int kind, c
   v.index = static_cast<uint32_t>(next_out);
   v.slot = kNoSlot;
   v.reappears = kNoVertex;
-  if (dec.bit(models.reappears, kCostConnectivity)) {
+  if (dec.bit(models->reappears, kCostConnectivity)) {
     int64_t d;
     int length;
-    if (!dec.residual(models.distance, &d, &length, kCostConnectivity) || d < 0 || static_cast<uint64_t>(d) >= next_out)
+    if (!dec.residual(models->distance, &d, &length, kCostConnectivity) || d < 0 || static_cast<uint64_t>(d) >= next_out)
       return corrupt("re-appearance of a vertex that does not exist");
     v.reappears = static_cast<uint32_t>(next_out - 1 - static_cast<uint64_t>(d));
   }
@@ -184,7 +185,7 @@ Status PsqDecoder::Impl::new_vertex(Dec& dec, const int64_t pred[3], int kind, c
   for (int i = 0; i < 3; ++i) {
     int64_t r;
     const int c = length_context(kind, i, extent[i], std::max(lengths[0], lengths[1]));
-    if (!dec.residual(models.residual[kind][i][c], &r, &lengths[i], kCostGeometry))
+    if (!dec.residual(models->residual[kind][i][c], &r, &lengths[i], kCostGeometry))
       return corrupt("residual longer than 64 bits");
     pos[i] = wrap_add(pred[i], r);
   }
@@ -225,7 +226,7 @@ template <class Dec>
 Status PsqDecoder::Impl::decode_record(Dec& dec) {
   const uint32_t R = boundary.reference();
   const int ctx = gate_context(R, last_op, last_gate);
-  const uint32_t g_sym = dec.gate(models, ctx);
+  const uint32_t g_sym = dec.gate(*models, ctx);
   if (g_sym > kGateIsolated) return corrupt("gate symbol " + std::to_string(g_sym));
   last_gate = g_sym;
   ++stats.gates[gate_kind(g_sym)];
@@ -249,7 +250,7 @@ Status PsqDecoder::Impl::decode_record(Dec& dec) {
   // Spec 6.2.1: a far gate or a start leaves the region at R.
   if (R != kNone && g_sym >= kGateFar) boundary.depart(R);
   if (g_sym == kGateStart) {
-    const bool swap = dec.bit(models.swap, kCostConnectivity);
+    const bool swap = dec.bit(models->swap, kCostConnectivity);
     intro[0] = 0;
     intro[1] = swap ? 2 : 1;
     intro[2] = swap ? 1 : 2;
@@ -264,14 +265,14 @@ Status PsqDecoder::Impl::decode_record(Dec& dec) {
         gate = g_sym % 2 == 1 ? boundary.edge(gate).next : boundary.edge(gate).prev;
       if (gate == kNone) return corrupt("gate offset leaves the boundary");
     } else {
-      const uint32_t far = dec.template symbol<kFarBits>(models.far[R == kNone], kCostConnectivity);
+      const uint32_t far = dec.template symbol<kFarBits>(models->far[R == kNone], kCostConnectivity);
       ++stats.far_gates[far_kind(far)];
       if (far < kFarResume) {
         gate = boundary.recent_edge(far);
         if (gate == kNone) return corrupt("far gate rank beyond the open edges");
       } else if (far == kFarResume) {
-        const uint32_t j = dec.template symbol<kResumeIndexBits>(models.resume_index, kCostConnectivity);
-        const uint32_t s = dec.template symbol<kResumeOffsetBits>(models.resume_offset, kCostConnectivity);
+        const uint32_t j = dec.template symbol<kResumeIndexBits>(models->resume_index, kCostConnectivity);
+        const uint32_t s = dec.template symbol<kResumeOffsetBits>(models->resume_offset, kCostConnectivity);
         gate = boundary.departure(j);
         if (gate == kNone) return corrupt("far gate names a departure point that is not an open edge");
         if (s > 2 * static_cast<uint32_t>(kMaxResumeOffset)) return corrupt("far gate offset symbol 31");
@@ -288,7 +289,7 @@ Status PsqDecoder::Impl::decode_record(Dec& dec) {
     const uint32_t p = g.org, q = g.dst;
     shape = third_shape_context(boundary, gate);
     const uint32_t third =
-        dec.third(models.third[shape]
+        dec.third(models->third[shape]
                               [third_context(boundary.vertex(p).degree, boundary.vertex(q).degree)]);
     uint32_t x = kNone;
     if (third == kThirdLeft) {
@@ -298,7 +299,7 @@ Status PsqDecoder::Impl::decode_record(Dec& dec) {
       if (g.next == kNone) return corrupt("no boundary edge after the gate");
       x = boundary.edge(g.next).dst;
     } else if (third == kThirdJoin) {
-      const int side = dec.bit(models.join_side, kCostConnectivity);
+      const int side = dec.bit(models->join_side, kCostConnectivity);
       uint32_t j = static_cast<uint32_t>(dec.raw(slot_bits(boundary.edge_capacity()), kCostConnectivity));
       if (!boundary.edge_live(j)) return corrupt("join names an edge that is not open");
       x = side ? boundary.edge(j).dst : boundary.edge(j).org;
@@ -316,7 +317,7 @@ Status PsqDecoder::Impl::decode_record(Dec& dec) {
   }
   uint32_t r = 0;
   if (header.rotation) {
-    r = dec.template symbol<2>(models.rotation, kCostConnectivity);
+    r = dec.template symbol<2>(models->rotation, kCostConnectivity);
     if (r > 2) return corrupt("rotation above 2");
   }
   // New vertices in the order of introduction (spec 6.3).
@@ -328,7 +329,7 @@ Status PsqDecoder::Impl::decode_record(Dec& dec) {
     if (nintro == 1) {
       // Spec 7.3: the parallelogram across the gate or a neighbour, or a mean.
       const uint32_t mask = prediction_choices(boundary, gate);
-      if (mask != 0) choice = dec.choice(models.choice[shape], mask);
+      if (mask != 0) choice = dec.choice(models->choice[shape], mask);
       ++stats.predictions[choice];
     }
     const Prediction pr = predict_new_vertex(boundary, nintro == 1 ? gate : kNone, i, last_pos, first, second, choice);
@@ -348,12 +349,12 @@ Status PsqDecoder::Impl::decode_record(Dec& dec) {
       ++completed;
       continue;
     }
-    bt.border[k] = dec.bit(models.border[start][k][border_context(boundary, bt, k)], kCostConnectivity);
+    bt.border[k] = dec.bit(models->border[start][k][border_context(boundary, bt, k)], kCostConnectivity);
     bt.state[k] = bt.border[k] ? EdgeState::kBorder : EdgeState::kEnters;
   }
   uint8_t cut = 0;
   for (int k = 0; k < 3; ++k)
-    if (bt.state[k] == EdgeState::kBorder && dec.bit(models.cut[start], kCostConnectivity)) cut |= 1u << k;
+    if (bt.state[k] == EdgeState::kBorder && dec.bit(models->cut[start], kCostConnectivity)) cut |= 1u << k;
   const int nnew = bt.is_new[0] + bt.is_new[1] + bt.is_new[2];
   Op op = nnew == 3 ? Op::kStart
           : completed == 1 ? (nnew == 1 ? Op::kAdd : Op::kJoin)

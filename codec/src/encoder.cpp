@@ -247,11 +247,11 @@ int PsqEncoder::Impl::choose_prediction(uint32_t gate, uint32_t mask, int shape,
   for (int ch = kChoiceGate; ch < kChoices; ++ch) {
     if (!(keep & (1u << ch))) continue;
     const Prediction pr = candidate(ch);
-    float c = weight * Encoder::choice_cost(table, models.choice[shape], mask, ch);
+    float c = weight * Encoder::choice_cost(table, models->choice[shape], mask, ch);
     int lengths[3] = {0, 0, 0};
     for (int a = 0; a < 3; ++a) {
       const int lc = length_context(pr.kind, a, pr.extent[a], std::max(lengths[0], lengths[1]));
-      c += Encoder::residual_cost(table, models.residual[pr.kind][a][lc], wrap_sub(pos[a], pr.pos[a]), &lengths[a]);
+      c += Encoder::residual_cost(table, models->residual[pr.kind][a][lc], wrap_sub(pos[a], pr.pos[a]), &lengths[a]);
     }
     if (ch == kChoiceGate || c < best_cost) {
       best = ch;
@@ -267,16 +267,16 @@ int PsqEncoder::Impl::choose_prediction(uint32_t gate, uint32_t mask, int shape,
 void PsqEncoder::Impl::code_new_vertex(Encoder& enc, const PendingVertex& v, const int64_t pred[3], int kind,
                                         const int extent[3]) {
   const uint32_t out_index = out_index_of(v.in_index);
-  enc.bit(models.reappears, v.reappears != kNoVertex, kCostConnectivity);
+  enc.bit(models->reappears, v.reappears != kNoVertex, kCostConnectivity);
   // (triangle() and isolated() checked that the re-appeared vertex comes
   // earlier in the decoded numbering.)
   if (v.reappears != kNoVertex)
-    (void)enc.residual(models.distance, static_cast<int64_t>(out_index - out_index_of(v.reappears)) - 1,
+    (void)enc.residual(models->distance, static_cast<int64_t>(out_index - out_index_of(v.reappears)) - 1,
                        kCostConnectivity);
   int lengths[3] = {0, 0, 0};
   for (int i = 0; i < 3; ++i) {
     const int c = length_context(kind, i, extent[i], std::max(lengths[0], lengths[1]));
-    lengths[i] = enc.residual(models.residual[kind][i][c], wrap_sub(v.pos[i], pred[i]),
+    lengths[i] = enc.residual(models->residual[kind][i][c], wrap_sub(v.pos[i], pred[i]),
                               kCostGeometry);
   }
   for (int i = 0; i < 3; ++i) last_pos[i] = v.pos[i];
@@ -396,25 +396,25 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
   bt.gate = gate;
   const int r = (3 - rot) % 3;  // spec 6.2.3: output corner j is canonical corner (j + r) % 3
 
-  enc.gate(models, ctx, gate_sym);
+  enc.gate(*models, ctx, gate_sym);
   last_gate = gate_sym;
   ++stats.gates[gate_kind(gate_sym)];
   uint32_t intro[3];  // canonical corners in the order their vertices are introduced
   int nintro = 0;
   if (nnew == 3) {
     const bool swap = cp[2] == 1;  // corner 2 was introduced second
-    enc.bit(models.swap, swap, kCostConnectivity);
+    enc.bit(models->swap, swap, kCostConnectivity);
     intro[0] = 0;
     intro[1] = swap ? 2 : 1;
     intro[2] = swap ? 1 : 2;
     nintro = 3;
   } else {
     if (gate_sym == kGateFar) {
-      enc.symbol<kFarBits>(models.far[far_reference_none], far_name.far, kCostConnectivity);
+      enc.symbol<kFarBits>(models->far[far_reference_none], far_name.far, kCostConnectivity);
       ++stats.far_gates[far_kind(far_name.far)];
       if (far_name.far == kFarResume) {
-        enc.symbol<kResumeIndexBits>(models.resume_index, far_name.index, kCostConnectivity);
-        enc.symbol<kResumeOffsetBits>(models.resume_offset, far_name.offset, kCostConnectivity);
+        enc.symbol<kResumeIndexBits>(models->resume_index, far_name.index, kCostConnectivity);
+        enc.symbol<kResumeOffsetBits>(models->resume_offset, far_name.offset, kCostConnectivity);
       } else if (far_name.far == kFarEscape) {
         enc.raw(gate, slot_bits(boundary.edge_capacity()), kCostConnectivity);
       }
@@ -431,7 +431,7 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
     const BVertex& vp = boundary.vertex(p);
     const BVertex& vq = boundary.vertex(q);
     shape = third_shape_context(boundary, gate);
-    enc.third(models.third[shape][third_context(vp.degree, vq.degree)], third);
+    enc.third(models->third[shape][third_context(vp.degree, vq.degree)], third);
     if (third == kThirdJoin) {
       // Spec 6.2.2: an open edge at x names it and the gap the triangle
       // goes into: its first edge leaving x, else its first entering x.
@@ -439,7 +439,7 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
       uint32_t j = vx.first_out != kNone ? vx.first_out : vx.first_in;
       if (j == kNone) return bad_sequence("join over vertex " + std::to_string(t.v[(rot + 2) % 3]) +
                                           ", which is not on the boundary");
-      enc.bit(models.join_side, j == vx.first_out ? 0 : 1, kCostConnectivity);
+      enc.bit(models->join_side, j == vx.first_out ? 0 : 1, kCostConnectivity);
       enc.raw(j, slot_bits(boundary.edge_capacity()), kCostConnectivity);
       bt.join_edge = j;
     }
@@ -448,7 +448,7 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
       nintro = 1;
     }
   }
-  if (header.rotation) enc.symbol<2>(models.rotation, static_cast<uint32_t>(r), kCostConnectivity);
+  if (header.rotation) enc.symbol<2>(models->rotation, static_cast<uint32_t>(r), kCostConnectivity);
 
   // New vertices in the order of introduction, with their predictions.
   for (int i = 0; i < nintro; ++i) {
@@ -464,7 +464,7 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
     const uint32_t mask = nnew == 1 ? prediction_choices(boundary, gate) : 0;
     if (mask != 0) {
       choice = choose_prediction(gate, mask, shape, v.pos, &pr);
-      enc.choice(models.choice[shape], mask, choice);
+      enc.choice(models->choice[shape], mask, choice);
       ++choices_coded;
     } else {
       pr = predict_new_vertex(boundary, nnew == 1 ? gate : kNone, i, last_pos, first, second);
@@ -489,11 +489,11 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
         return bad_sequence("a border edge completes a boundary edge");
       continue;
     }
-    enc.bit(models.border[start][k][border_context(boundary, bt, k)], bt.border[k], kCostConnectivity);
+    enc.bit(models->border[start][k][border_context(boundary, bt, k)], bt.border[k], kCostConnectivity);
   }
   for (int k = 0; k < 3; ++k)
     if (bt.state[k] == EdgeState::kBorder)
-      enc.bit(models.cut[start], (t.nonmanifold_mask >> ((rot + k) % 3)) & 1, kCostConnectivity);
+      enc.bit(models->cut[start], (t.nonmanifold_mask >> ((rot + k) % 3)) & 1, kCostConnectivity);
   return close_triangle(t, bt, nnew);
 }
 
@@ -561,7 +561,7 @@ Status PsqEncoder::Impl::isolated(size_t at) {
   }
   Encoder enc(rc.get(), opt.measure_costs ? cost : nullptr);
   const int ctx = gate_context(boundary.reference(), last_op, last_gate);
-  enc.gate(models, ctx, kGateIsolated);
+  enc.gate(*models, ctx, kGateIsolated);
   last_gate = kGateIsolated;
   ++stats.gates[gate_kind(kGateIsolated)];
   PendingVertex v = std::move(pending[at]);
@@ -657,13 +657,14 @@ Status PsqEncoder::Impl::finish() {
 PsqEncoder::PsqEncoder(ByteWriter* out, const EncodeOptions& options) : impl_(std::make_unique<Impl>()) {
   impl_->out = out;
   impl_->opt = options;
+  if (!options.fast) impl_->models = std::make_unique<Models>();
 }
 
 PsqEncoder::~PsqEncoder() = default;
 
 namespace codec {
-void TrainingAccess::use_flat_models(PsqEncoder& e) { e.impl_->models = Models(false); }
-const Models& TrainingAccess::models(const PsqEncoder& e) { return e.impl_->models; }
+void TrainingAccess::use_flat_models(PsqEncoder& e) { e.impl_->models = std::make_unique<Models>(false); }
+const Models& TrainingAccess::models(const PsqEncoder& e) { return *e.impl_->models; }
 }  // namespace codec
 
 Status PsqEncoder::begin(const MeshSchema& schema) {

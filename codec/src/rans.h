@@ -47,8 +47,11 @@ class RawReader;
 // frequency (0: the symbol does not occur), summing to kRansScale.
 class RansTable {
  public:
-  // An empty table (no symbol can be coded with it).
-  RansTable() = default;
+  // An empty table, absent (set_absent()): no symbol can be coded with it,
+  // and decoding with it yields kRansAbsent. Only what that needs is
+  // written (a decoder holds 180 tables, 500 KiB that zeroing would
+  // touch per stream; build() and read() set the rest).
+  RansTable() { set_absent(); }
 
   // Frequencies from symbol counts (counts[0..size - 1], any scale, at
   // least one nonzero; size 1..kRansMaxSymbols): proportional, every
@@ -92,12 +95,12 @@ class RansTable {
   // chunk's 180 tables are built anew for every decoder, so their size is
   // pages touched per stream: 1.8 KiB each, 2.5 with 32-bit frequencies
   // and a cumulative array of their own.
-  uint16_t freq_[kRansMaxSymbols] = {};
+  uint16_t freq_[kRansMaxSymbols];
   // Decoding: a byte per slot (1 KiB, a quarter of a table of whole
   // entries, so that a chunk's tables stay in the cache) and the
   // frequencies beside it.
-  uint32_t fc_[kRansAbsent + 1] = {};
-  uint8_t sym_[kRansScale] = {};
+  uint32_t fc_[kRansAbsent + 1];
+  uint8_t sym_[kRansScale + 8];  // 8 bytes of slack for finish()'s stores
 };
 
 // A symbol to code: its table (an index into the caller's tables) and value.
