@@ -45,11 +45,11 @@ PSQ_INLINE int PsqEncoder::Impl::fast_residual(int table, int64_t r) {
     fast_raw.put(static_cast<uint32_t>(k - 33), 5);
     fast_raw.put(static_cast<uint32_t>((mag >> (k - 2)) & 1), 1);
   }
-  if (k >= 1) {
-    const int low_bits = k >= 2 ? k - 2 : 0;
-    const uint64_t low = mag & ((uint64_t{1} << low_bits) - 1);
-    put_raw(fast_raw, (static_cast<uint64_t>(r < 0) << low_bits) | low, low_bits + 1);
-  }
+  // The sign and the bits below the leading two (spec 13.8.3), none for
+  // a zero: without a branch on whether the residual is zero.
+  const int low_bits = k >= 2 ? k - 2 : 0;
+  const uint64_t low = mag & ((uint64_t{1} << low_bits) - 1);
+  put_raw(fast_raw, (static_cast<uint64_t>(r < 0) << low_bits) | low, k == 0 ? 0 : low_bits + 1);
   if (opt.measure_costs && table != kFastTableDistance) fast_raw_geometry += fast_raw.bits() - raw_before;
   return k;
 }

@@ -183,14 +183,14 @@ RansDecoder::RansDecoder(const uint8_t* data, size_t size) : data_(data), size_(
 }
 
 std::vector<uint8_t> RawWriter::finish() {
-  if (n_ > 0) push_word(static_cast<uint32_t>(acc_));
-  std::vector<uint8_t> bytes(4 * nwords_);
-  for (size_t i = 0; i < nwords_; ++i)
-    for (int k = 0; k < 4; ++k) bytes[4 * i + k] = static_cast<uint8_t>(words_[i] >> (8 * k));
-  nwords_ = 0;
+  const size_t words = (static_cast<size_t>(bits()) + 31) / 32;
+  std::vector<uint8_t> out(4 * words);  // zero padding
+  std::copy(bytes_.data(), bytes_.data() + pos_, out.begin());
+  if (n_ > 0) out[pos_] = static_cast<uint8_t>(acc_);
+  pos_ = 0;
   acc_ = 0;
   n_ = 0;
-  return bytes;
+  return out;
 }
 
 }  // namespace codec

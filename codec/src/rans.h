@@ -192,39 +192,44 @@ class RansDecoder {
   bool overran_ = false;
 };
 
-// Raw bits, least significant first, in 32-bit little-endian words.
+// Raw bits, least significant first, in 32-bit little-endian words (which
+// is the same as bytes, least significant bit first, padded to a multiple
+// of 4 bytes).
 class RawWriter {
  public:
   // Appends the low `bits` bits of `value` (bits 0..32).
   __attribute__((always_inline)) void put(uint32_t value, int bits) {
-    // n_ < 32 and bits <= 32: the accumulator never overflows, and the
-    // 64-bit mask needs no case for 0 or 32 bits.
+    // n_ < 8 and bits <= 32: the accumulator never overflows, and the
+    // 64-bit mask needs no case for 0 or 32 bits. The whole bytes go out
+    // without a test of how many there are: 8 bytes are stored and the
+    // position moves by the whole ones (Giesen's branchless bit writer;
+    // the later stores overwrite the rest). A flush on a test of the bits
+    // held was a data-dependent branch in the encoder's loop.
     acc_ |= (static_cast<uint64_t>(value) & ((uint64_t{1} << bits) - 1)) << n_;
     n_ += bits;
-    if (n_ >= 32) {
-      push_word(static_cast<uint32_t>(acc_));
-      acc_ >>= 32;
-      n_ -= 32;
-    }
+    if (__builtin_expect(pos_ + 8 > bytes_.size(), 0)) grow();
+    uint64_t w = acc_;
+#if __BYTE_ORDER__ == __ORDER_BIG_ENDIAN__
+    w = __builtin_bswap64(w);
+#endif
+    __builtin_memcpy(bytes_.data() + pos_, &w, 8);
+    pos_ += static_cast<size_t>(n_ >> 3);
+    acc_ >>= n_ & ~7;
+    n_ &= 7;
   }
   // Bits written so far.
-  uint64_t bits() const { return uint64_t{nwords_} * 32 + static_cast<uint64_t>(n_); }
-  // Pads the last word with zero bits, returns the bytes (each word
-  // little-endian) and starts over.
+  uint64_t bits() const { return 8 * static_cast<uint64_t>(pos_) + static_cast<uint64_t>(n_); }
+  // Pads the last word with zero bits, returns the bytes and starts over.
   std::vector<uint8_t> finish();
 
  private:
-  // Whole words go to an array and a count, as RansSymbols' symbols do:
-  // four byte push_backs a word were calls in the encoder's loop.
-  __attribute__((always_inline)) void push_word(uint32_t w) {
-    if (nwords_ == words_.size()) grow();
-    words_[nwords_++] = w;
-  }
-  __attribute__((noinline)) void grow() { words_.resize(2 * words_.size() + 1024); }
-  std::vector<uint32_t, DefaultInitAllocator<uint32_t>> words_;
-  size_t nwords_ = 0;
+  // Room for 8 more bytes at pos_, growing geometrically.
+  __attribute__((noinline)) void grow() { bytes_.resize(2 * bytes_.size() + 4096); }
+  // Grown without zeroing: finish() returns only the bytes written.
+  std::vector<uint8_t, DefaultInitAllocator<uint8_t>> bytes_;
+  size_t pos_ = 0;  // whole bytes written
   uint64_t acc_ = 0;
-  int n_ = 0;
+  int n_ = 0;       // bits in acc_ not yet counted in pos_, 0..7
 };
 
 class RawReader {
