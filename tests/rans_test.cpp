@@ -187,8 +187,8 @@ TEST(RansTable, AbsentTableDecodesTheAbsentSymbolAndKeepsTheState) {
   std::vector<uint64_t> counts = {3, 1};
   RansTable present;
   present.build(counts.data(), 2);
-  RansTable absent;
-  absent.set_absent();
+  RansTable absent;  // a new table is absent
+  EXPECT_TRUE(absent.empty());
   std::vector<RansSymbol> syms = {{0, 0}, {0, 1}, {0, 0}};
   std::vector<uint8_t> bytes;
   rans_encode(syms, &present, &bytes);
@@ -201,6 +201,28 @@ TEST(RansTable, AbsentTableDecodesTheAbsentSymbolAndKeepsTheState) {
   EXPECT_EQ(d.decode(present), 1);
   EXPECT_EQ(d.decode(present), 0);
   EXPECT_TRUE(d.at_clean_end());
+  // set_absent() on a table that was read or built makes it absent again.
+  present.set_absent();
+  EXPECT_TRUE(present.empty());
+  EXPECT_EQ(present.symbol_at(0), static_cast<uint32_t>(kRansAbsent));
+}
+
+// A table's decoding array gives every slot the symbol whose run of
+// cumulative frequencies holds it (the runs are filled 8 slots at a
+// store, overlapping the next run), for tables of runs of every length.
+TEST(RansTable, EverySlotDecodesToTheSymbolOfItsRun) {
+  std::mt19937_64 rng(4);
+  for (int trial = 0; trial < 300; ++trial) {
+    const int size = 1 + static_cast<int>(rng() % kRansMaxSymbols);
+    std::vector<uint64_t> counts(size);
+    for (auto& c : counts) c = rng() % 3 == 0 ? 0 : 1 + rng() % (trial % 2 ? 20 : 5000);
+    counts[rng() % size] += 1;
+    RansTable t;
+    t.build(counts.data(), size);
+    for (int s = 0; s < size; ++s)
+      for (uint32_t k = 0; k < t.freq(s); ++k)
+        ASSERT_EQ(t.symbol_at(t.cum(s) + k), static_cast<uint32_t>(s)) << "trial " << trial << " symbol " << s;
+  }
 }
 
 // Symbols from a few skewed distributions, coded and decoded back; the
