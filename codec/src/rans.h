@@ -86,6 +86,13 @@ class RansTable {
   // absent table's symbol kRansAbsent has frequency kRansScale at 0.
   uint32_t symbol_at(uint32_t slot) const { return sym_[slot]; }
   uint32_t freq_cum(uint32_t s) const { return fc_[s]; }
+  // For the encoder (set by build() only): ceil(2^42 / freq(s)), so that
+  // x / freq(s) = (x * reciprocal(s)) >> 42 for every 32-bit x (Granlund
+  // and Montgomery, "Division by invariant integers using
+  // multiplication", 1994, theorem 4.2: m d lies in [2^42, 2^42 + 2^10)).
+  uint64_t reciprocal(int s) const { return rcp_[s]; }
+  // The reciprocal of a frequency f in 1..kRansScale.
+  static uint64_t reciprocal_of(uint32_t f) { return ((uint64_t{1} << 42) + f - 1) / f; }
 
  private:
   void finish();  // cumulative frequencies and the decoding arrays from freq_
@@ -101,6 +108,7 @@ class RansTable {
   // frequencies beside it.
   uint32_t fc_[kRansAbsent + 1];
   uint8_t sym_[kRansScale + 8];  // 8 bytes of slack for finish()'s stores
+  uint64_t rcp_[kRansMaxSymbols];  // reciprocal(), after build()
 };
 
 // A symbol to code: its table (an index into the caller's tables) and value.
