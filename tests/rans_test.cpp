@@ -232,7 +232,7 @@ TEST(RansTable, EverySlotDecodesToTheSymbolOfItsRun) {
 TEST(RansTable, ReciprocalDividesExactly) {
   std::mt19937_64 rng(5);
   for (uint32_t f = 1; f <= kRansScale; ++f) {
-    const uint64_t m = RansTable::reciprocal_of(f);
+    const uint64_t m = rans_reciprocal(f);
     auto check = [&](uint32_t x) {
       ASSERT_EQ(static_cast<uint32_t>((static_cast<unsigned __int128>(x) * m) >> 42), x / f) << x << " / " << f;
     };

@@ -600,7 +600,7 @@ void PsqEncoder::Impl::fast_section(std::vector<uint8_t>* section) {
   fast_raw_geometry = 0;
   const std::vector<uint8_t> table_bytes = tw.finish();
   std::vector<uint8_t> rans_bytes;
-  rans_encode(fast_symbols.data(), fast_symbols.size(), tables.data(), &rans_bytes);
+  rans_encode(fast_symbols.data(), fast_symbols.size(), tables.data(), tables.size(), &rans_bytes);
   const std::vector<uint8_t> raw_bytes = fast_raw.finish();
   Put put(section);
   put.varint(table_bytes.size());

@@ -84,8 +84,6 @@ void RansTable::build(const uint64_t* counts, int size) {
     freq_[top] = static_cast<uint16_t>(freq_[top] - take);
     diff += take;
   }
-  for (int s = 0; s < size; ++s)
-    rcp_[s] = freq_[s] == 0 ? 0 : reciprocal_of(freq_[s]);
   finish();
 }
 
@@ -141,12 +139,18 @@ void RansTable::finish() {
   }
 }
 
-void rans_encode(const RansSymbol* symbols, size_t count, const RansTable* tables, std::vector<uint8_t>* out) {
+void rans_encode(const RansSymbol* symbols, size_t count, const RansTable* tables, size_t ntables,
+                 std::vector<uint8_t>* out) {
   // At most one renormalization word per symbol: written through a
   // pointer, without a capacity test per word.
   std::unique_ptr<uint16_t[]> word_buffer(new uint16_t[count + 1]);  // not zeroed
   uint16_t* words = word_buffer.get();
   size_t nwords = 0;
+  // The reciprocals of the symbols that occur (the others are not read).
+  std::unique_ptr<uint64_t[]> reciprocals(new uint64_t[ntables * kRansMaxSymbols]);  // not zeroed
+  for (size_t t = 0; t < ntables; ++t)
+    for (int s = 0; s < tables[t].size(); ++s)
+      if (tables[t].freq(s) != 0) reciprocals[t * kRansMaxSymbols + static_cast<size_t>(s)] = rans_reciprocal(tables[t].freq(s));
   // One symbol into state x. The renormalization keeps the next state
   // below 2^32 (x < 2^22 f); its word is stored either way and counted
   // when taken, and the division by f is a multiplication by the table's
@@ -159,7 +163,8 @@ void rans_encode(const RansSymbol* symbols, size_t count, const RansTable* table
     words[nwords] = static_cast<uint16_t>(x);
     nwords += renorm;
     x >>= renorm << 4;
-    const uint32_t q = static_cast<uint32_t>((static_cast<unsigned __int128>(x) * t.reciprocal(sym.symbol)) >> 42);
+    const uint64_t m = reciprocals[size_t{sym.table} * kRansMaxSymbols + sym.symbol];
+    const uint32_t q = static_cast<uint32_t>((static_cast<unsigned __int128>(x) * m) >> 42);
     // (q << 10) + (x - q f) + c, the encoding step of rANS.
     x = x + c + q * (kRansScale - f);
   };

@@ -86,13 +86,6 @@ class RansTable {
   // absent table's symbol kRansAbsent has frequency kRansScale at 0.
   uint32_t symbol_at(uint32_t slot) const { return sym_[slot]; }
   uint32_t freq_cum(uint32_t s) const { return fc_[s]; }
-  // For the encoder (set by build() only): ceil(2^42 / freq(s)), so that
-  // x / freq(s) = (x * reciprocal(s)) >> 42 for every 32-bit x (Granlund
-  // and Montgomery, "Division by invariant integers using
-  // multiplication", 1994, theorem 4.2: m d lies in [2^42, 2^42 + 2^10)).
-  uint64_t reciprocal(int s) const { return rcp_[s]; }
-  // The reciprocal of a frequency f in 1..kRansScale.
-  static uint64_t reciprocal_of(uint32_t f) { return ((uint64_t{1} << 42) + f - 1) / f; }
 
  private:
   void finish();  // cumulative frequencies and the decoding arrays from freq_
@@ -108,7 +101,6 @@ class RansTable {
   // frequencies beside it.
   uint32_t fc_[kRansAbsent + 1];
   uint8_t sym_[kRansScale + 8];  // 8 bytes of slack for finish()'s stores
-  uint64_t rcp_[kRansMaxSymbols];  // reciprocal(), after build()
 };
 
 // A symbol to code: its table (an index into the caller's tables) and value.
@@ -122,10 +114,20 @@ struct RansSymbol {
 // the final states of symbols 0 and 1 as 4 bytes each, then the
 // renormalization words, all little-endian, in the order the decoder reads
 // them.
-void rans_encode(const RansSymbol* symbols, size_t count, const RansTable* tables, std::vector<uint8_t>* out);
+// `ntables`: how many tables there are (every symbol's table is below it).
+void rans_encode(const RansSymbol* symbols, size_t count, const RansTable* tables, size_t ntables,
+                 std::vector<uint8_t>* out);
 inline void rans_encode(const std::vector<RansSymbol>& symbols, const RansTable* tables, std::vector<uint8_t>* out) {
-  rans_encode(symbols.data(), symbols.size(), tables, out);
+  size_t ntables = 0;
+  for (const RansSymbol& s : symbols) ntables = std::max<size_t>(ntables, s.table + size_t{1});
+  rans_encode(symbols.data(), symbols.size(), tables, ntables, out);
 }
+
+// The encoder's reciprocal of a frequency f in 1..kRansScale:
+// ceil(2^42 / f), so that x / f = (x * rans_reciprocal(f)) >> 42 for every
+// 32-bit x (Granlund and Montgomery, "Division by invariant integers using
+// multiplication", 1994, theorem 4.2: m f lies in [2^42, 2^42 + 2^10)).
+inline uint64_t rans_reciprocal(uint32_t f) { return ((uint64_t{1} << 42) + f - 1) / f; }
 
 // The symbols of the chunk an encoder has open, in order: a plain array and
 // a count, so that appending one stays inline in the encoder (as a
