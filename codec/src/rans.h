@@ -18,7 +18,8 @@
 //
 // Raw bits (signs and low bits of residuals, explicit slots) go to a
 // separate little-endian bit stream (RawWriter, RawReader) instead of
-// through the rANS state: they cost one shift and mask each to read.
+// through the rANS state: they cost a branchless refill, a shift and a mask
+// each to read.
 #ifndef PSQ_CODEC_RANS_H_
 #define PSQ_CODEC_RANS_H_
 
