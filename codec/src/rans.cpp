@@ -148,12 +148,14 @@ void rans_encode(const RansSymbol* symbols, size_t count, const RansTable* table
   size_t nwords = 0;
   // The reciprocals of the symbols that occur (the others are not read).
   std::unique_ptr<uint64_t[]> reciprocals(new uint64_t[ntables * kRansMaxSymbols]);  // not zeroed
-  for (size_t t = 0; t < ntables; ++t)
+  for (size_t t = 0; t < ntables; ++t) {
+    uint64_t* r = reciprocals.get() + t * kRansMaxSymbols;
     for (int s = 0; s < tables[t].size(); ++s)
-      if (tables[t].freq(s) != 0) reciprocals[t * kRansMaxSymbols + static_cast<size_t>(s)] = rans_reciprocal(tables[t].freq(s));
+      if (tables[t].freq(s) != 0) r[s] = rans_reciprocal(tables[t].freq(s));
+  }
   // One symbol into state x. The renormalization keeps the next state
   // below 2^32 (x < 2^22 f); its word is stored either way and counted
-  // when taken, and the division by f is a multiplication by the table's
+  // when taken, and the division by f is a multiplication by f's
   // reciprocal: the two were a mispredicted branch and a 26-cycle
   // division on each state's chain.
   auto step = [&](uint32_t& x, const RansSymbol& sym) __attribute__((always_inline)) {
