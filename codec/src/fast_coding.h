@@ -205,11 +205,12 @@ class FastRing {
 };
 
 // A residual's length symbol (spec 13.8.3): k for k < 2, 2k - 2 + the
-// bit below the leading one for 2 <= k <= 32, else the escape.
+// bit below the leading one for 2 <= k <= 32, else the escape. Without a
+// branch on k < 2, which is data (for k < 2, mag >> 62 or 63 is 0).
 inline int fast_length_symbol(int k, uint64_t mag) {
-  if (k < 2) return k;
-  if (k > 32) return kFastLengthEscape;
-  return 2 * k - 2 + static_cast<int>((mag >> (k - 2)) & 1);
+  if (__builtin_expect(k > 32, 0)) return kFastLengthEscape;
+  const int below = static_cast<int>((mag >> ((k - 2) & 63)) & 1);
+  return k + static_cast<int>(k >= 2) * (k - 2 + below);
 }
 
 }  // namespace codec

@@ -47,10 +47,12 @@ PSQ_INLINE int PsqEncoder::Impl::fast_residual(int table, int64_t r) {
     fast_raw.put(static_cast<uint32_t>((mag >> (k - 2)) & 1), 1);
   }
   // The sign and the bits below the leading two (spec 13.8.3), none for
-  // a zero: without a branch on whether the residual is zero.
-  const int low_bits = k >= 2 ? k - 2 : 0;
+  // a zero: k - 1 bits for k >= 2, k for k < 2. Comparisons as numbers,
+  // not ternaries, which the compiler made into branches on k.
+  const int nbits = k - static_cast<int>(k >= 2);
+  const int low_bits = nbits - static_cast<int>(k != 0);
   const uint64_t low = mag & ((uint64_t{1} << low_bits) - 1);
-  put_raw(fast_raw, (static_cast<uint64_t>(r < 0) << low_bits) | low, k == 0 ? 0 : low_bits + 1);
+  put_raw(fast_raw, (static_cast<uint64_t>(r < 0) << low_bits) | low, nbits);
   if (opt.measure_costs && table != kFastTableDistance) fast_raw_geometry += fast_raw.bits() - raw_before;
   return k;
 }
@@ -203,7 +205,7 @@ int PsqEncoder::Impl::fast_choose_prediction(uint32_t gate, uint32_t mask, const
     for (int a = 0; a < 3; ++a) {
       const int table = fast_length_table(kind, a, std::min(extent[ps][a], kLengthContexts - 1));
       const int k = len[a];
-      c += fast_cost(table, fast_length_symbol(k, mag[a])) + int64_t{k >= 2 ? k - 1 : k} * 65536;
+      c += fast_cost(table, fast_length_symbol(k, mag[a])) + int64_t{k - static_cast<int>(k >= 2)} * 65536;
     }
     if (ch == kChoiceGate || c < best_cost) {
       best = ch;
