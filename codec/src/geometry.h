@@ -47,8 +47,17 @@ inline double double_from_ordered(int64_t o) {
 
 // The float nearest to `d`, widened back to double, without the GCC 12 -O2
 // trap that drops the rounding of (double)(float)d (../shared/toolchain).
+// An empty asm that takes and gives back the float in a register makes the
+// compiler keep it a float; a volatile did the same through memory, a
+// store and a load per coordinate in the encoder's check of its input.
 inline double round_to_float(double d) {
-  volatile float f = static_cast<float>(d);
+  float f = static_cast<float>(d);
+#if (defined(__GNUC__) || defined(__clang__)) && (defined(__x86_64__) || defined(__i386__))
+  __asm__("" : "+x"(f));
+#else
+  volatile float g = f;
+  f = g;
+#endif
   return static_cast<double>(f);
 }
 
