@@ -190,7 +190,9 @@ int PsqEncoder::Impl::fast_choose_prediction(uint32_t gate, uint32_t mask, const
     for (int a = 0; a < 3; ++a) {
       const int64_t pa = ch >= kChoiceMeanBefore ? midpoint(para[kChoiceGate][a], para[side][a]) : para[side][a];
       mag[a] = coord_distance(pos[a], pa);
-      len[a] = bit_length64(mag[a]);
+      // (bit_length63(): only a distance of exactly 2^63 reads 0, which
+      // could only make this a worse choice, not a wrong stream.)
+      len[a] = bit_length63(mag[a]);
       rough += len[a];
     }
     if (ch == kChoiceGate) rough_gate = rough;
