@@ -149,7 +149,7 @@ def f_ratio(v):
     return "-" if v is None else "%.3f" % v
 
 
-def f_x(v):
+def f_speed_ratio(v):
     """A speed ratio with two decimals, or "-" when it could not be computed (NaN)."""
     return "-" if v is None or v != v else "%.2f" % v
 
@@ -396,7 +396,7 @@ def region(meshes, order, codecs, sources, build, commands, note, rev):
                      " alone (`psq-fast-q16-seq`) at %s (median psq / Draco **%s**); encode from a mesh %s;"
                      " decoder peak %s MiB."
                      % (fspeed["n"], LARGE_TRIANGLES // 1000, fspeed["psq_dec_arrays"],
-                        f_x(fspeed["dec_arrays_ratio"]), fspeed["psq_enc_seq"], f_x(fspeed["enc_seq_ratio"]),
+                        f_speed_ratio(fspeed["dec_arrays_ratio"]), fspeed["psq_enc_seq"], f_speed_ratio(fspeed["enc_seq_ratio"]),
                         fspeed["psq_enc"], fspeed["psq_peak"]))
         L.append("")
 
@@ -526,7 +526,7 @@ def readme_headline(meshes, order, codecs, sources):
                 row("decode into vertex and index arrays (decode_mesh)", "psq_dec_arrays"),
                 row("decoder peak memory, MiB", "psq_peak", first["draco_peak"])]
         rows.append(["median psq / Draco: decode into arrays; encoder alone"]
-                    + ["%s; %s" % (f_x(sp["dec_arrays_ratio"]), f_x(sp["enc_seq_ratio"])) for _, sp in profiles]
+                    + ["%s; %s" % (f_speed_ratio(sp["dec_arrays_ratio"]), f_speed_ratio(sp["enc_seq_ratio"])) for _, sp in profiles]
                     + ["1"])
         L += table(["%dk+ triangle meshes (%d), 16 bits" % (LARGE_TRIANGLES // 1000, first["n"])]
                    + [name for name, _ in profiles] + ["Draco -cl 7"], rows, 1)

@@ -79,13 +79,13 @@ constexpr int kChoiceMeanBefore = 3;
 constexpr int kChoiceMeanAfter = 4;
 constexpr int kChoices = 5;
 // The neighbour a choice uses: kChoiceGate (none), kChoiceBefore or kChoiceAfter.
-inline int choice_side(int ch) { return ch <= kChoiceAfter ? ch : ch - 2; }
+constexpr int choice_side(int ch) { return ch <= kChoiceAfter ? ch : ch - 2; }
 // The edge whose triangle is the choice's predicting triangle (its extents
 // give the length contexts): the neighbour for one parallelogram, the gate
 // for the gate's and for a mean.
-inline int predicting_side(int ch) { return ch <= kChoiceAfter ? ch : kChoiceGate; }
+constexpr int predicting_side(int ch) { return ch <= kChoiceAfter ? ch : kChoiceGate; }
 // The prediction kind (residual models) of a choice.
-inline int prediction_kind(int ch) {
+constexpr int prediction_kind(int ch) {
   return ch == kChoiceGate ? kPredParallelogram : ch >= kChoiceMeanBefore ? kPredMean : kPredNeighbour;
 }
 

@@ -47,9 +47,8 @@ PSQ_INLINE int PsqEncoder::Impl::fast_residual(int table, int64_t r) {
     fast_raw.put(static_cast<uint32_t>((mag >> (k - 2)) & 1), 1);
   }
   // The sign and the bits below the leading two (spec 13.8.3), none for
-  // a zero: k - 1 bits for k >= 2, k for k < 2. Comparisons as numbers,
-  // not ternaries, which the compiler made into branches on k.
-  const int nbits = k - static_cast<int>(k >= 2);
+  // a zero.
+  const int nbits = fast_raw_bit_count(k);
   const int low_bits = nbits - static_cast<int>(k != 0);
   const uint64_t low = mag & ((uint64_t{1} << low_bits) - 1);
   put_raw(fast_raw, (static_cast<uint64_t>(r < 0) << low_bits) | low, nbits);
@@ -179,9 +178,7 @@ int PsqEncoder::Impl::fast_choose_prediction(uint32_t gate, uint32_t mask, const
   // encoder's instructions on iso_ball_200k, callgrind.)
   auto price = [&](auto choice) PSQ_LAMBDA_INLINE {
     constexpr int ch = decltype(choice)::value;
-    constexpr int side = ch <= kChoiceAfter ? ch : ch - 2;
-    constexpr int ps = ch <= kChoiceAfter ? ch : kChoiceGate;
-    constexpr int kind = ch == kChoiceGate ? kPredParallelogram : ch >= kChoiceMeanBefore ? kPredMean : kPredNeighbour;
+    constexpr int side = choice_side(ch), ps = predicting_side(ch), kind = prediction_kind(ch);
     // The residuals' magnitudes and bit lengths, for the rough test and
     // then the price.
     uint64_t mag[3];
@@ -207,7 +204,7 @@ int PsqEncoder::Impl::fast_choose_prediction(uint32_t gate, uint32_t mask, const
     for (int a = 0; a < 3; ++a) {
       const int table = fast_length_table(kind, a, std::min(extent[ps][a], kLengthContexts - 1));
       const int k = len[a];
-      c += fast_cost(table, fast_length_symbol(k, mag[a])) + int64_t{k - static_cast<int>(k >= 2)} * 65536;
+      c += fast_cost(table, fast_length_symbol(k, mag[a])) + int64_t{fast_raw_bit_count(k)} * 65536;
     }
     if (ch == kChoiceGate || c < best_cost) {
       best = ch;
