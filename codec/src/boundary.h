@@ -655,12 +655,14 @@ inline Prediction predict_new_vertex(const B& boundary, uint32_t gate, int i, co
     // gate's.
     const BEdge& g = boundary.edge(gate);
     const uint32_t edge[3] = {gate, g.prev, g.next};  // by side
-    parallelogram(boundary, edge[choice_side(choice)], p.pos);
-    if (choice >= kChoiceMeanBefore) {
-      int64_t across_gate[3];
-      parallelogram(boundary, gate, across_gate);
-      for (int k = 0; k < 3; ++k) p.pos[k] = midpoint(across_gate[k], p.pos[k]);
-    }
+    // Both parallelograms, and the mean taken by a mask: the choice is a
+    // decoded symbol, which a branch would mispredict.
+    int64_t across_gate[3], across_side[3];
+    parallelogram(boundary, gate, across_gate);
+    parallelogram(boundary, edge[choice_side(choice)], across_side);
+    const int64_t mean = 0 - static_cast<int64_t>(choice >= kChoiceMeanBefore);
+    for (int k = 0; k < 3; ++k)
+      p.pos[k] = across_side[k] ^ ((midpoint(across_gate[k], across_side[k]) ^ across_side[k]) & mean);
     p.kind = prediction_kind(choice);
     triangle_extents(boundary, edge[predicting_side(choice)], p.extent);
     return p;
