@@ -178,11 +178,12 @@ struct PsqDecoder::Impl {
   // The arrays are sized ahead and written through pointers; these are the
   // lengths in use (decode_into() trims the arrays to them at the end).
   size_t direct_np = 0, direct_ni = 0;  // positions, indices
-  // Room for n more elements after the `used` ones of v (growing it
-  // geometrically).
+  // Room for n more elements after the `used` ones of v: v's size grows
+  // to twice its size, within the capacity (decode_into() reserves it), or
+  // to used + n when that is more, which reallocates geometrically.
   template <class Vector>
   static typename Vector::value_type* direct_room(Vector& v, size_t used, size_t n) {
-    if (used + n > v.size()) v.resize(std::max(used + n, 2 * v.size()));
+    if (used + n > v.size()) v.resize(std::max(used + n, std::min(2 * v.size(), v.capacity())));
     return v.data() + used;
   }
   // The mesh index of the sequence's vertex `dense`.
@@ -191,29 +192,32 @@ struct PsqDecoder::Impl {
   bool direct_float = false;
   // fast_direct_records()'s view of the arrays, kept in locals so that
   // the compiler holds it in registers: the lengths in use, the data, and
-  // how many more common records (at most one vertex and one triangle
-  // each) fit before the arrays must grow. Its records take the corners'
-  // mesh indices from the boundary's vertices (BVertex::key).
+  // how many more vertices and triangles fit before an array must grow
+  // (a common record writes at most one of each). Its records take the
+  // corners' mesh indices from the boundary's vertices (BVertex::key).
   struct DirectCursor {
     float* pos;
     uint32_t* idx;
     size_t verts, ni;  // positions written (direct_np / 3: no division per vertex), indices
-    size_t room;
+    size_t vroom, troom;
   };
   // The cursor of the members' arrays and lengths; back into the members.
   DirectCursor direct_cursor() {
-    const size_t room = std::min((direct->positions.size() - direct_np) / 3, (direct->indices.size() - direct_ni) / 3);
-    return DirectCursor{direct->positions.data(), direct->indices.data(), direct_np / 3, direct_ni, room};
+    return DirectCursor{direct->positions.data(), direct->indices.data(), direct_np / 3, direct_ni,
+                        (direct->positions.size() - direct_np) / 3, (direct->indices.size() - direct_ni) / 3};
   }
   void direct_sync(const DirectCursor& c) {
     direct_np = 3 * c.verts;
     direct_ni = c.ni;
   }
-  // Grows the arrays for at least one more common record (geometrically).
+  // Grows the array that has no room left for one more vertex or triangle
+  // (geometrically, or up to the capacity decode_into() reserved). Each
+  // grows only when a record needs it: a chunk's room for vertices is its
+  // declared count, which fills before its last fills come.
   void direct_grow(DirectCursor& c) {
     direct_sync(c);
-    direct_room(direct->positions, direct_np, 3);
-    direct_room(direct->indices, direct_ni, 3);
+    if (c.vroom == 0) direct_room(direct->positions, direct_np, 3);
+    if (c.troom == 0) direct_room(direct->indices, direct_ni, 3);
     c = direct_cursor();
   }
   // The float position of quantized float coordinates (spec 7.1) straight
@@ -254,7 +258,9 @@ struct PsqDecoder::Impl {
     for (int k = 0; k < 3; ++k) t[k] = direct_mesh_index(v[k]);
     direct_ni += 3;
   }
-  Status decode_into(MeshBuffers* mesh);
+  // Decodes the whole stream, `size` bytes at `data` of which the header
+  // has been read, into `mesh` (decode_mesh()).
+  Status decode_into(MeshBuffers* mesh, const uint8_t* data, size_t size);
 
   // The fast profile (fast_decoder.cpp).
   bool fast = false;

@@ -224,6 +224,7 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_common(RansDecoder& d, RawReader& bits,
     PSQ_RETURN_IF_ERROR(fast_position(d, bits, pr.pos, pr.kind, pr.extent, pos, !kDirect && measure));
     double xyz[3];
     if (kDirect) {
+      if (out->vroom == 0) direct_grow(*out);
       float* f = out->pos + 3 * out->verts;
       if (direct_float) {
         if (const char* why = direct_position(pos, f)) return corrupt(why);
@@ -262,7 +263,8 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_common(RansDecoder& d, RawReader& bits,
       t[1] = b.vertex(p).key;
       t[2] = at;
       out->ni += 3;
-      --out->room;
+      --out->vroom;
+      --out->troom;
       return Status();
     }
     SequenceEvent& ev = push();
@@ -302,7 +304,7 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_common(RansDecoder& d, RawReader& bits,
     uint32_t* t = out->idx + out->ni;
     for (int k = 0; k < 3; ++k) t[k] = b.vertex(corner[k]).key;
     out->ni += 3;
-    --out->room;
+    --out->troom;
     if (final) {
       for (int k = 0; k < 3; ++k)
         if (final >> k & 1) b.free_vertex(corner[k]);
@@ -616,7 +618,7 @@ Status PsqDecoder::Impl::fast_direct_records() {
   DirectCursor out = direct_cursor();
   const bool rotation = header.rotation;
   while (records_left > 0) {
-    if (out.room == 0) direct_grow(out);
+    if (out.troom == 0) direct_grow(out);
     const int cls = d.decode(ftables[kFastTableA + fast_context]);
     const uint32_t R = b.reference();
     int done = 0;  // 1: an add decoded below, 2: a fill

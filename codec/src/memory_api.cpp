@@ -92,7 +92,7 @@ Status decode_mesh(const uint8_t* data, size_t size, MeshBuffers* mesh) {
   in.open_memory(data, size, "<memory>");
   PsqDecoder decoder;
   Status s = decoder.open(&in);
-  if (s.ok()) s = decoder.impl_->decode_into(mesh);
+  if (s.ok()) s = decoder.impl_->decode_into(mesh, data, size);
   if (!s.ok()) {
     mesh->positions.clear();
     mesh->indices.clear();
