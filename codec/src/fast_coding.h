@@ -176,16 +176,22 @@ class FastRing {
     }
     return kNone;
   }
-  // The rank of open edge `slot`, or -1 when it is not among them or its
-  // rank is kFastRanks or more.
+  // The smallest rank among the open edges cand[0..2] (kNone entries are
+  // skipped), with the k that has it in *which, or -1 when none of them is
+  // among the ranked edges or below rank kFastRanks. One scan for the
+  // three: the first current entry that is a candidate has the smallest rank.
   template <class B>
-  int rank_of(const B& boundary, uint32_t slot) const {
+  int first_rank_of(const B& boundary, const uint32_t cand[3], int* which) const {
     const uint32_t n = std::min<uint64_t>(head_, kFastRingScan);
     int r = 0;
     for (uint32_t i = 1; i <= n && r < kFastRanks; ++i) {
       const Entry& e = ring_[(head_ - i) & (kFastRing - 1)];
       if (!current(boundary, e)) continue;
-      if (e.slot == slot) return r;
+      for (int k = 0; k < 3; ++k)
+        if (e.slot == cand[k]) {
+          *which = k;
+          return r;
+        }
       ++r;
     }
     return -1;

@@ -238,18 +238,17 @@ PSQ_INLINE int PsqEncoder::Impl::fast_gate_class(const uint32_t cand[3], int* ro
           return g;
         }
   }
-  int cls = kFastEscape;
-  for (int k = 0; k < 3; ++k) {
-    if (cand[k] == kNone) continue;
-    const int r = ring.rank_of(boundary, cand[k]);
-    if (r >= 0 && (*rank < 0 || r < *rank)) {
-      *rank = r;
-      *rot = k;
-      cls = kFastGateFar;
-    }
+  // The ring holds edge slots only (never kNone), so a kNone candidate
+  // matches no entry.
+  int k = 0;
+  const int r = ring.first_rank_of(boundary, cand, &k);
+  if (r >= 0) {
+    *rank = r;
+    *rot = k;
+    return kFastGateFar;
   }
-  if (cls == kFastEscape) *rot = cand[0] != kNone ? 0 : cand[1] != kNone ? 1 : 2;
-  return cls;
+  *rot = cand[0] != kNone ? 0 : cand[1] != kNone ? 1 : 2;
+  return kFastEscape;
 }
 
 void PsqEncoder::Impl::note_input_edge_grow(uint32_t in, uint32_t slot) {
