@@ -100,6 +100,22 @@ TEST(Neighbors, ListsOfLongLivedVerticesDropFinalizedNeighbours) {
   for (uint32_t s = 1; s <= 8; ++s) EXPECT_EQ(n.contains(0, s), s != 3) << s;
 }
 
+// A fan centre with at most seven neighbours active at a time keeps its
+// list in its slot: a full slot drops its finalized neighbours before
+// anything spills (the lists of iso-surfaces, whose vertices have eight
+// to twelve neighbours over their lives, spilled often).
+TEST(Neighbors, FullSlotsDropFinalizedNeighboursBeforeSpilling) {
+  codec::Neighbors n;
+  for (uint32_t s = 0; s <= 5; ++s) n.vertex_begins(s);
+  for (uint32_t k = 0; k < 1000; ++k) {
+    const uint32_t s = 1 + k % 5;
+    n.vertex_begins(s);
+    n.insert(0, s);
+    ASSERT_LE(n.listed(0), 7u) << k;
+    for (uint32_t t = 1; t <= 5; ++t) ASSERT_EQ(n.contains(0, t), k >= 4 || t <= s) << k << " " << t;
+  }
+}
+
 // add_vertex(s, p, q) is vertex_begins(s), insert(p, s), insert(s, q):
 // run both ways on the same random adds (slots reused, lists spilling past
 // their inline entries), every pair of slots answers alike.

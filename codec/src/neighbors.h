@@ -12,7 +12,8 @@
 // between old vertices (a fill has one), and nothing when a vertex is
 // finalized. A neighbour finalized since is stale (its slot's generation
 // moved on) and never matches; a slot's list is cleared when a new vertex
-// takes the slot, and a long list drops its stale entries before it grows,
+// takes the slot, a full slot drops its stale entries before its list
+// spills out of it, and a long list drops them before it grows,
 // so that a vertex that stays active while many neighbours come and go
 // (the centre of a large fan) lists about as many as are active: the
 // lists' size follows the boundary, not the mesh.
@@ -99,6 +100,21 @@ class Neighbors {
   };
 
   __attribute__((noinline)) void spill(uint32_t s, uint64_t entry) {
+    Slot& slot = slots_[s];
+    if (slot.count == kInline) {
+      // The slot is full and nothing has spilled yet: first drop the
+      // neighbours finalized since they were listed (the earlier vertices
+      // of a fan, mostly), which never match, and keep the entry inline
+      // when that makes room.
+      uint32_t n = 0;
+      for (uint32_t i = 0; i < kInline; ++i)
+        if (slots_[slot.e[i] >> 32].gen == static_cast<uint32_t>(slot.e[i])) slot.e[n++] = slot.e[i];
+      if (n < kInline) {
+        slot.e[n++] = entry;
+        slot.count = n;
+        return;
+      }
+    }
     if (s >= spill_.size()) spill_.resize(slots_.size());
     std::vector<uint64_t>& v = spill_[s];
     if (v.size() == v.capacity() && v.size() >= 16) {
