@@ -285,6 +285,9 @@ struct PsqDecoder::Impl {
   // kDirect: the record goes into the arrays at `out` (fast_direct_records).
   template <bool kDirect>
   Status fast_common(RansDecoder& d, RawReader& bits, int cls, int bsym, uint32_t gate, DirectCursor* out);
+  // fast_common()'s ends and joins (B symbols kFastBEnd and kFastBJoin).
+  template <bool kDirect>
+  Status fast_end_or_join(RansDecoder& d, RawReader& bits, int cls, int bsym, uint32_t gate, DirectCursor* out);
   // decode_mesh's loop over the rest of a fast chunk's records, when the
   // stream has no properties: adds and fills write the arrays directly,
   // other records go through decode_record_fast() and their events are
