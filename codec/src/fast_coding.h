@@ -56,7 +56,10 @@ constexpr int kFastBJoin = 18;  // a join whose edges 1 and 2 enter
 constexpr int kFastBEnd = 33;
 // The B symbols of the records that fast_common() decodes: an add or a
 // join whose new edges enter, a fill whose new edge enters, an end.
-inline bool fast_common_b(int b) { return b == 0 || b == kFastBJoin || b == 27 || b == 30 || b == kFastBEnd; }
+inline bool fast_common_b(int b) {
+  constexpr uint64_t kCommon = 1ull << 0 | 1ull << kFastBJoin | 1ull << 27 | 1ull << 30 | 1ull << kFastBEnd;
+  return (kCommon >> (b & 63)) & 1;  // b < kFastBSymbols (34)
+}
 // Splits a B symbol (< kFastBSymbols) into its third kind and edge states
 // (edge states of completed edges are left at kFastEnters).
 inline void fast_b_split(int b, int* third, int* e1, int* e2) {
