@@ -295,6 +295,10 @@ struct PsqDecoder::Impl {
   Status fast_direct_records();
   // measure_it: add the symbol's and raw bits' cost to `cost` (measure on).
   bool fast_residual(RansDecoder& d, RawReader& raw, int table, int64_t* r, int* k, bool measure_it);
+  // The residual of length symbol `s` (spec 13.8.3) from its raw bits;
+  // false for a symbol beyond the escape or +2^63.
+  bool residual_of_symbol(RawReader& raw, int s, int64_t* r, int* k);
+  bool measure_escape = false;  // measuring: the next escape's raw bits are geometry
   // The decoded symbol s of `table`, its information content added to
   // `cost` when measuring (PsqDecoder::measure_costs).
   int fast_symbol(RansDecoder& d, int table) {

@@ -120,7 +120,12 @@ PSQ_INLINE bool PsqDecoder::Impl::fast_residual(RansDecoder& d, RawReader& rawbi
     // connectivity (fast_close_chunk).
     if (table != kFastTableDistance && s <= kFastLengthEscape)
       fraw_geometry_bits += s < kFastLengthEscape ? kLengthCodes.c[s].raw_bits : 0;
+    if (s == kFastLengthEscape && table != kFastTableDistance) measure_escape = true;
   }
+  return residual_of_symbol(rawbits, s, r, k);
+}
+
+PSQ_INLINE bool PsqDecoder::Impl::residual_of_symbol(RawReader& rawbits, int s, int64_t* r, int* k) {
   if (s < kFastLengthEscape) {
     // Without branches on the symbol: the table gives the leading bits,
     // and the raw bits the low ones and the sign (zero reads none).
@@ -136,7 +141,10 @@ PSQ_INLINE bool PsqDecoder::Impl::fast_residual(RansDecoder& d, RawReader& rawbi
   const int len = 33 + static_cast<int>(rawbits.get(5));
   const uint64_t second = rawbits.get(1);
   *k = len;
-  if (measure_it && table != kFastTableDistance) fraw_geometry_bits += 5 + 1 + (len - 2) + 1;
+  if (measure_escape) {
+    fraw_geometry_bits += 5 + 1 + (len - 2) + 1;
+    measure_escape = false;
+  }
   const uint64_t mag = uint64_t{1} << (len - 1) | second << (len - 2) | get_raw(rawbits, len - 2);
   if (rawbits.get(1) == 0) {
     if (mag >= uint64_t{1} << 63) return false;  // +2^63 is not an i64 (spec 5.6)
@@ -160,6 +168,36 @@ Status PsqDecoder::Impl::fast_early_end() const {
 
 PSQ_INLINE Status PsqDecoder::Impl::fast_position(RansDecoder& d, RawReader& bits, const int64_t pred[3], int kind,
                                                   const int extent[3], int64_t pos[3], bool measure_it) {
+  if (kind != kPredOther && !measure_it) {
+    // A predicted vertex's three length contexts are its extents (13.8.1),
+    // so its three symbols decode first and its raw bits, which follow each
+    // other in the raw block, come in one read when they fit (they do
+    // unless a residual is long): one refill instead of three.
+    int s[3];
+    for (int i = 0; i < 3; ++i) s[i] = d.decode(ftables[fast_length_table(kind, i, fast_length_context(kind, i, extent[i], 0))]);
+    if (__builtin_expect((s[0] | s[1] | s[2]) < kFastLengthEscape, 1)) {
+      const LengthCode* e[3] = {&kLengthCodes.c[s[0]], &kLengthCodes.c[s[1]], &kLengthCodes.c[s[2]]};
+      const int total = e[0]->raw_bits + e[1]->raw_bits + e[2]->raw_bits;
+      if (__builtin_expect(total <= 56, 1)) {
+        uint64_t w = bits.get_wide(total);
+        for (int i = 0; i < 3; ++i) {
+          const uint32_t v = static_cast<uint32_t>(w & ((uint64_t{1} << e[i]->raw_bits) - 1));
+          w >>= e[i]->raw_bits;
+          const uint64_t mag = e[i]->lead | (v & ((uint32_t{1} << e[i]->low_bits) - 1));
+          const uint64_t neg = 0 - static_cast<uint64_t>((v >> e[i]->low_bits) & 1);
+          pos[i] = wrap_add(pred[i], static_cast<int64_t>((mag ^ neg) - neg));
+        }
+        return Status();
+      }
+    }
+    for (int i = 0; i < 3; ++i) {
+      int64_t r;
+      int k;
+      if (!residual_of_symbol(bits, s[i], &r, &k)) return corrupt("bad residual");
+      pos[i] = wrap_add(pred[i], r);
+    }
+    return Status();
+  }
   int lengths[3] = {0, 0, 0};
   for (int i = 0; i < 3; ++i) {
     int64_t r;

@@ -259,6 +259,15 @@ class RawReader {
     n_ -= bits;
     return v;
   }
+  // The next `bits` bits (0..56) as one value, with one refill: the raw
+  // bits of several fields that follow each other, split by the caller.
+  __attribute__((always_inline)) uint64_t get_wide(int bits) {
+    top_up();
+    const uint64_t v = acc_ & ((uint64_t{1} << bits) - 1);
+    acc_ >>= bits;
+    n_ -= bits;
+    return v;
+  }
   // True when more bits were read than the whole words hold.
   bool overran() const { return consumed_bits() > 8 * static_cast<uint64_t>(words_); }
   // Bits read so far.
