@@ -161,7 +161,7 @@ TEST(Conformance, FastVectorsDecodeLikeTheirCompactTwins) {
     decode_vector(std::string("fast_") + name + ".psq", &dec, [](const SequenceEvent&) {});
     EXPECT_TRUE(dec.header().fast) << name;
   }
-  // A format 7.0 stream decodes like the 8.0 compact stream of its input.
+  // A format 7.0 stream decodes like the 9.0 compact stream of its input.
   EXPECT_EQ(test::read_file(kDir + "format7_spider_16bit.dump"), test::read_file(kDir + "spider_16bit.dump"));
 }
 

@@ -24,9 +24,13 @@ Status PsqDecoder::Impl::open(InputStream* stream) {
   if (header.version_major < kOldestVersionMajor || header.version_major > kVersionMajor)
     return Status(ErrorCode::kUnsupported, "format version " + std::to_string(header.version_major) + "." +
                                                std::to_string(header.version_minor) + "; this psq reads " +
-                                               std::to_string(kOldestVersionMajor) + ".x and " +
+                                               std::to_string(kOldestVersionMajor) + ".x to " +
                                                std::to_string(kVersionMajor) + ".x", 8);
-  // Format 7 had no fast profile (spec 11).
+  // Format 7 had no fast profile, and format 8's fast profile (rANS
+  // tables of total 2^10) is no longer read (spec 11).
+  if (header.version_major == 8 && (flags & kFlagFast))
+    return Status(ErrorCode::kUnsupported,
+                  "a format 8 stream of the fast profile, which this psq no longer reads (re-encode it)", 10);
   const uint16_t known = header.version_major < 8 ? static_cast<uint16_t>(kKnownFlags & ~kFlagFast) : kKnownFlags;
   if (flags & ~known)
     return Status(ErrorCode::kUnsupported, "unknown header flags (value " + std::to_string(flags & ~known) + ")", 10);

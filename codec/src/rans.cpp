@@ -154,20 +154,20 @@ void rans_encode(const RansSymbol* symbols, size_t count, const RansTable* table
       if (tables[t].freq(s) != 0) r[s] = rans_reciprocal(tables[t].freq(s));
   }
   // One symbol into state x. The renormalization keeps the next state
-  // below 2^32 (x < 2^22 f); its word is stored either way and counted
+  // below 2^32 (x < 2^(32 - kRansScaleBits) f); its word is stored either way and counted
   // when taken, and the division by f is a multiplication by f's
   // reciprocal: the two were a mispredicted branch and a 26-cycle
   // division on each state's chain.
   auto step = [&](uint32_t& x, const RansSymbol& sym) __attribute__((always_inline)) {
     const RansTable& t = tables[sym.table];
     const uint32_t f = t.freq(sym.symbol), c = t.cum(sym.symbol);
-    const uint32_t renorm = uint64_t{x} >= uint64_t{f} << 22;
+    const uint32_t renorm = uint64_t{x} >= uint64_t{f} << (32 - kRansScaleBits);
     words[nwords] = static_cast<uint16_t>(x);
     nwords += renorm;
     x >>= renorm << 4;
     const uint64_t m = reciprocals[size_t{sym.table} * kRansMaxSymbols + sym.symbol];
     const uint32_t q = static_cast<uint32_t>((static_cast<unsigned __int128>(x) * m) >> 42);
-    // (q << 10) + (x - q f) + c, the encoding step of rANS.
+    // (q << kRansScaleBits) + (x - q f) + c, the encoding step of rANS.
     x = x + c + q * (kRansScale - f);
   };
   // Symbol i goes through state i mod 2, as the decoder alternates; the

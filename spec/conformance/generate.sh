@@ -143,7 +143,7 @@ valid fast_nonmanifold_wrap "$data/nonmanifold_wrap.ply" --bits 12 --profile fas
 valid fast_max_export_chunks "$data/max_export_nm.ply" --bits 14 --chunk 256 --profile fast
 valid fast_properties_lossless "$tmp/props.ply" --lossless --profile fast
 # A format 7.0 stream, as psq wrote it before 8.0 (tests/data): decoders of
-# 8.0 read it (spec 11).
+# 9.0 read it (spec 11).
 cp "$data/format7_spider_16bit.psq" format7_spider_16bit.psq
 "$psq" dump format7_spider_16bit.psq -o format7_spider_16bit.dump
 echo "valid format7_spider_16bit.psq $(sha256sum < format7_spider_16bit.dump | cut -d' ' -f1)" >> MANIFEST
@@ -180,11 +180,15 @@ payload=$((12 + hvar))     # where the header payload starts
 chunk=$((payload + hlen + 4))  # the first chunk's tag
 # Not .psq at all.
 printf 'PLY\n' > bad_magic.psq; invalid bad_magic unknown_format 0
-# A major version this decoder does not know (9).
-{ head -c 8 "$src"; printf '\x09'; tail -c +10 "$src"; } > bad_version.psq; invalid bad_version unsupported 8
+# A major version this decoder does not know (10).
+{ head -c 8 "$src"; printf '\x0a'; tail -c +10 "$src"; } > bad_version.psq; invalid bad_version unsupported 8
 # A fast-profile stream that claims format 7, which had no fast profile.
 { head -c 8 fast_spider_16bit.psq; printf '\x07'; tail -c +10 fast_spider_16bit.psq; } > bad_fast_version.psq
 invalid bad_fast_version unsupported 10
+# A fast-profile stream that claims format 8, whose fast profile (tables of
+# total 2^10) is no longer read.
+{ head -c 8 fast_spider_16bit.psq; printf '\x08'; tail -c +10 fast_spider_16bit.psq; } > bad_fast_version8.psq
+invalid bad_fast_version8 unsupported 10
 # An unknown flag.
 { head -c 11 "$src"; printf '\x80'; tail -c +13 "$src"; } > bad_flags.psq; invalid bad_flags unsupported 10
 # A header payload of 2^28 bytes (a five-byte varint).
