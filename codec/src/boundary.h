@@ -238,6 +238,9 @@ class BasicBoundary {
 
  private:
   uint32_t alloc_edge();
+  // alloc_edge() for lean_add() and lean_fill(), whose splice sets the
+  // loop links: they are left as they were.
+  uint32_t alloc_spliced_edge();
   // alloc_edge() without a free slot: a new one, or kNone at the limit.
   uint32_t grow_edges();
   // Pieces of apply(): edge k of t enters (a new slot, or kNone at the
@@ -259,6 +262,12 @@ class BasicBoundary {
   bool classify_old_edge(BTriangle& t, int k) const;
   void add_border(uint32_t a, uint32_t b);
   void free_edge(uint32_t slot);
+  // free_edge() without the unlinking, for lean_fill() without lookups:
+  // the loop links are symmetric (a.next = b exactly when b.prev = a, as
+  // link() and the splices keep them), so the only links to the freed
+  // edges are between them and from the edges before and after them,
+  // which the splice overwrites.
+  void retire_edge(uint32_t slot);
   void forget_dead_edges(uint32_t slot);
   void link(uint32_t p, uint32_t q);
   // Scans the recency stack from the top for up to `want` open edges,
@@ -443,6 +452,30 @@ PSQ_INLINE uint32_t BasicBoundary<L>::alloc_edge() {
 }
 
 template <bool L>
+PSQ_INLINE uint32_t BasicBoundary<L>::alloc_spliced_edge() {
+  uint32_t slot;
+  if (!free_edges_.empty()) {
+    slot = free_edges_.pop();
+  } else {
+    slot = grow_edges();
+    if (slot == kNone) return kNone;
+  }
+  edges_[slot].live = true;
+  ++open_edges_;
+  return slot;
+}
+
+template <bool L>
+PSQ_INLINE void BasicBoundary<L>::retire_edge(uint32_t slot) {
+  BEdge& e = edges_[slot];
+  --vertices_[e.org].open;
+  --vertices_[e.dst].open;
+  e.live = false;
+  --open_edges_;
+  free_edges_.push(slot);
+}
+
+template <bool L>
 PSQ_INLINE void BasicBoundary<L>::free_edge(uint32_t slot) {
   BEdge& e = edges_[slot];
   if (e.next != kNone && edges_[e.next].prev == slot) edges_[e.next].prev = kNone;
@@ -509,9 +542,9 @@ PSQ_INLINE void BasicBoundary<L>::list_entered(uint32_t s) {
 template <bool L>
 PSQ_INLINE uint32_t BasicBoundary<L>::lean_add(uint32_t gate, uint32_t x) {
   const uint32_t p = edges_[gate].org, q = edges_[gate].dst;
-  const uint32_t f1 = alloc_edge();
+  const uint32_t f1 = alloc_spliced_edge();
   if (f1 == kNone) return kNone;
-  const uint32_t f2 = alloc_edge();
+  const uint32_t f2 = alloc_spliced_edge();
   if (f2 == kNone) return kNone;
   BVertex& vp = vertices_[p];
   BVertex& vq = vertices_[q];
@@ -561,7 +594,7 @@ PSQ_INLINE uint32_t BasicBoundary<L>::lean_fill(uint32_t gate, bool left, uint32
   const uint32_t c = left ? edges_[gate].prev : edges_[gate].next;
   const uint32_t p = edges_[gate].org, q = edges_[gate].dst;
   const uint32_t x = left ? edges_[c].org : edges_[c].dst;
-  const uint32_t f = alloc_edge();
+  const uint32_t f = alloc_spliced_edge();
   if (f == kNone) return kNone;
   // Left: x->q enters, opposite p. Right: p->x enters, opposite q.
   BEdge& e = edges_[f];
@@ -585,8 +618,8 @@ PSQ_INLINE uint32_t BasicBoundary<L>::lean_fill(uint32_t gate, bool left, uint32
     if (left) add_border(p, x);
     else add_border(x, q);
   } else {
-    free_edge(gate);
-    free_edge(c);
+    retire_edge(gate);
+    retire_edge(c);
   }
   splice_fill(f, before, after);
   const uint32_t corner[3] = {q, p, x};
