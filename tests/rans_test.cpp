@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdint>
 #include <random>
+#include <utility>
 #include <vector>
 
 #include "rans.h"
@@ -181,6 +182,31 @@ TEST(RansTable, ReadRejectsInvalidTables) {
     RansTable t;
     EXPECT_FALSE(t.read(r, 2));
   }
+}
+
+// Spec 13.5.1 (format 9.0, M = 2^8): an explicit frequency is a gamma code
+// of at most 7 leading zeros, so below 2^8; a code with an eighth zero
+// makes the table invalid, even when the bits that follow are there.
+TEST(RansTable, GammaCodesStopAtSevenLeadingZeros) {
+  static_assert(kRansScaleBits == 8, "the spec's limits below are those of M = 2^8");
+  auto table_with_leading_zeros = [](int zeros) {
+    RawWriter w;
+    w.put(0b11, 2);  // symbols 0 and 1 present; symbol 0's frequency is explicit
+    w.put(0, zeros);
+    w.put(1, 1);
+    w.put(0, zeros);  // the frequency 2^zeros
+    w.put(0xffffffffu, 32);  // more bits, so that the end of the data is not what fails
+    std::vector<uint8_t> b = w.finish();
+    RawReader r(b.data(), b.size());
+    RansTable t;
+    const bool ok = t.read(r, 2);
+    return std::make_pair(ok, ok ? t.freq(0) : 0u);
+  };
+  // 2^6 and 2^7: valid, and the last symbol takes the rest of 256.
+  EXPECT_EQ(table_with_leading_zeros(6), std::make_pair(true, 64u));
+  EXPECT_EQ(table_with_leading_zeros(7), std::make_pair(true, 128u));
+  // Eight zeros would code 2^8 or more: invalid.
+  EXPECT_FALSE(table_with_leading_zeros(8).first);
 }
 
 TEST(RansTable, AbsentTableDecodesTheAbsentSymbolAndKeepsTheState) {
