@@ -659,27 +659,30 @@ TEST_P(CodecHostile, CraftedRecordsWithValidChecksums) {
   EXPECT_GT(failures, 250);
 }
 
+// The bytes of tests/data/NAME.
+std::vector<uint8_t> data_bytes(const std::string& name) {
+  const std::string text = test::read_file(std::string(PSQ_TEST_DATA) + "/" + name);
+  return std::vector<uint8_t>(text.begin(), text.end());
+}
+
 // A format 8.0 compact stream (tests/data/format8_spider_16bit.psq, the
 // conformance vector spider_16bit.psq of format 8.0) is read: its bytes
 // are those of 9.0 but for the version and checksums. A format 8.0 fast
 // stream, whose rANS tables had a total of 2^10, is not (spec 11).
 TEST(CodecHostile, Format8CompactStreamsAreReadFastOnesAreNot) {
-  const std::string text = test::read_file(std::string(PSQ_TEST_DATA) + "/format8_spider_16bit.psq");
-  std::vector<uint8_t> bytes(text.begin(), text.end());
+  std::vector<uint8_t> bytes = data_bytes("format8_spider_16bit.psq");
   ASSERT_EQ(bytes[8], 8);
   Events back;
   Status s = decode(bytes, &back);
   ASSERT_TRUE(s.ok()) << s.to_string();
   // The same events as the 7.0 stream of the same mesh: the records of
   // formats 7.0 to 9.0 are the same in the compact profile.
-  const std::string old7 = test::read_file(std::string(PSQ_TEST_DATA) + "/format7_spider_16bit.psq");
   Events expect;
-  ASSERT_TRUE(decode(std::vector<uint8_t>(old7.begin(), old7.end()), &expect).ok());
+  ASSERT_TRUE(decode(data_bytes("format7_spider_16bit.psq"), &expect).ok());
   ASSERT_GT(expect.events.size(), 2000u);
   expect_same(back, expect, 0);
 
-  const std::string fast = test::read_file(std::string(PSQ_TEST_DATA) + "/format8_fast_spider_16bit.psq");
-  std::vector<uint8_t> fast_bytes(fast.begin(), fast.end());
+  const std::vector<uint8_t> fast_bytes = data_bytes("format8_fast_spider_16bit.psq");
   ASSERT_EQ(fast_bytes[8], 8);
   ASSERT_EQ(fast_bytes[10] & 4, 4);
   s = decode_all(fast_bytes);
@@ -690,10 +693,9 @@ TEST(CodecHostile, Format8CompactStreamsAreReadFastOnesAreNot) {
 
 // A format 7.0 stream (tests/data/format7_spider_16bit.psq, the conformance
 // vector spider_16bit.psq as psq wrote it before format 8.0) is read: 7.0
-// streams are 8.0 compact streams (spec 11). Format 7 had no fast profile.
+// streams are 9.0 compact streams (spec 11). Format 7 had no fast profile.
 TEST(CodecHostile, Format7StreamsAreRead) {
-  const std::string text = test::read_file(std::string(PSQ_TEST_DATA) + "/format7_spider_16bit.psq");
-  std::vector<uint8_t> bytes(text.begin(), text.end());
+  std::vector<uint8_t> bytes = data_bytes("format7_spider_16bit.psq");
   ASSERT_EQ(bytes[8], 7);
   Events back;
   Status s = decode(bytes, &back);

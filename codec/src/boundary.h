@@ -436,18 +436,10 @@ PSQ_INLINE void BasicBoundary<L>::compact_recent() {
 
 template <bool L>
 PSQ_INLINE uint32_t BasicBoundary<L>::alloc_edge() {
-  uint32_t slot;
-  if (!free_edges_.empty()) {
-    slot = free_edges_.pop();
-  } else {
-    slot = grow_edges();
-    if (slot == kNone) return kNone;
-  }
+  const uint32_t slot = alloc_spliced_edge();
+  if (slot == kNone) return kNone;
   // apply() sets every other field.
-  BEdge& e = edges_[slot];
-  e.next = e.prev = kNone;
-  e.live = true;
-  ++open_edges_;
+  edges_[slot].next = edges_[slot].prev = kNone;
   return slot;
 }
 
@@ -489,11 +481,7 @@ PSQ_INLINE void BasicBoundary<L>::free_edge(uint32_t slot) {
     while (*p != slot) p = &edges_[*p].next_in;
     *p = e.next_in;
   }
-  --vertices_[e.org].open;
-  --vertices_[e.dst].open;
-  e.live = false;
-  --open_edges_;
-  free_edges_.push(slot);
+  retire_edge(slot);
 }
 
 // The loop links of an add (fresh f1 then f2 between the gate's old

@@ -104,6 +104,14 @@ struct LengthCodes {
 };
 const LengthCodes kLengthCodes;
 
+// The residual of a length code below the escape and its raw value `v`
+// (the low bits, then the sign), without branches on the symbol.
+PSQ_INLINE int64_t residual_of_code(const LengthCode& e, uint32_t v) {
+  const uint64_t mag = e.lead | (v & ((uint32_t{1} << e.low_bits) - 1));
+  const uint64_t neg = 0 - static_cast<uint64_t>((v >> e.low_bits) & 1);
+  return static_cast<int64_t>((mag ^ neg) - neg);
+}
+
 }  // namespace
 
 void PsqDecoder::Impl::measure_symbol(int table, int s) {
@@ -131,10 +139,7 @@ PSQ_INLINE bool PsqDecoder::Impl::residual_of_symbol(RawReader& rawbits, int s, 
     // and the raw bits the low ones and the sign (zero reads none).
     const LengthCode& e = kLengthCodes.c[s];
     *k = e.length;
-    const uint32_t v = rawbits.get(e.raw_bits);
-    const uint64_t mag = e.lead | (v & ((uint32_t{1} << e.low_bits) - 1));
-    const uint64_t neg = 0 - static_cast<uint64_t>((v >> e.low_bits) & 1);
-    *r = static_cast<int64_t>((mag ^ neg) - neg);
+    *r = residual_of_code(e, rawbits.get(e.raw_bits));
     return true;
   }
   if (s > kFastLengthEscape) return false;
@@ -183,9 +188,7 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_position(RansDecoder& d, RawReader& bit
         for (int i = 0; i < 3; ++i) {
           const uint32_t v = static_cast<uint32_t>(w & ((uint64_t{1} << e[i]->raw_bits) - 1));
           w >>= e[i]->raw_bits;
-          const uint64_t mag = e[i]->lead | (v & ((uint32_t{1} << e[i]->low_bits) - 1));
-          const uint64_t neg = 0 - static_cast<uint64_t>((v >> e[i]->low_bits) & 1);
-          pos[i] = wrap_add(pred[i], static_cast<int64_t>((mag ^ neg) - neg));
+          pos[i] = wrap_add(pred[i], residual_of_code(*e[i], v));
         }
         return Status();
       }
