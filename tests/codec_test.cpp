@@ -10,6 +10,7 @@
 #include <random>
 
 #include "psq/psq_codec.h"
+#include "psq/psq_memory.h"
 #include "psq/sequence_builder.h"
 #include "psq/sequence_check.h"
 #include "test_util.h"
@@ -691,6 +692,29 @@ TEST(CodecHostile, Format8CompactStreamsAreReadFastOnesAreNot) {
   EXPECT_NE(s.message().find("format 8 stream of the fast profile"), std::string::npos) << s.message();
 }
 
+// A format 9.0 fast stream (tests/data/format9_fast_spider_16bit.psq, the
+// conformance vector fast_spider_16bit.psq of format 9.0), whose gate
+// records code a prediction choice, is read (spec 13.8.2), through the
+// events and into arrays, and gives the mesh of the 7.0 compact stream.
+TEST(CodecHostile, Format9FastStreamsAreRead) {
+  const std::vector<uint8_t> bytes = data_bytes("format9_fast_spider_16bit.psq");
+  ASSERT_EQ(bytes[8], 9);
+  ASSERT_EQ(bytes[10] & 4, 4);
+  Events back;
+  Status s = decode(bytes, &back);
+  ASSERT_TRUE(s.ok()) << s.to_string();
+  Events expect;
+  ASSERT_TRUE(decode(data_bytes("format7_spider_16bit.psq"), &expect).ok());
+  ASSERT_GT(expect.events.size(), 2000u);
+  expect_same(back, expect, 0);
+  MeshBuffers from9, from7;
+  ASSERT_TRUE(decode_mesh(bytes.data(), bytes.size(), &from9).ok());
+  const std::vector<uint8_t> bytes7 = data_bytes("format7_spider_16bit.psq");
+  ASSERT_TRUE(decode_mesh(bytes7.data(), bytes7.size(), &from7).ok());
+  EXPECT_EQ(from9.positions, from7.positions);
+  EXPECT_EQ(from9.indices, from7.indices);
+}
+
 // A format 7.0 stream (tests/data/format7_spider_16bit.psq, the conformance
 // vector spider_16bit.psq as psq wrote it before format 8.0) is read: 7.0
 // streams are 9.0 compact streams (spec 11). Format 7 had no fast profile.
@@ -715,10 +739,10 @@ TEST(CodecHostile, BadHeaders) {
   b = bytes;
   // The message names the version found and the ones this psq reads.
   Status s;
-  b[8] = 10;  // a later major version
+  b[8] = 11;  // a later major version
   s = decode_all(b);
   EXPECT_EQ(s.code(), ErrorCode::kUnsupported);
-  EXPECT_NE(s.message().find("format version 10.0; this psq reads 7.x to " + std::to_string(bytes[8]) + ".x"),
+  EXPECT_NE(s.message().find("format version 11.0; this psq reads 7.x to " + std::to_string(bytes[8]) + ".x"),
             std::string::npos)
       << s.message();
 

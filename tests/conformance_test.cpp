@@ -161,8 +161,11 @@ TEST(Conformance, FastVectorsDecodeLikeTheirCompactTwins) {
     decode_vector(std::string("fast_") + name + ".psq", &dec, [](const SequenceEvent&) {});
     EXPECT_TRUE(dec.header().fast) << name;
   }
-  // A format 7.0 stream decodes like the 9.0 compact stream of its input.
+  // A format 7.0 stream decodes like the 10.0 compact stream of its input,
+  // and a format 9.0 fast stream (with prediction choices) like the 10.0
+  // fast stream.
   EXPECT_EQ(test::read_file(kDir + "format7_spider_16bit.dump"), test::read_file(kDir + "spider_16bit.dump"));
+  EXPECT_EQ(test::read_file(kDir + "format9_fast_spider_16bit.dump"), test::read_file(kDir + "fast_spider_16bit.dump"));
 }
 
 // The encoder still writes the vectors made from tests/data byte for byte.

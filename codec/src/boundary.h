@@ -693,6 +693,20 @@ inline Prediction predict_new_vertex(const B& boundary, uint32_t gate, int i, co
   return p;
 }
 
+// predict_new_vertex() for an add by choice 0: the parallelogram across
+// `gate` with the gate triangle's extents (kPredParallelogram), the only
+// prediction of the gate records of quantized fast streams from format 10
+// on (spec 13.8.2). Computed alone: predict_new_vertex() also forms a neighbour's
+// parallelogram and the mean, for a choice known only at run time.
+template <class B>
+inline Prediction predict_across_gate(const B& boundary, uint32_t gate) {
+  Prediction p;
+  parallelogram(boundary, gate, p.pos);
+  p.kind = kPredParallelogram;
+  triangle_extents(boundary, gate, p.extent);
+  return p;
+}
+
 // Which neighbours of `gate` may take part in predicting the new vertex
 // of an add (spec 7.3): bit 0, the open edge before the gate (its `prev`
 // link); bit 1, the one after it (`next`). 0: only the gate.

@@ -15,9 +15,10 @@
 namespace psq {
 namespace codec {
 
-constexpr int kVersionMajor = 9;
-// The oldest major version still read: 7.0 and 8.0 streams are 9.0
-// compact streams, and 8.0 fast streams are no longer read (spec 11).
+constexpr int kVersionMajor = 10;
+// The oldest major version still read: 7.0, 8.0 and 9.0 streams are 10.0
+// compact streams, 9.0 fast streams are 10.0 fast streams with prediction
+// choices (spec 13.8.2), and 8.0 fast streams are no longer read (spec 11).
 constexpr int kOldestVersionMajor = 7;
 constexpr int kVersionMinor = 0;
 constexpr uint16_t kFlagLossless = 1u << 0;

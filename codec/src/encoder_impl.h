@@ -138,11 +138,15 @@ struct PsqEncoder::Impl {
   uint64_t fast_raw_geometry = 0;        // of those, position residuals' (measure_costs)
   FastRing ring;
   int fast_context = kFastAStartContext;  // the previous record's class (table A)
+  // Whether gate records code a prediction choice: in lossless streams
+  // only (spec 13.8.2).
+  bool fast_choices = false;
   int fast_choice = 0;                    // the previous prediction choice
-  // Running symbol counts, for pricing the prediction choice
-  // (fast_cost()): per table and symbol, its count; per table, twice its
-  // total plus its alphabet size (counts doubled, half a count for every
-  // symbol) and that number's log2 in 1/65536 bits, set up by fast_begin().
+  // Running symbol counts, per table and symbol (the chunk's tables are
+  // built from their growth since the chunk began, fast_section()); with
+  // choices, for pricing them (fast_cost()): per table, twice its total
+  // plus its alphabet size (counts doubled, half a count for every symbol)
+  // and that number's log2 in 1/65536 bits, set up by fast_begin().
   std::vector<uint32_t> fast_count = std::vector<uint32_t>(size_t{kFastTables} * 128, 0);
   std::vector<uint32_t> fast_chunk_base;  // fast_count when the open chunk began (fast_section())
   std::vector<uint64_t> fast_denominator;
@@ -192,9 +196,10 @@ struct PsqEncoder::Impl {
   void fast_vertex(const PendingVertex& v, const int64_t pred[3], int kind, const int extent[3]);
   int64_t fast_cost(int table, int symbol) const;  // in 1/65536 bits
   int fast_choose_prediction(uint32_t gate, uint32_t mask, const int64_t pos[3], Prediction* pred);
-  // Codes the new vertex v of a triangle on `gate` (spec 13.8): the
-  // prediction choice among the gate's neighbours when `choices` (not for
-  // an escape, 13.7.5) and there are any, then its residuals.
+  // Codes the new vertex v of a triangle on `gate` (spec 13.8): in a
+  // lossless stream, the prediction choice among the gate's neighbours
+  // when `choices` (not for an escape, 13.7.5) and there are any; then its
+  // residuals.
   void fast_gate_vertex(const PendingVertex& v, uint32_t gate, bool choices);
   // The fast profile's record section of the open chunk (spec 13.2).
   void fast_section(std::vector<uint8_t>* section);

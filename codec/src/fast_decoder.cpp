@@ -251,17 +251,26 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_common(RansDecoder& d, RawReader& bits,
     // An add: the new vertex x, then the triangle (q, p, x).
     fast_context = fast_a_context_gate(cls, kFastNew);
     PSQ_RETURN_IF_ERROR(fast_vertex_room());
-    const uint32_t mask = prediction_choices(b, gate);
-    int choice = kChoiceGate;
-    if (mask != 0) {
-      const int table = fast_choice_table(mask, fast_choice);
-      choice = d.decode(ftables[table]);
-      if (!kDirect && measure) measure_symbol(table, choice);
-      if (!fast_choice_allowed(mask, choice)) return corrupt("prediction choice " + std::to_string(choice));
-      fast_choice = choice;
+    // Across the gate (spec 13.8.2), or by a decoded choice in a lossless
+    // stream or one of format 9 (the same for the whole stream: a branch
+    // that is predicted).
+    Prediction pr;
+    if (!fast_choices) {
+      ++stats.predictions[kChoiceGate];
+      pr = predict_across_gate(b, gate);
+    } else {
+      const uint32_t mask = prediction_choices(b, gate);
+      int choice = kChoiceGate;
+      if (mask != 0) {
+        const int table = fast_choice_table(mask, fast_choice);
+        choice = d.decode(ftables[table]);
+        if (!kDirect && measure) measure_symbol(table, choice);
+        if (!fast_choice_allowed(mask, choice)) return corrupt("prediction choice " + std::to_string(choice));
+        fast_choice = choice;
+      }
+      ++stats.predictions[choice];
+      pr = predict_new_vertex(b, gate, 0, last_pos, nullptr, nullptr, choice);
     }
-    ++stats.predictions[choice];
-    const Prediction pr = predict_new_vertex(b, gate, 0, last_pos, nullptr, nullptr, choice);
     int64_t pos[3];
     PSQ_RETURN_IF_ERROR(fast_position(d, bits, pr.pos, pr.kind, pr.extent, pos, !kDirect && measure));
     double xyz[3];
@@ -646,7 +655,7 @@ Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
     Prediction pr;
     int64_t pos[3];
     if (nintro == 1) {
-      const uint32_t mask = choice_allowed ? prediction_choices(b, gate) : 0;
+      const uint32_t mask = choice_allowed && fast_choices ? prediction_choices(b, gate) : 0;
       if (mask != 0) {
         choice = fast_symbol(d, fast_choice_table(mask, fast_choice));
         if (!fast_choice_allowed(mask, choice))

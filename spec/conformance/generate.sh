@@ -143,10 +143,15 @@ valid fast_nonmanifold_wrap "$data/nonmanifold_wrap.ply" --bits 12 --profile fas
 valid fast_max_export_chunks "$data/max_export_nm.ply" --bits 14 --chunk 256 --profile fast
 valid fast_properties_lossless "$tmp/props.ply" --lossless --profile fast
 # A format 7.0 stream, as psq wrote it before 8.0 (tests/data): decoders of
-# 9.0 read it (spec 11).
+# 10.0 read it (spec 11).
 cp "$data/format7_spider_16bit.psq" format7_spider_16bit.psq
 "$psq" dump format7_spider_16bit.psq -o format7_spider_16bit.dump
 echo "valid format7_spider_16bit.psq $(sha256sum < format7_spider_16bit.dump | cut -d' ' -f1)" >> MANIFEST
+# A format 9.0 fast stream, whose gate records code a prediction choice
+# (tests/data): decoders of 10.0 read it (spec 13.8.2, 11).
+cp "$data/format9_fast_spider_16bit.psq" format9_fast_spider_16bit.psq
+"$psq" dump format9_fast_spider_16bit.psq -o format9_fast_spider_16bit.dump
+echo "valid format9_fast_spider_16bit.psq $(sha256sum < format9_fast_spider_16bit.dump | cut -d' ' -f1)" >> MANIFEST
 # Written to a pipe: the same bytes as to a file (the encoder never seeks).
 "$psq" convert - - --to psq --bits 10 < "$data/spider.ply" > spider_pipe.psq
 "$psq" dump spider_pipe.psq -o spider_pipe.dump
@@ -180,8 +185,8 @@ payload=$((12 + hvar))     # where the header payload starts
 chunk=$((payload + hlen + 4))  # the first chunk's tag
 # Not .psq at all.
 printf 'PLY\n' > bad_magic.psq; invalid bad_magic unknown_format 0
-# A major version this decoder does not know (10).
-{ head -c 8 "$src"; printf '\x0a'; tail -c +10 "$src"; } > bad_version.psq; invalid bad_version unsupported 8
+# A major version this decoder does not know (11).
+{ head -c 8 "$src"; printf '\x0b'; tail -c +10 "$src"; } > bad_version.psq; invalid bad_version unsupported 8
 # A fast-profile stream that claims format 7, which had no fast profile.
 { head -c 8 fast_spider_16bit.psq; printf '\x07'; tail -c +10 fast_spider_16bit.psq; } > bad_fast_version.psq
 invalid bad_fast_version unsupported 10
