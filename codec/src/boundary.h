@@ -648,7 +648,7 @@ struct Prediction {
 };
 
 template <class B>
-inline void parallelogram(const B& boundary, uint32_t edge, int64_t out[3]) {
+PSQ_INLINE void parallelogram(const B& boundary, uint32_t edge, int64_t out[3]) {
   const BEdge& g = boundary.edge(edge);
   const int64_t* a = boundary.vertex(g.org).pos;
   const int64_t* b = boundary.vertex(g.dst).pos;
@@ -656,7 +656,7 @@ inline void parallelogram(const B& boundary, uint32_t edge, int64_t out[3]) {
 }
 
 template <class B>
-inline void triangle_extents(const B& boundary, uint32_t edge, int out[3]) {
+PSQ_INLINE void triangle_extents(const B& boundary, uint32_t edge, int out[3]) {
   const BEdge& g = boundary.edge(edge);
   const int64_t* a = boundary.vertex(g.org).pos;
   const int64_t* b = boundary.vertex(g.dst).pos;
@@ -699,7 +699,7 @@ inline Prediction predict_new_vertex(const B& boundary, uint32_t gate, int i, co
 // on (spec 13.8.2). Computed alone: predict_new_vertex() also forms a neighbour's
 // parallelogram and the mean, for a choice known only at run time.
 template <class B>
-inline Prediction predict_across_gate(const B& boundary, uint32_t gate) {
+PSQ_INLINE Prediction predict_across_gate(const B& boundary, uint32_t gate) {
   Prediction p;
   parallelogram(boundary, gate, p.pos);
   p.kind = kPredParallelogram;

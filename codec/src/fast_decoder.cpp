@@ -254,13 +254,9 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_common(RansDecoder& d, RawReader& bits,
     // Across the gate (spec 13.8.2), or by a decoded choice in a lossless
     // stream or one of format 9 (the same for the whole stream: a branch
     // that is predicted).
-    Prediction pr;
-    if (!fast_choices) {
-      ++stats.predictions[kChoiceGate];
-      pr = predict_across_gate(b, gate);
-    } else {
+    int choice = kChoiceGate;
+    if (fast_choices) {
       const uint32_t mask = prediction_choices(b, gate);
-      int choice = kChoiceGate;
       if (mask != 0) {
         const int table = fast_choice_table(mask, fast_choice);
         choice = d.decode(ftables[table]);
@@ -268,9 +264,13 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_common(RansDecoder& d, RawReader& bits,
         if (!fast_choice_allowed(mask, choice)) return corrupt("prediction choice " + std::to_string(choice));
         fast_choice = choice;
       }
-      ++stats.predictions[choice];
-      pr = predict_new_vertex(b, gate, 0, last_pos, nullptr, nullptr, choice);
     }
+    ++stats.predictions[choice];
+    // Initialized from either call, not assigned after: a copy of the
+    // struct went through the stack, its halves stored apart and loaded
+    // together, which stalled every add (perf, psq_bench_compare).
+    const Prediction pr = fast_choices ? predict_new_vertex(b, gate, 0, last_pos, nullptr, nullptr, choice)
+                                       : predict_across_gate(b, gate);
     int64_t pos[3];
     PSQ_RETURN_IF_ERROR(fast_position(d, bits, pr.pos, pr.kind, pr.extent, pos, !kDirect && measure));
     double xyz[3];
