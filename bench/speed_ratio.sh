@@ -8,9 +8,13 @@
 # for encoding and decoding.
 #
 # Usage: bench/speed_ratio.sh [--build DIR] [--rounds R] [--runs N]
-#                             [--codecs A,B] [--ref CODEC] MESH...
+#                             [--codecs A,B] [--ref CODEC] [--pin CPU] MESH...
 #   defaults: --build build, --rounds 5, --runs 11,
 #             --codecs psq-fast-q16-seq,psq-fast-q16-arrays, --ref draco-q16-cl7
+#   --pin CPU runs every invocation on that processor (taskset), so that
+#   psq's and the reference's children share one; on a shared virtual
+#   machine whose processors are not equally loaded, an unpinned child
+#   lands on either and a round's ratio moves by 30% and more.
 # A -seq codec is reported for encoding only (its encoder alone, from a
 # recorded processing sequence), an -arrays codec for decoding only (into
 # vertex and index arrays); other codecs for both.
@@ -21,6 +25,7 @@ rounds=5
 runs=11
 codecs=psq-fast-q16-seq,psq-fast-q16-arrays
 ref=draco-q16-cl7
+pin=
 meshes=()
 while [ $# -gt 0 ]; do
   case "$1" in
@@ -29,7 +34,8 @@ while [ $# -gt 0 ]; do
     --runs) runs=$2; shift 2 ;;
     --codecs) codecs=$2; shift 2 ;;
     --ref) ref=$2; shift 2 ;;
-    -h|--help) sed -n '2,15p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    --pin) pin=$2; shift 2 ;;
+    -h|--help) sed -n '2,19p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     -*) echo "speed_ratio.sh: unknown option $1" >&2; exit 2 ;;
     *) meshes+=("$1"); shift ;;
   esac
@@ -38,11 +44,16 @@ bin=$build/bench/psq_bench_compare
 [ -x "$bin" ] || { echo "speed_ratio.sh: $bin not found; build with -DPSQ_BUILD_BENCH=ON" >&2; exit 2; }
 [ ${#meshes[@]} -gt 0 ] || { echo "speed_ratio.sh: no mesh given (see --help)" >&2; exit 2; }
 command -v python3 >/dev/null || { echo "speed_ratio.sh: needs python3" >&2; exit 2; }
+run=()
+if [ -n "$pin" ]; then
+  command -v taskset >/dev/null || { echo "speed_ratio.sh: --pin needs taskset (util-linux)" >&2; exit 2; }
+  run=(taskset -c "$pin")
+fi
 tmp=$(mktemp -d "${TMPDIR:-/tmp}/psq-ratio-XXXXXX")
 trap 'rm -rf "$tmp"' EXIT
 for ((r = 1; r <= rounds; ++r)); do
   for m in "${meshes[@]}"; do
-    "$bin" --best --runs "$runs" -q --codecs "$codecs,$ref" --json "$tmp/r$(printf %04d "$r")_$(basename "$m").json" "$m" \
+    "${run[@]}" "$bin" --best --runs "$runs" -q --codecs "$codecs,$ref" --json "$tmp/r$(printf %04d "$r")_$(basename "$m").json" "$m" \
       > /dev/null || { echo "speed_ratio.sh: psq_bench_compare failed on $m" >&2; exit 1; }
   done
 done
