@@ -449,17 +449,22 @@ TEST(Codec, FastDirectPathCodesAsTheGeneralPath) {
         if (e.triangle.eslot[k] != kNoSlot) e.triangle.eslot[k] |= 0x80000000u;
       }
     }
-    EncodeOptions o;
-    o.bits = 14;
-    o.fast = true;
-    const std::vector<uint8_t> direct = encode(ev, o);
-    EXPECT_EQ(direct, encode(bare, o)) << name;
-    EXPECT_EQ(direct, encode(lying, o)) << name;
-    EXPECT_EQ(direct, encode(huge, o)) << name;
-    Events back;
-    Status s = decode(direct, &back);
-    ASSERT_TRUE(s.ok()) << name << ": " << s.to_string();
-    expect_same(ev, back, half_step(ev, 14));
+    // Quantized, and lossless, whose gate records code prediction
+    // choices (spec 13.8.2).
+    for (const bool lossless : {false, true}) {
+      EncodeOptions o;
+      o.bits = 14;
+      o.lossless = lossless;
+      o.fast = true;
+      const std::vector<uint8_t> direct = encode(ev, o);
+      EXPECT_EQ(direct, encode(bare, o)) << name << (lossless ? ", lossless" : "");
+      EXPECT_EQ(direct, encode(lying, o)) << name << (lossless ? ", lossless" : "");
+      EXPECT_EQ(direct, encode(huge, o)) << name << (lossless ? ", lossless" : "");
+      Events back;
+      Status s = decode(direct, &back);
+      ASSERT_TRUE(s.ok()) << name << ": " << s.to_string();
+      expect_same(ev, back, lossless ? 0 : half_step(ev, 14));
+    }
   }
 }
 
@@ -482,6 +487,31 @@ TEST(Codec, AddsArePredictedAcrossTheGateOrANeighbour) {
   EXPECT_GT(enc_stats.predictions[3], 0u) << "mean with the edge before";
   EXPECT_GT(enc_stats.predictions[4], 0u) << "mean with the edge after";
   for (int k = 0; k < 5; ++k) EXPECT_EQ(enc_stats.predictions[k], dec_stats.predictions[k]) << k;
+}
+
+// Spec 13.8.2: the fast profile predicts the adds of a quantized stream
+// across the gate only, and those of a lossless one by all five choices;
+// the decoder follows either way.
+TEST(Codec, FastProfilePredictsByChoicesWhenLossless) {
+  Events ev = sequence_of(test::make_sphere(30, 60));
+  for (const bool lossless : {false, true}) {
+    EncodeOptions o;
+    o.bits = 14;
+    o.lossless = lossless;
+    o.fast = true;
+    PsqStats enc_stats, dec_stats;
+    std::vector<uint8_t> bytes = encode(ev, o, &enc_stats);
+    Events back;
+    Status s = decode(bytes, &back, &dec_stats);
+    ASSERT_TRUE(s.ok()) << s.to_string();
+    expect_same(ev, back, lossless ? 0 : half_step(ev, 14));
+    EXPECT_GT(enc_stats.predictions[0], 0u) << "across the gate";
+    for (int k = 1; k < 5; ++k) {
+      if (lossless) EXPECT_GT(enc_stats.predictions[k], 0u) << "choice " << k;
+      else EXPECT_EQ(enc_stats.predictions[k], 0u) << "choice " << k;
+    }
+    for (int k = 0; k < 5; ++k) EXPECT_EQ(enc_stats.predictions[k], dec_stats.predictions[k]) << k;
+  }
 }
 
 TEST(Codec, CompressesASmoothSphereWell) {
@@ -668,7 +698,7 @@ std::vector<uint8_t> data_bytes(const std::string& name) {
 
 // A format 8.0 compact stream (tests/data/format8_spider_16bit.psq, the
 // conformance vector spider_16bit.psq of format 8.0) is read: its bytes
-// are those of 9.0 but for the version and checksums. A format 8.0 fast
+// are those of 10.0 but for the version and checksums. A format 8.0 fast
 // stream, whose rANS tables had a total of 2^10, is not (spec 11).
 TEST(CodecHostile, Format8CompactStreamsAreReadFastOnesAreNot) {
   std::vector<uint8_t> bytes = data_bytes("format8_spider_16bit.psq");
@@ -677,7 +707,7 @@ TEST(CodecHostile, Format8CompactStreamsAreReadFastOnesAreNot) {
   Status s = decode(bytes, &back);
   ASSERT_TRUE(s.ok()) << s.to_string();
   // The same events as the 7.0 stream of the same mesh: the records of
-  // formats 7.0 to 9.0 are the same in the compact profile.
+  // formats 7.0 to 10.0 are the same in the compact profile.
   Events expect;
   ASSERT_TRUE(decode(data_bytes("format7_spider_16bit.psq"), &expect).ok());
   ASSERT_GT(expect.events.size(), 2000u);
@@ -717,7 +747,7 @@ TEST(CodecHostile, Format9FastStreamsAreRead) {
 
 // A format 7.0 stream (tests/data/format7_spider_16bit.psq, the conformance
 // vector spider_16bit.psq as psq wrote it before format 8.0) is read: 7.0
-// streams are 9.0 compact streams (spec 11). Format 7 had no fast profile.
+// streams are 10.0 compact streams (spec 11). Format 7 had no fast profile.
 TEST(CodecHostile, Format7StreamsAreRead) {
   std::vector<uint8_t> bytes = data_bytes("format7_spider_16bit.psq");
   ASSERT_EQ(bytes[8], 7);

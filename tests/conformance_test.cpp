@@ -130,6 +130,19 @@ TEST(Conformance, SpiderVectorUsesEveryPrediction) {
   EXPECT_GT(st.predictions[4], 0u) << "mean with the edge after";
 }
 
+// Spec 13.8.2: a quantized fast stream of format 10 predicts every add
+// across the gate and codes no choice; a lossless one, and a fast stream of
+// format 9, code choices (all five of them here).
+TEST(Conformance, FastVectorsCodeChoicesWhenLosslessOrFormat9) {
+  const PsqStats quantized = stats_of("fast_spider_16bit.psq");
+  EXPECT_GT(quantized.predictions[0], 0u);
+  for (int k = 1; k < 5; ++k) EXPECT_EQ(quantized.predictions[k], 0u) << "choice " << k;
+  for (const char* name : {"fast_spider_lossless.psq", "format9_fast_spider_16bit.psq"}) {
+    const PsqStats st = stats_of(name);
+    for (int k = 0; k < 5; ++k) EXPECT_GT(st.predictions[k], 0u) << name << ", choice " << k;
+  }
+}
+
 // doubles_lossless holds f64 positions whose order-preserving integers
 // (spec 7.2) have magnitudes of 2^62 or more, so that the sum of any two
 // overflows 64 bits, and uses the means of spec 7.3 (mid()), which a

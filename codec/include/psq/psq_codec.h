@@ -74,10 +74,12 @@ struct EncodeOptions {
   // Keep positions bit-exact (spec 7.2).
   bool lossless = false;
   // The fast profile (spec/psq-format.md, section 13): static rANS tables per
-  // chunk and a boundary the decoder keeps without lookups. On large
-  // meshes 1.3 to 1.45 times Draco's decoding speed and 2 to 2.7 times the
-  // compact coding's, for up to 2% more bytes than compact; much more on
-  // small meshes.
+  // chunk, a boundary the decoder keeps without lookups and, when
+  // quantized, every new vertex predicted across its gate (13.8.2). On the
+  // meshes of 200k triangles and more of bench/RESULTS.md ("Format 10.0"),
+  // decoding into arrays at 2.2 to 2.7 times Draco's speed and about three
+  // times the compact profile's, for 2 to 6% more bytes than compact; more
+  // on small meshes.
   bool fast = false;
   // zstd level of the property streams (spec 8), 1..22.
   int zstd_level = 9;
