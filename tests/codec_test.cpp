@@ -696,6 +696,18 @@ std::vector<uint8_t> data_bytes(const std::string& name) {
   return std::vector<uint8_t>(text.begin(), text.end());
 }
 
+// Decodes `bytes`, a stream of spider.ply at 16 bits, and expects the
+// events of the 7.0 compact stream of the same mesh.
+void expect_events_of_format7_spider(const std::vector<uint8_t>& bytes) {
+  Events back;
+  Status s = decode(bytes, &back);
+  ASSERT_TRUE(s.ok()) << s.to_string();
+  Events expect;
+  ASSERT_TRUE(decode(data_bytes("format7_spider_16bit.psq"), &expect).ok());
+  ASSERT_GT(expect.events.size(), 2000u);
+  expect_same(back, expect, 0);
+}
+
 // A format 8.0 compact stream (tests/data/format8_spider_16bit.psq, the
 // conformance vector spider_16bit.psq of format 8.0) is read: its bytes
 // are those of 10.0 but for the version and checksums. A format 8.0 fast
@@ -703,20 +715,13 @@ std::vector<uint8_t> data_bytes(const std::string& name) {
 TEST(CodecHostile, Format8CompactStreamsAreReadFastOnesAreNot) {
   std::vector<uint8_t> bytes = data_bytes("format8_spider_16bit.psq");
   ASSERT_EQ(bytes[8], 8);
-  Events back;
-  Status s = decode(bytes, &back);
-  ASSERT_TRUE(s.ok()) << s.to_string();
-  // The same events as the 7.0 stream of the same mesh: the records of
-  // formats 7.0 to 10.0 are the same in the compact profile.
-  Events expect;
-  ASSERT_TRUE(decode(data_bytes("format7_spider_16bit.psq"), &expect).ok());
-  ASSERT_GT(expect.events.size(), 2000u);
-  expect_same(back, expect, 0);
+  // The records of formats 7.0 to 10.0 are the same in the compact profile.
+  expect_events_of_format7_spider(bytes);
 
   const std::vector<uint8_t> fast_bytes = data_bytes("format8_fast_spider_16bit.psq");
   ASSERT_EQ(fast_bytes[8], 8);
   ASSERT_EQ(fast_bytes[10] & 4, 4);
-  s = decode_all(fast_bytes);
+  const Status s = decode_all(fast_bytes);
   EXPECT_EQ(s.code(), ErrorCode::kUnsupported);
   EXPECT_EQ(s.offset(), 10u);
   EXPECT_NE(s.message().find("format 8 stream of the fast profile"), std::string::npos) << s.message();
@@ -730,13 +735,7 @@ TEST(CodecHostile, Format9FastStreamsAreRead) {
   const std::vector<uint8_t> bytes = data_bytes("format9_fast_spider_16bit.psq");
   ASSERT_EQ(bytes[8], 9);
   ASSERT_EQ(bytes[10] & 4, 4);
-  Events back;
-  Status s = decode(bytes, &back);
-  ASSERT_TRUE(s.ok()) << s.to_string();
-  Events expect;
-  ASSERT_TRUE(decode(data_bytes("format7_spider_16bit.psq"), &expect).ok());
-  ASSERT_GT(expect.events.size(), 2000u);
-  expect_same(back, expect, 0);
+  expect_events_of_format7_spider(bytes);
   MeshBuffers from9, from7;
   ASSERT_TRUE(decode_mesh(bytes.data(), bytes.size(), &from9).ok());
   const std::vector<uint8_t> bytes7 = data_bytes("format7_spider_16bit.psq");

@@ -43,10 +43,7 @@ Status PsqDecoder::Impl::open(InputStream* stream) {
   header.lossless = flags & kFlagLossless;
   header.rotation = flags & kFlagRotation;
   header.fast = fast = flags & kFlagFast;
-  // Gate records code a prediction choice in lossless fast streams and in
-  // every fast stream of format 9; quantized ones of format 10 predict
-  // across the gate (spec 13.8.2).
-  fast_choices = fast && (header.lossless || header.version_major == 9);
+  fast_choices = fast && fast_codes_choices(header.lossless, header.version_major);
   std::vector<uint8_t> payload;
   PSQ_RETURN_IF_ERROR(read_block(length, &payload));
   uint32_t expect = file_crc;

@@ -264,7 +264,7 @@ struct PsqDecoder::Impl {
 
   // The fast profile (fast_decoder.cpp).
   bool fast = false;
-  bool fast_choices = false;  // gate records code a prediction choice (13.8.2)
+  bool fast_choices = false;  // gate records code a prediction choice (fast_codes_choices())
   FastBoundary fboundary{1};
   Neighbors fneighbors;  // which active vertices an edge joins (the fast profile's checks)
   std::vector<RansTable> ftables;  // kFastTables of them in a fast stream

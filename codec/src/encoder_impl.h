@@ -138,9 +138,7 @@ struct PsqEncoder::Impl {
   uint64_t fast_raw_geometry = 0;        // of those, position residuals' (measure_costs)
   FastRing ring;
   int fast_context = kFastAStartContext;  // the previous record's class (table A)
-  // Whether gate records code a prediction choice: in lossless streams
-  // only (spec 13.8.2).
-  bool fast_choices = false;
+  bool fast_choices = false;  // gate records code a prediction choice (fast_codes_choices())
   int fast_choice = 0;                    // the previous prediction choice
   // Running symbol counts, per table and symbol (the chunk's tables are
   // built from their growth since the chunk began, fast_section()); with

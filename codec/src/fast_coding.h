@@ -159,6 +159,10 @@ inline int fast_length_table(int kind, int axis, int context) {
   // less of the cache and fewer bytes.
   return kFastTableLength + (kind * 2 + (axis == 0 ? 0 : 1)) * kLengthContexts + context;
 }
+// Whether a fast stream's gate records code a prediction choice (spec
+// 13.8.2): in a lossless stream, and in every fast stream of major version
+// 9; a quantized stream of a later version predicts across the gate.
+inline bool fast_codes_choices(bool lossless, int version_major) { return lossless || version_major == 9; }
 inline int fast_choice_table(uint32_t mask, int previous) {
   return kFastTableChoice + (static_cast<int>(mask) - 1) * kChoices + previous;
 }

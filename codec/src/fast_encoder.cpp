@@ -104,7 +104,7 @@ int64_t fixed_log2(uint64_t x) {  // x >= 1
 }  // namespace
 
 void PsqEncoder::Impl::fast_begin() {
-  fast_choices = header.lossless;  // spec 13.8.2
+  fast_choices = fast_codes_choices(header.lossless, kVersionMajor);
   fast_denominator.resize(kFastTables);
   fast_log_denominator.resize(kFastTables);
   for (int i = 0; i < kFastTables; ++i) {
