@@ -1,12 +1,15 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # psq's one entry point for people and CI:
-#   ./build.sh demo       install what is missing, build (Release), run the main job
-#   ./build.sh test       install what is missing, build (Release), run the whole test suite
+#   ./build.sh demo       install what is missing, build psq (Release), show it on a generated mesh
+#   ./build.sh test       install what is missing, build everything (Release), run the whole test suite
 #   ./build.sh sanitize   the same suite built with AddressSanitizer + UBSan
 #   ./build.sh fuzz       clang + libFuzzer: build the fuzz targets, run each for 20 s (ctest -L fuzz;
 #                         PSQ_FUZZ_SECONDS=N to change; PSQ_FUZZ_TARGETS="fuzz_psq ..." for some)
-#   ./build.sh build      just build (Release) into build/
-# Dependencies come from Debian 12's packages only.
+#   ./build.sh build      just build everything (Release) into build/
+# Every command states the CMake options it needs (the cache of an earlier
+# command never decides what a later one builds), and a test run that finds
+# no tests fails. Dependencies come from Debian 12's packages only.
 set -euo pipefail
 cd "$(dirname "$0")"
 
@@ -31,51 +34,68 @@ install_deps() {
   fi
 }
 
-configure_build() {  # $1 build dir, rest: cmake options
+configure() {  # $1 build dir, rest: cmake options
   local dir=$1; shift
   cmake -S . -B "$dir" -DCMAKE_BUILD_TYPE=Release "$@" >/dev/null
-  cmake --build "$dir" -j "$JOBS"
 }
+
+run_tests() {  # $1 build dir, rest: ctest options
+  local dir=$1; shift
+  (cd "$dir" && ctest --output-on-failure --no-tests=error -j "$JOBS" "$@")
+}
+
+# Everything: the libraries, psq, the tests and the benchmarks (built so
+# that they keep compiling; bench/ runs them).
+ALL=(-DPSQ_LTO=ON -DPSQ_BUILD_TESTS=ON -DPSQ_BUILD_BENCH=ON -DPSQ_SANITIZE=OFF -DPSQ_FUZZ=OFF)
 
 cmd=${1:-test}
 case "$cmd" in
   build)
     install_deps
-    configure_build build
+    configure build "${ALL[@]}"
+    cmake --build build -j "$JOBS"
     ;;
   demo)
     install_deps
-    configure_build build -DPSQ_BUILD_TESTS=OFF
+    # Only what the demo runs: the psq tool and the mesh generator.
+    configure build -DPSQ_LTO=ON -DPSQ_BUILD_TESTS=OFF -DPSQ_BUILD_BENCH=OFF -DPSQ_SANITIZE=OFF -DPSQ_FUZZ=OFF
+    cmake --build build -j "$JOBS" --target psq psq-meshgen
     out=$(mktemp -d)
     trap 'rm -rf "$out"' EXIT
-    echo "== build/psq-meshgen --triangles 200k -o mesh.ply   (a generated test mesh)"
+    echo "== psq-meshgen --triangles 200k -o mesh.ply"
+    echo "   a generated closed surface (many components and handles), as binary PLY"
     build/psq-meshgen --triangles 200k -o "$out/mesh.ply" >/dev/null
-    echo "== psq convert mesh.ply mesh.psq   (16-bit positions, like draco_encoder -qp 16)"
+    echo "== psq convert mesh.ply mesh.psq"
+    echo "   positions quantized to 16 bits (as draco_encoder -qp 16); a mesh this large gets"
+    echo "   the fast profile, smaller ones the compact one (--profile; psq convert --help)"
     build/psq convert "$out/mesh.ply" "$out/mesh.psq"
     echo "== psq info mesh.psq"
+    echo "   counts, topology and the file's processing sequence (boundary, ops, bits)"
     build/psq info "$out/mesh.psq"
-    echo "== psq convert mesh.psq back.ply; psq verify mesh.psq"
-    build/psq convert "$out/mesh.psq" "$out/back.ply"
+    echo "== psq verify mesh.psq      (decodes everything and checks it)"
     build/psq verify "$out/mesh.psq"
-    if build/psq convert --help | grep -q drc; then
-      build/psq convert "$out/mesh.ply" "$out/mesh.drc" -q
-    fi
+    echo "== psq convert mesh.psq back.ply; psq convert mesh.ply mesh.drc (Draco, for comparison)"
+    build/psq convert "$out/mesh.psq" "$out/back.ply"
+    build/psq convert "$out/mesh.ply" "$out/mesh.drc" -q
     echo "== sizes"
     for f in mesh.ply mesh.psq mesh.drc back.ply; do
-      [ -f "$out/$f" ] && printf '%-10s %10d bytes\n' "$f" "$(stat -c %s "$out/$f")"
+      printf '%-10s %10d bytes\n' "$f" "$(stat -c %s "$out/$f")"
     done
+    echo "Next: build/psq --help; README.md has the CLI, the library and how to install."
     ;;
   test)
     install_deps
-    configure_build build
-    (cd build && ctest --output-on-failure -j "$JOBS")
+    configure build "${ALL[@]}"
+    cmake --build build -j "$JOBS"
+    run_tests build
     ;;
   sanitize)
     install_deps
     # The benchmarks are built and checked by `test`; under the sanitizers
     # only the suite runs, so they are left out (CI time).
-    configure_build build-sanitize -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPSQ_SANITIZE=ON -DPSQ_BUILD_BENCH=OFF
-    (cd build-sanitize && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 ctest --output-on-failure -j "$JOBS")
+    configure build-sanitize -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPSQ_SANITIZE=ON -DPSQ_BUILD_TESTS=ON -DPSQ_BUILD_BENCH=OFF -DPSQ_FUZZ=OFF
+    cmake --build build-sanitize -j "$JOBS"
+    ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 run_tests build-sanitize
     ;;
   fuzz)
     PACKAGES+=(clang libclang-rt-14-dev)
@@ -85,10 +105,10 @@ case "$cmd" in
     if [ -n "${PSQ_FUZZ_TARGETS:-}" ]; then
       # Only these targets (space-separated), e.g. PSQ_FUZZ_TARGETS=fuzz_psq.
       for target in $PSQ_FUZZ_TARGETS; do cmake --build build-fuzz -j "$JOBS" --target "$target"; done
-      (cd build-fuzz && ctest -L fuzz --output-on-failure -j "$JOBS" -R "^($(echo "$PSQ_FUZZ_TARGETS" | tr ' ' '|'))\$")
+      run_tests build-fuzz -L fuzz -R "^($(echo "$PSQ_FUZZ_TARGETS" | tr ' ' '|'))\$"
     else
       cmake --build build-fuzz -j "$JOBS"
-      (cd build-fuzz && ctest -L fuzz --output-on-failure -j "$JOBS")
+      run_tests build-fuzz -L fuzz
     fi
     ;;
   *)

@@ -69,7 +69,44 @@ TEST(Cli, UsageErrorsExitTwoWithHint) {
   EXPECT_EQ(run_psq("info --bogus x.ply", &out, &err), 2);
   EXPECT_EQ(run_psq("convert a.ply", &out, &err), 2);
   EXPECT_EQ(run_psq("convert a.ply b.xyz", &out, &err), 2);
+  EXPECT_EQ(run_psq("convert -o b.ply", &out, &err), 2);
+  EXPECT_EQ(run_psq("convert a.ply b.ply -o c.ply", &out, &err), 2);
   EXPECT_TRUE(out.empty());
+}
+
+TEST(Cli, HelpCommandAndSuggestions) {
+  std::string out, err, direct;
+  for (const char* cmd : {"info", "convert", "dump", "verify"}) {
+    EXPECT_EQ(run_psq(std::string("help ") + cmd, &out, &err), 0) << cmd;
+    EXPECT_EQ(run_psq(std::string(cmd) + " --help", &direct, &err), 0) << cmd;
+    EXPECT_EQ(out, direct) << cmd;
+  }
+  EXPECT_EQ(run_psq("help frobnicate", &out, &err), 2);
+  EXPECT_NE(err.find("unknown command 'frobnicate'"), std::string::npos);
+  // A typo or a prefix names the nearest command; a word far from every
+  // command names none.
+  EXPECT_EQ(run_psq("convrt a.ply b.psq", &out, &err), 2);
+  EXPECT_NE(err.find("did you mean 'convert'?"), std::string::npos) << err;
+  EXPECT_EQ(run_psq("inf x.ply", &out, &err), 2);
+  EXPECT_NE(err.find("did you mean 'info'?"), std::string::npos) << err;
+  EXPECT_EQ(run_psq("verfiy x.psq", &out, &err), 2);
+  EXPECT_NE(err.find("did you mean 'verify'?"), std::string::npos) << err;
+  EXPECT_EQ(run_psq("frobnicate", &out, &err), 2);
+  EXPECT_EQ(err.find("did you mean"), std::string::npos) << err;
+}
+
+TEST(Cli, ConvertTakesOutputFromDashO) {
+  test::TempDir dir;
+  std::string ply = write_sphere(dir, "s.ply");
+  std::string out, err;
+  ASSERT_EQ(run_psq("convert -o " + dir.file("a.psq") + " " + ply, &out, &err), 0) << err;
+  ASSERT_EQ(run_psq("convert " + ply + " --output=" + dir.file("b.psq"), &out, &err), 0) << err;
+  ASSERT_EQ(run_psq("convert " + ply + " " + dir.file("c.psq"), &out, &err), 0) << err;
+  EXPECT_EQ(test::read_file(dir.file("a.psq")), test::read_file(dir.file("c.psq")));
+  EXPECT_EQ(test::read_file(dir.file("b.psq")), test::read_file(dir.file("c.psq")));
+  // -o refuses to overwrite without -f, as OUT does (a usage error).
+  EXPECT_EQ(run_psq("convert -o " + dir.file("a.psq") + " " + ply, &out, &err), 2);
+  EXPECT_EQ(run_psq("convert -f -o " + dir.file("a.psq") + " " + ply, &out, &err), 0) << err;
 }
 
 TEST(Cli, InfoTextAndJson) {

@@ -22,6 +22,7 @@ namespace {
 
 const char kHelp[] =
     "Usage: psq convert IN OUT [OPTIONS]\n"
+    "       psq convert -o OUT IN [OPTIONS]\n"
     "\n"
     "Converts IN to OUT, streaming: one element in memory at a time (an OBJ\n"
     "with normals or texture coordinates is read in memory; see README).\n"
@@ -40,6 +41,7 @@ const char kHelp[] =
     "one-line summary go there.\n"
     "\n"
     "Options:\n"
+    "  -o, --output OUT  write to OUT (instead of the second argument)\n"
     "  --to FORMAT    output format: ply, obj, psq or drc (needed when OUT is '-')\n"
     "  --bits N       quantize positions to N bits: .psq 1..31 (default 16), .drc 1..30\n"
     "  --lossless     .psq, .drc: keep positions bit-exact instead of quantizing\n"
@@ -48,12 +50,14 @@ const char kHelp[] =
     "                 lookahead (a quarter) and of Draco input or output\n"
     "                 (default 512M)\n"
     "  --chunk SIZE   .psq: close a chunk at this many coded bytes (default 1M)\n"
-    "  --profile P    .psq: compact (smallest), fast (table-driven, about three\n"
-    "                 times as fast to decode, up to 6% larger on large meshes)\n"
-    "                 or auto (the default: fast when the input declares\n"
-    "                 131072 triangles or more, or, not declaring its\n"
-    "                 triangles (a PLY, whose faces may be polygons), 65536\n"
-    "                 vertices or more)\n"
+    "  --profile P    .psq: compact (the smallest files), fast (table-driven:\n"
+    "                 several times faster to decode, a few percent larger;\n"
+    "                 bench/RESULTS.md has the figures) or auto (the default:\n"
+    "                 fast when the input declares 131072 triangles or more,\n"
+    "                 or, not declaring its triangles (a PLY, whose faces may\n"
+    "                 be polygons), 65536 vertices or more, where the fast\n"
+    "                 profile's per-chunk tables no longer weigh; a .psq input\n"
+    "                 keeps its own profile)\n"
     "  --ascii        write ascii PLY instead of binary little-endian\n"
     "  --tmpdir DIR   directory for temporary spool files (default $TMPDIR)\n"
     "  --threads N    .psq: 1 runs on one thread; 2 (the default on two or\n"
@@ -149,6 +153,7 @@ int cmd_convert(int argc, char** argv) {
   bool ascii = args.flag("--ascii");
   bool lossless = args.flag("--lossless");
   std::string to = args.option("--to");
+  std::string out_option = args.option("--output", args.option("-o"));
   std::string tmpdir = args.option("--tmpdir");
   std::string bits_text = args.option("--bits", "16");
   std::string memory = args.option("--memory", "512M");
@@ -157,7 +162,12 @@ int cmd_convert(int argc, char** argv) {
   std::string threads_text = args.option("--threads", std::thread::hardware_concurrency() >= 2 ? "2" : "1");
   std::vector<std::string> files = args.positionals();
   if (!args.error().empty()) return usage_error("convert", args.error());
-  if (files.size() != 2) return usage_error("convert", "convert takes IN and OUT");
+  // OUT is the second positional, or -o's value (as in zstd and draco_encoder).
+  if (!out_option.empty()) files.push_back(out_option);
+  if (files.size() != 2) {
+    return usage_error("convert", files.size() < 2 ? "convert takes IN and OUT (or -o OUT)"
+                                                   : "convert takes one IN and one OUT (OUT given twice?)");
+  }
   const std::string& in = files[0];
   const std::string& out = files[1];
   EncodeOptions encode_options;

@@ -1,7 +1,9 @@
 // psq: the command-line tool. Thin glue over the libraries; see --help.
+#include <algorithm>
 #include <cstdio>
 #include <cstring>
 #include <string>
+#include <vector>
 
 #include "cli_util.h"
 #include "commands.h"
@@ -21,11 +23,64 @@ const char kUsage[] =
     "  verify FILE      decode a .psq completely and check it\n"
     "\n"
     "Options:\n"
-    "  -h, --help       show this help (psq COMMAND --help for a command's)\n"
+    "  -h, --help       show this help (psq help COMMAND or psq COMMAND --help\n"
+    "                   for a command's)\n"
     "  --version        print the version\n"
     "\n"
     "FILE may be '-' for standard input; OUT may be '-' for standard output.\n"
     "Exit status: 0 success, 1 data or I/O failure, 2 usage error.\n";
+
+struct Command {
+  const char* name;
+  int (*run)(int argc, char** argv);
+};
+
+const Command kCommands[] = {
+    {"info", psq::cli::cmd_info},
+    {"convert", psq::cli::cmd_convert},
+    {"dump", psq::cli::cmd_dump},
+    {"verify", psq::cli::cmd_verify},
+};
+
+const Command* find_command(const std::string& name) {
+  for (const Command& c : kCommands) {
+    if (name == c.name) return &c;
+  }
+  return nullptr;
+}
+
+// Levenshtein distance, for suggesting the command a typo meant.
+size_t edit_distance(const std::string& a, const std::string& b) {
+  std::vector<size_t> row(b.size() + 1);
+  for (size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (size_t i = 1; i <= a.size(); ++i) {
+    size_t diagonal = row[0];
+    row[0] = i;
+    for (size_t j = 1; j <= b.size(); ++j) {
+      size_t up = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      diagonal = up;
+    }
+  }
+  return row[b.size()];
+}
+
+// "unknown command 'X'", with the nearest command when one is near (at most
+// two edits, or a prefix of it).
+int unknown_command(const std::string& name) {
+  const Command* best = nullptr;
+  size_t best_distance = 3;
+  for (const Command& c : kCommands) {
+    size_t d = std::string(c.name).rfind(name, 0) == 0 && !name.empty() ? 1 : edit_distance(name, c.name);
+    if (d < best_distance) {
+      best_distance = d;
+      best = &c;
+    }
+  }
+  std::string message = "unknown command '" + name + "'";
+  if (best) message += " (did you mean '" + std::string(best->name) + "'?)";
+  return psq::cli::usage_error("", message);
+}
 
 }  // namespace
 
@@ -36,6 +91,14 @@ int main(int argc, char** argv) {
     return psq::cli::kExitUsage;
   }
   std::string cmd = argv[1];
+  if (cmd == "help" && argc > 2) {
+    // psq help COMMAND: the command's own --help.
+    const Command* c = find_command(argv[2]);
+    if (!c) return unknown_command(argv[2]);
+    char help_flag[] = "--help";
+    char* help_argv[] = {argv[2], help_flag, nullptr};
+    return c->run(2, help_argv);
+  }
   if (cmd == "-h" || cmd == "--help" || cmd == "help") {
     std::fputs(kUsage, stdout);
     return psq::cli::kExitOk;
@@ -44,9 +107,6 @@ int main(int argc, char** argv) {
     std::printf("psq %s\n", PSQ_VERSION);
     return psq::cli::kExitOk;
   }
-  if (cmd == "info") return psq::cli::cmd_info(argc - 1, argv + 1);
-  if (cmd == "convert") return psq::cli::cmd_convert(argc - 1, argv + 1);
-  if (cmd == "dump") return psq::cli::cmd_dump(argc - 1, argv + 1);
-  if (cmd == "verify") return psq::cli::cmd_verify(argc - 1, argv + 1);
-  return psq::cli::usage_error("", "unknown command '" + cmd + "'");
+  if (const Command* c = find_command(cmd)) return c->run(argc - 1, argv + 1);
+  return unknown_command(cmd);
 }

@@ -75,11 +75,10 @@ struct EncodeOptions {
   bool lossless = false;
   // The fast profile (spec/psq-format.md, section 13): static rANS tables per
   // chunk, a boundary the decoder keeps without lookups and, when
-  // quantized, every new vertex predicted across its gate (13.8.2). On the
-  // meshes of 200k triangles and more of bench/RESULTS.md ("Format 10.0"),
-  // decoding into arrays at 2.2 to 2.7 times Draco's speed and about three
-  // times the compact profile's, for 2 to 6% more bytes than compact; more
-  // on small meshes.
+  // quantized, every new vertex predicted across its gate (13.8.2). It
+  // decodes several times faster than the compact profile for a few percent
+  // more bytes on large meshes, more on small ones, whose every chunk
+  // carries its tables (bench/RESULTS.md has the current figures).
   bool fast = false;
   // zstd level of the property streams (spec 8), 1..22.
   int zstd_level = 9;
@@ -92,7 +91,7 @@ struct EncodeOptions {
   uint32_t boundary_limit = 1u << 24;
   // Split stats()'s coded bits into connectivity and geometry
   // (PsqStats::connectivity_bits, geometry_bits); off, they stay 0 and
-  // encoding is about 10% faster.
+  // encoding is faster (the pricing is skipped).
   bool measure_costs = false;
 };
 

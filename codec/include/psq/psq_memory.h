@@ -22,9 +22,8 @@ namespace psq {
 // element added without a value (resize(n), emplace_back(), a vector(n))
 // is default-initialized, which for float and uint32_t means not written
 // at all, where std::allocator zeroes it. decode_mesh() sizes its arrays
-// ahead and then writes every element once; zeroing them first was a pass
-// over memory that the decoder then wrote again, 4% of its instructions
-// on a mesh of 200k triangles (bench/RESULTS.md, "Arrays not zeroed").
+// ahead and then writes every element once; zeroing them first would be a
+// pass over memory that the decoder then writes again.
 // Everything else behaves as for std::vector: data(), size(), iteration,
 // push_back(). A caller who needs a std::vector<float> copies with
 // assign(begin(), end()).

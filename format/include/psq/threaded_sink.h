@@ -19,10 +19,8 @@
 //
 // Handing events to another core costs memory traffic: the stage behind
 // the thread must do enough work per event to pay for it. The .psq encoder
-// does (psq convert to .psq takes 0.6 to 0.85 times the time on two
-// cores); a binary PLY writer behind the decoder did not (a mesh-sink
-// version of this stage made psq convert from .psq to PLY slower on 10M
-// triangles; bench/RESULTS.md).
+// does; a binary PLY writer behind the decoder does not (bench/RESULTS.md,
+// "Two threads in psq convert").
 //
 // Errors: the wrapped sink's first error is sticky. The producer learns it
 // from the next event call after it happened (every later call returns
