@@ -277,7 +277,7 @@ void PsqEncoder::Impl::fast_gate_vertex(const PendingVertex& v, uint32_t gate, b
   // choices made the fast stream of iso_ball_200k 4.7% smaller at 16 bits,
   // but took 23% of the encoder's instructions to choose and 9% of the
   // decoder's time to follow. Lossless streams, 9% smaller with them
-  // there, keep them (bench/RESULTS.md, "Format 10.0").
+  // there, keep them (bench/HISTORY.md, "Format 10.0").
   const uint32_t mask = choices && fast_choices ? prediction_choices(boundary, gate) : 0;
   if (mask != 0) {
     const int choice = fast_choose_prediction(gate, mask, v.pos, &pr);

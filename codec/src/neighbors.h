@@ -90,7 +90,7 @@ class Neighbors {
   // the slot; the rest of a longer list spills into a vector. Seven make a
   // slot of 64 bytes: decoding into arrays ran 16 to 20% faster than with
   // ten (88 bytes) on iso_ball_200k and bunny_closed_loop1, and slower
-  // with three (bench/RESULTS.md, "The fast decoder's loop and its pages").
+  // with three (bench/HISTORY.md, "The fast decoder's loop and its pages").
   static constexpr uint32_t kInline = 7;
 
   struct Slot {

@@ -17,7 +17,7 @@ namespace codec {
 // are unchanged either way. Worth it only for memory about to be written
 // in full: decode_mesh()'s arrays, whose first-touch faults cost 1.3
 // microseconds a page on the benchmark machine, 0.6 when populated in one
-// call (bench/RESULTS.md, "Arrays not zeroed, pages populated").
+// call (bench/HISTORY.md, "Arrays not zeroed, pages populated").
 void populate_for_write(void* p, size_t bytes);
 
 }  // namespace codec

@@ -10,7 +10,7 @@
 // decoding a symbol is one table lookup, one multiplication and a
 // renormalization test: no model update. That is what makes the fast
 // profile decode 1.3 to 1.45 times as fast as Draco on large meshes, 2 to
-// 2.7 times the compact profile (bench/RESULTS.md, "The fast profile lands").
+// 2.7 times the compact profile (bench/HISTORY.md, "The fast profile lands").
 //
 // The encoder codes in reverse: it collects a chunk's symbols first, then
 // builds the tables from their counts and codes the symbols last to first,
@@ -36,7 +36,7 @@ namespace codec {
 // The scale M = 2^8 (spec 13.4.1; format 8 had 2^10): a table's slot
 // array is a quarter of the size, so more of a chunk's tables stay in the
 // first-level cache; decoding runs 2 to 3% faster, and fast streams are
-// 0.1% smaller in sum (bench/RESULTS.md, "Format 9.0").
+// 0.1% smaller in sum (bench/HISTORY.md, "Format 9.0").
 constexpr int kRansScaleBits = 8;
 constexpr uint32_t kRansScale = 1u << kRansScaleBits;
 constexpr uint32_t kRansLow = 1u << 16;  // the state's lower bound

@@ -235,7 +235,7 @@ Status feed_sorted(Spooled& s, const BuildOptions& options, SequenceConverter& c
   // ranks are done with: their share of the budget (a quarter, beside the
   // sort's half and the converter's quarter) takes the spools that have
   // values when they fit, so that the merge reads them from memory instead
-  // of with a pread each (bench/RESULTS.md, "The sort path's merge without
+  // of with a pread each (bench/HISTORY.md, "The sort path's merge without
   // random reads").
   std::vector<uint32_t>().swap(rank);
   const uint64_t share = options.memory_budget / 4;
