@@ -12,10 +12,8 @@ namespace psq {
 namespace codec {
 
 // The pieces of apply() and the checks of find_completions() are forced
-// inline (PSQ_INLINE, coding.h): GCC kept them as calls, a few per
-// triangle. Inlined, decoding iso_ball_200k at 16 bits takes 4.8% fewer
-// instructions and encoding it 2.9% fewer (bench/instructions.sh); the
-// bytes are the same.
+// inline (PSQ_INLINE, coding.h): GCC would keep them as calls, a few per
+// triangle, in the decoder's and the encoder's loops.
 
 // Edge k of t, whose endpoints are both old: an error when it is open
 // already or dead (spec 6.1.3), else it completes its open twin or, without

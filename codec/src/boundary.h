@@ -110,8 +110,8 @@ struct BTriangle {
 
 // The free slots of one kind, last freed first (the order the spec's slot
 // numbers follow, section 6.1.1). A plain array and a count: its push and
-// pop stay inline in the decoder's loop, where std::vector's push_back was
-// a call per triangle.
+// pop stay inline in the decoder's loop, where std::vector's push_back
+// would be a call per triangle.
 class SlotStack {
  public:
   bool empty() const { return n_ == 0; }
@@ -222,7 +222,7 @@ class BasicBoundary {
   uint32_t recent_edges(uint32_t* out, uint32_t want) { return scan_recent(want, out); }
   // Stops keeping the recency ranks (before the first edge enters): the
   // fast profile ranks edges with its own ring (fast_coding.h), and its
-  // encoder keeping them too cost 2% of its instructions. recent_edge()
+  // encoder need not pay for keeping them too. recent_edge()
   // and recent_edges() must not be called after it.
   void drop_recency() { keep_recent_ = false; }
 
@@ -304,9 +304,8 @@ class BasicBoundary {
 
 // The members that the fast decoder runs once or twice per triangle are
 // defined here, inline, so that they join its loop: as calls into
-// boundary.cpp they cost the decoder 4% more instructions (812 against 783
-// a triangle on iso_ball_200k: register saves, and reloads of what a call
-// might have changed).
+// boundary.cpp they would cost it register saves, and reloads of what a
+// call might have changed, on every triangle.
 
 template <bool L>
 PSQ_INLINE uint32_t BasicBoundary<L>::new_vertex(uint32_t index, uint32_t key, const int64_t pos[3]) {
@@ -723,7 +722,7 @@ inline uint32_t prediction_choices(const B& boundary, uint32_t gate) {
 // difference, modulo 2^64): 1 (before) or 2 (after) when the nearer of them
 // is closer than e / 2, 3 or 4 when it is closer than e, else 0. A fill
 // closes the gap the new triangle would cover, so a vertex near where a new
-// vertex would go predicts it; this saves 9 to 23% of the symbol's cost.
+// vertex would go predicts it, which makes the symbol markedly cheaper.
 template <class B>
 int third_shape_context(const B& boundary, uint32_t gate);
 

@@ -116,8 +116,8 @@ inline int length_context(int kind, int axis, int extent, int longest_so_far) {
                                              : longest_so_far;
   return std::min(c, kLengthContexts - 1);
 }
-// The bit length of v (0 for 0), without a branch: a test for zero was a
-// branch on data that the search of the fast encoder mispredicted.
+// The bit length of v (0 for 0), without a branch: a test for zero would
+// be a branch on data, which the fast encoder's search mispredicts.
 inline int bit_length64(uint64_t v) { return (63 - __builtin_clzll(v | 1)) + (v != 0 ? 1 : 0); }
 // bit_length64() for v below 2^63, in two instructions: 2v + 1 has
 // one bit more than v, and 1 for v = 0.
@@ -209,7 +209,7 @@ void for_each_prior_model(M& m, F f) {
 // of its 0-subtree in its weight, and its count n starts at 2. The typical
 // length grows with the context (about 3c/4 on the shared meshes);
 // starting there instead of at one half saves the models' learning, which
-// is most of a small mesh's overhead (1 to 3% of it).
+// weighs most on a small mesh.
 void init_length_prior(ResidualModel& m, int c);
 
 // The context of the third-vertex symbol: the triangles already around the

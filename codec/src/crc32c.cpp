@@ -30,8 +30,8 @@ const Tables& tables() {
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 #define PSQ_CRC32C_HARDWARE 1
 // SSE 4.2's CRC32 instruction computes exactly this CRC (the Castagnoli
-// polynomial, reflected), eight bytes per instruction: on the benchmark
-// machine about a seventh of the table version's instructions per byte.
+// polynomial, reflected), eight bytes per instruction: far fewer
+// instructions per byte than the table version.
 // The function is compiled for SSE 4.2 alone and called only when the
 // processor reports it (crc32c_update()), so the library still runs on any
 // x86-64.

@@ -497,8 +497,8 @@ Status PsqDecoder::Impl::decode_into(MeshBuffers* mesh, const uint8_t* data, siz
   // Spec 4.3: the chunks declare their vertex and triangle counts, and
   // the whole stream is in memory: their sums size the arrays' capacity
   // once. Grown chunk by chunk instead, the arrays would copy what the
-  // earlier chunks wrote (on a 3-chunk mesh of 1M triangles, a tenth of
-  // the decoding time went to those copies and their page faults). A
+  // earlier chunks wrote and fault in new pages for it, a noticeable share
+  // of the decoding time (bench/HISTORY.md, "The decoder's memory"). A
   // hostile stream's sums are capped at four per input byte, as
   // fast_direct_records() caps a chunk's room; the capacity is address
   // space, which stays untouched until records write it (direct_room()).

@@ -49,8 +49,8 @@ struct PsqDecoder::Impl {
   PsqHeader header;
   Status error;
   bool opened = false, ended = false, measure = false;
-  // The compact profile's adaptive models; a fast stream has none (their
-  // setup is 0.9M instructions, more than decoding a small mesh).
+  // The compact profile's adaptive models; a fast stream has none (setting
+  // them up costs more than decoding a small mesh).
   std::unique_ptr<Models> models;
   Boundary boundary{1};
   std::unique_ptr<PropertyUnpacker> props;

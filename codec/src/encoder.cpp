@@ -194,8 +194,8 @@ int PsqEncoder::Impl::name_far_gate(const uint32_t cand[3], FarName* name) {
 // models and the residual models of kinds 2 and 3 start untrained, so that
 // a strict count would keep choosing the gate on a mesh where a neighbour
 // predicts better (on a regular grid whose gate parallelograms cross the
-// wrong diagonals it does: blade.ply codes 36% smaller at 16 bits with the
-// ramp, and not at all smaller without).
+// wrong diagonals it does, and only the ramp lets the neighbours win
+// there: bench/HISTORY.md, "Prediction choice and means of parallelograms").
 int PsqEncoder::Impl::choose_prediction(uint32_t gate, uint32_t mask, int shape, const int64_t pos[3],
                                         Prediction* pred) {
   constexpr double kRamp = 2000;
@@ -203,8 +203,8 @@ int PsqEncoder::Impl::choose_prediction(uint32_t gate, uint32_t mask, int shape,
   const uint32_t edge[3] = {gate, g.prev, g.next};  // by side
   // The five points, and the bits of their residuals alone: a candidate
   // whose residuals have more bits than the gate's is not worth pricing
-  // (pricing also those up to 2 bits longer took the encoder 4% more
-  // instructions and saved 0.04% of the bytes of the 25 test meshes).
+  // (pricing also those a little longer would cost the encoder more work
+  // than it saves bytes).
   int64_t point[kChoices][3];
   int rough[kChoices] = {0, 0, 0, 0, 0};
   uint32_t keep = 1u << kChoiceGate;

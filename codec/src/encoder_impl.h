@@ -51,8 +51,8 @@ struct PsqEncoder::Impl {
   Status error;
   bool begun = false, finished = false;
   PsqHeader header;
-  // The compact profile's adaptive models (none in the fast profile: their
-  // setup is 0.9M instructions, more than encoding a small mesh).
+  // The compact profile's adaptive models (none in the fast profile:
+  // setting them up costs more than encoding a small mesh).
   std::unique_ptr<Models> models;
   Boundary boundary{1};
   std::unique_ptr<PropertyPacker> props;

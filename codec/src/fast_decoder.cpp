@@ -266,9 +266,9 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_common(RansDecoder& d, RawReader& bits,
       }
     }
     ++stats.predictions[choice];
-    // Initialized from either call, not assigned after: a copy of the
-    // struct went through the stack, its halves stored apart and loaded
-    // together, which stalled every add (perf, psq_bench_compare).
+    // Initialized from either call, not assigned after: an assignment
+    // copies the struct through the stack, its halves stored apart and
+    // loaded together, a store-forwarding stall on every add.
     const Prediction pr = fast_choices ? predict_new_vertex(b, gate, 0, last_pos, nullptr, nullptr, choice)
                                        : predict_across_gate(b, gate);
     int64_t pos[3];
@@ -377,9 +377,10 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_common(RansDecoder& d, RawReader& bits,
 // edges complete) or a join whose two new edges enter (B symbol 18: x from
 // an open edge named by slot in the raw bits), as decode_record_fast()
 // decodes them, with the same checks in the same order, and written
-// straight to the arrays (kDirect) or as events. Joins and ends are 1 to 3%
-// of a mesh's records; through the general path and its events, they took
-// 4 to 5% of decoding iso_ball_200k into arrays.
+// straight to the arrays (kDirect) or as events. Joins and ends are rare,
+// but through the general path and its events they would cost decoding
+// into arrays far more than their share (bench/HISTORY.md, "The decoder's
+// memory").
 template <bool kDirect>
 __attribute__((noinline)) Status PsqDecoder::Impl::fast_end_or_join(RansDecoder& d, RawReader& bits, int cls, int bsym, uint32_t gate,
                                           DirectCursor* out) {
@@ -731,7 +732,7 @@ Status PsqDecoder::Impl::fast_direct_records() {
   // chunk that holds more grows the arrays geometrically (direct_room).
   // Real chunks take 1 to 8 bytes per triangle, and a chunk of the default
   // size (2^20 coded bytes) about half a million triangles (a cap of half
-  // a triangle per byte, before, made the arrays of most meshes grow once:
+  // a triangle per byte would make the arrays of most meshes grow once:
   // a copy and twice the pages).
   // The room is populated at once (pages.h): honest records write all of it.
   const uint64_t cap = std::min<uint64_t>(4 * static_cast<uint64_t>(csize) + 64, uint64_t{1} << 21);
@@ -750,8 +751,8 @@ Status PsqDecoder::Impl::fast_direct_records() {
     if (((cls <= kFastGatePrev && R != kNone) || cls == kFastGateFar) && seen_triangles < chunk_triangles) {
       // The gate (spec 13.7.1): an offset from R, or a far gate's rank
       // among the ring's open edges (13.7.4), as decode_record_fast()
-      // finds it. Repeated, not shared: one inline helper for both cost
-      // this loop 4.5% more instructions (iso_ball_200k, callgrind).
+      // finds it. Repeated, not shared: one inline helper for both costs
+      // this loop more instructions.
       uint32_t gate;
       if (cls == kFastGateFar) {
         const int rank = d.decode(ftables[kFastTableRank + (R == kNone ? 1 : 0)]);

@@ -113,8 +113,8 @@ void PsqEncoder::Impl::fast_begin() {
   }
   fast_log_count.assign(size_t{kFastTables} * 128, static_cast<int32_t>(fixed_log2(1)));
   // after_record() closes a chunk before it holds 2 * chunk_bytes
-  // symbols: reserved, the array never moves (copying it as it grew was
-  // 1.2% of the encoder's instructions on iso_ball_200k).
+  // symbols: reserved, the array never moves, and no symbol is copied as
+  // it grows.
   // (At most 2^22 symbols, 16 MiB of address space, for large --chunk
   // sizes; beyond, the array doubles.)
   fast_symbols.reserve(std::min<size_t>(2 * size_t{opt.chunk_bytes} + 4096, size_t{1} << 22));
@@ -155,8 +155,8 @@ int PsqEncoder::Impl::fast_choose_prediction(uint32_t gate, uint32_t mask, const
   // The five choices combine three parallelograms and the extents of
   // three triangles as predict_new_vertex() does (spec 7.3): each is
   // computed once here instead of once per choice. The rule is repeated,
-  // not shared: a helper that both call cost the decoder 1.3% and this
-  // loop 2.6% more instructions (callgrind, iso_ball_200k). A divergence
+  // not shared: a helper that both call costs the decoder and this loop
+  // more instructions. A divergence
   // would code residuals against another prediction than the decoder's,
   // which every round-trip test would catch.
   const BEdge& g = boundary.edge(gate);
@@ -176,8 +176,8 @@ int PsqEncoder::Impl::fast_choose_prediction(uint32_t gate, uint32_t mask, const
   int64_t best_cost = 0;
   int rough_gate = 0;
   // One candidate, its choice a constant: the side, the predicting side and
-  // the kind fold away. (A loop over the choices ran 4.6% more of the
-  // encoder's instructions on iso_ball_200k, callgrind.)
+  // the kind fold away (in a loop over the choices they would not, and the
+  // encoder would run more instructions).
   auto price = [&](auto choice) PSQ_LAMBDA_INLINE {
     constexpr int ch = decltype(choice)::value;
     constexpr int side = choice_side(ch), ps = predicting_side(ch), kind = prediction_kind(ch);
@@ -273,11 +273,11 @@ void PsqEncoder::Impl::note_input_edges(const SequenceTriangle& t, int rot, cons
 
 void PsqEncoder::Impl::fast_gate_vertex(const PendingVertex& v, uint32_t gate, bool choices) {
   Prediction pr;
-  // A quantized stream predicts across the gate (spec 13.8.2): format 9.0's
-  // choices made the fast stream of iso_ball_200k 4.7% smaller at 16 bits,
-  // but took 23% of the encoder's instructions to choose and 9% of the
-  // decoder's time to follow. Lossless streams, 9% smaller with them
-  // there, keep them (bench/HISTORY.md, "Format 10.0").
+  // A quantized stream predicts across the gate (spec 13.8.2): the
+  // choices save few bytes on large meshes, but take a large share of the
+  // encoder's work to choose and of the decoder's time to follow. Lossless
+  // streams, which they make much smaller, keep them (bench/HISTORY.md,
+  // "Format 10.0").
   const uint32_t mask = choices && fast_choices ? prediction_choices(boundary, gate) : 0;
   if (mask != 0) {
     const int choice = fast_choose_prediction(gate, mask, v.pos, &pr);

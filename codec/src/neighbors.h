@@ -88,9 +88,9 @@ class Neighbors {
  private:
   // Most active vertices have at most this many neighbours: they live in
   // the slot; the rest of a longer list spills into a vector. Seven make a
-  // slot of 64 bytes: decoding into arrays ran 16 to 20% faster than with
-  // ten (88 bytes) on iso_ball_200k and bunny_closed_loop1, and slower
-  // with three (bench/HISTORY.md, "The fast decoder's loop and its pages").
+  // slot of 64 bytes, a cache line's size: a larger slot decodes much
+  // slower, and a smaller one spills too often (bench/HISTORY.md, "The fast
+  // decoder's loop and its pages").
   static constexpr uint32_t kInline = 7;
 
   struct Slot {

@@ -15,9 +15,9 @@ namespace codec {
 // with PSQ_NO_POPULATE defined (for sandboxes whose system call filter
 // kills a process on an advice it does not list); the memory's contents
 // are unchanged either way. Worth it only for memory about to be written
-// in full: decode_mesh()'s arrays, whose first-touch faults cost 1.3
-// microseconds a page on the benchmark machine, 0.6 when populated in one
-// call (bench/HISTORY.md, "Arrays not zeroed, pages populated").
+// in full: decode_mesh()'s arrays, whose pages cost far less populated in
+// one call than faulted in one at a time (bench/HISTORY.md, "Arrays not
+// zeroed, pages populated").
 void populate_for_write(void* p, size_t bytes);
 
 }  // namespace codec

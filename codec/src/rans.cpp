@@ -131,8 +131,9 @@ void RansTable::finish() {
     fc_[s] = freq_[s] | cum << 16;
     // The symbol's run of slots, 8 at a time: a store may run up to 7
     // slots into the next run, which that run's stores then overwrite, or
-    // into the slack after the last slot. A byte at a time, this loop was
-    // a third of decoding a small stream's instructions.
+    // into the slack after the last slot. A byte at a time, this loop would
+    // be a large part of decoding a small stream (bench/HISTORY.md, "Raw
+    // bits without a data-dependent branch, and a stream's fixed costs").
     const uint64_t pattern = 0x0101010101010101ull * static_cast<uint64_t>(s);
     for (uint32_t k = 0; k < freq_[s]; k += 8) std::memcpy(sym_ + cum + k, &pattern, 8);
     cum += freq_[s];
@@ -156,8 +157,8 @@ void rans_encode(const RansSymbol* symbols, size_t count, const RansTable* table
   // One symbol into state x. The renormalization keeps the next state
   // below 2^32 (x < 2^(32 - kRansScaleBits) f); its word is stored either way and counted
   // when taken, and the division by f is a multiplication by f's
-  // reciprocal: the two were a mispredicted branch and a 26-cycle
-  // division on each state's chain.
+  // reciprocal: a branch there would be mispredicted, and a division is
+  // slow, on each state's chain.
   auto step = [&](uint32_t& x, const RansSymbol& sym) __attribute__((always_inline)) {
     const RansTable& t = tables[sym.table];
     const uint32_t f = t.freq(sym.symbol), c = t.cum(sym.symbol);

@@ -9,8 +9,8 @@
 // 2^kRansScaleBits, fixed for a chunk and sent in it (RansTable::write), so
 // decoding a symbol is one table lookup, one multiplication and a
 // renormalization test: no model update. That is what makes the fast
-// profile decode 1.3 to 1.45 times as fast as Draco on large meshes, 2 to
-// 2.7 times the compact profile (bench/HISTORY.md, "The fast profile lands").
+// profile decode much faster than the compact profile (bench/HISTORY.md,
+// "The fast profile lands").
 //
 // The encoder codes in reverse: it collects a chunk's symbols first, then
 // builds the tables from their counts and codes the symbols last to first,
@@ -33,10 +33,10 @@
 namespace psq {
 namespace codec {
 
-// The scale M = 2^8 (spec 13.4.1; format 8 had 2^10): a table's slot
-// array is a quarter of the size, so more of a chunk's tables stay in the
-// first-level cache; decoding runs 2 to 3% faster, and fast streams are
-// 0.1% smaller in sum (bench/HISTORY.md, "Format 9.0").
+// The scale M = 2^8 (spec 13.4.1): a table's slot array takes 256 bytes,
+// so that many of a chunk's tables stay in the first-level cache, which
+// makes decoding faster, and a table costs few bytes to send
+// (bench/HISTORY.md, "Format 9.0").
 constexpr int kRansScaleBits = 8;
 constexpr uint32_t kRansScale = 1u << kRansScaleBits;
 constexpr uint32_t kRansLow = 1u << 16;  // the state's lower bound
@@ -134,9 +134,8 @@ inline void rans_encode(const std::vector<RansSymbol>& symbols, const RansTable*
 inline uint64_t rans_reciprocal(uint32_t f) { return ((uint64_t{1} << 42) + f - 1) / f; }
 
 // The symbols of the chunk an encoder has open, in order: a plain array and
-// a count, so that appending one stays inline in the encoder (as a
-// std::vector's push_back it was a call per symbol, 3% of the fast
-// encoder's instructions).
+// a count, so that appending one stays inline in the encoder (a
+// std::vector's push_back would be a call per symbol).
 class RansSymbols {
  public:
   __attribute__((always_inline)) void push(RansSymbol s) {
@@ -218,7 +217,7 @@ class RawWriter {
     // without a test of how many there are: 8 bytes are stored and the
     // position moves by the whole ones (Giesen's branchless bit writer;
     // the later stores overwrite the rest). A flush on a test of the bits
-    // held was a data-dependent branch in the encoder's loop.
+    // held would be a data-dependent branch in the encoder's loop.
     acc_ |= (static_cast<uint64_t>(value) & ((uint64_t{1} << bits) - 1)) << n_;
     n_ += bits;
     if (__builtin_expect(pos_ + 8 > bytes_.size(), 0)) grow();
@@ -286,9 +285,9 @@ class RawReader {
   // position moves by the whole bytes that fit (Giesen's branchless
   // bit-reader refill, "Reading bits in far too many ways", 2018). The bits
   // above n_ that a load leaves are the stream's next bits, so the next
-  // load's OR over them changes nothing. A refill that depended on n_ was
-  // a data-dependent branch in the decoder's loop, mispredicted once in
-  // five reads of raw bits (callgrind's branch model, iso_ball_200k).
+  // load's OR over them changes nothing. A refill that depended on n_
+  // would be a data-dependent branch in the decoder's loop, often
+  // mispredicted.
   __attribute__((always_inline)) void top_up() {
     if (__builtin_expect(pos_ + 8 <= words_, 1)) {
       uint64_t w;

@@ -30,24 +30,20 @@ constexpr uint32_t kNone = 0xffffffffu;
 // emits only while more are ready. With this lookahead the region grows
 // into triangles that already arrived instead of hopping along the front of
 // a sweep-ordered input, and needless starts (each costs a join later) wait
-// until the triangles that continue the current regions had their chance.
-// Measured at 14 bits (with the arrival queues below): foam 1M 1,830,612 ->
-// 1,622,391 bytes, iso_ball_200k 396,158 -> 356,029; peak memory of psq
-// convert 28.6 -> 29.7 MB on foam 1M, 64.4 -> 80.2 MiB on foam 50M (a
-// longer boundary too). 16384 gave 1,767,664 and 359,804. As a start delay alone (the
-// converter's rule until then), 256 gave 3992 starts on
-// iso_ball_200k_shuffled and 65536 gave 36, its component count.
+// until the triangles that continue the current regions had their chance
+// (on shuffled input, that keeps the starts near the number of
+// components). Sweeps such as iso-surfaces code much smaller with it, for
+// a little more memory; a shallower lookahead gives up part of the gain
+// (bench/HISTORY.md, "Converter lookahead").
 constexpr uint64_t kLookahead = 65536;
 // ... and at least this many per open boundary edge, within the budget of
 // set_lookahead_budget() at about kLookaheadBytes each: a long boundary
 // (the front of a large sweep) needs a deeper lookahead for the same
 // choice, or the region meets triangles not yet ready along the front and
-// leaves through nonzero gate offsets and far gates. Measured on the foam
-// balls at 16 bits: 10M (at most about 12,700 open edges) 17,546,935 ->
-// 17,047,076 / 16,696,304 / 16,440,906 bytes with 16 / 32 / 64 per edge,
-// psq convert peak 43.6 -> 63 / 90 / 183 MiB; 50M (about 27,000 open
-// edges, the default budget binding) 76,011,807 -> 73,063,523 bytes with
-// 32, peak 80.2 -> 165.8 MiB; foam 1M at 14 bits 0.7% smaller with 32.
+// leaves through nonzero gate offsets and far gates. 32 per edge trades
+// bytes for memory on large sweeps: 16 gives up part of the gain, 64 adds
+// little and doubles the memory (bench/HISTORY.md, "A lookahead that grows
+// with the boundary").
 constexpr uint64_t kLookaheadPerEdge = 32;
 constexpr uint64_t kLookaheadBytes = 200;
 // Triangle slots are stored as slot * 4 + corner (or edge).
@@ -1008,8 +1004,8 @@ bool SequenceConverter::Impl::drain() {
     // cheap): a neighbour of the last triangle, unless a better op waits
     // next to the grown regions (an end or fill before a join or add).
     // Better ops that arrived elsewhere do not count: following them makes
-    // the region hop along the front of a sweep (iso_ball_200k at 14 bits:
-    // 21,880 far gates and 396,158 bytes when they counted).
+    // the region hop along the front of a sweep, with many more far gates
+    // (bench/HISTORY.md, "Converter lookahead").
     for (int i = 0; i < 3 && !emitted; ++i) {
       const uint32_t slot = prefer[i];
       if (slot == kNone) continue;

@@ -307,16 +307,13 @@ Status build_sequence(MeshSource& source, SequenceSink& sink, const BuildOptions
   // mesh means the file order is not spatially coherent: one pass would hold
   // the whole mesh, and its triangles would become ready in scattered places,
   // so that the grown regions are riddled with holes around the vertices
-  // still waiting. The sweep of the sort path avoids both (psq convert
-  // --bits 14 of the shared meshes: bunny_closed_loop1, a window of 150,491
-  // of 150,818 vertices, at most 20,747 active vertices and 2.6
-  // connectivity bits per vertex in file order against 1,986 and 1.0
-  // sorted, 8% smaller overall and half the peak memory; the 23 of 25
-  // meshes with such windows 2.3% smaller together). A mesh of one block
+  // still waiting. The sweep of the sort path avoids both, for smaller
+  // streams and less memory (bench/HISTORY.md, "Sorting incoherent file
+  // orders"). A mesh of one block
   // of triangles counts as incoherent: one pass would hold all of it, and
   // the sort costs little at that size. The rule on half of the mesh
   // applies only when the sort's rank array fits the budget (feed_sorted):
-  // otherwise the one pass runs as before.
+  // otherwise the mesh takes the one pass.
   uint64_t limit = std::max<uint64_t>(1024, options.memory_budget / 4 / 400);
   const bool incoherent = 2 * s.window > s.nv && s.nv * 4 <= options.memory_budget / 2;
   bool sorted = options.force_sort || s.window > limit || incoherent;

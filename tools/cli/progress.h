@@ -1,4 +1,4 @@
-// Progress on long runs (issue 5): a line on stderr, rewritten in place at
+// Progress on long runs: a line on stderr, rewritten in place at
 // most ten times a second, when stderr is a terminal and -q was not given;
 // then a one-line summary. Nothing at all otherwise.
 #ifndef PSQ_CLI_PROGRESS_H_

@@ -216,7 +216,7 @@ Status PlyWriter::triangle(const uint32_t idx[3], const PropertyValues& values) 
   if (m.options.encoding != PlyEncoding::kAscii && idx[0] <= index_max && idx[1] <= index_max &&
       idx[2] <= index_max) {
     // The count and the indices fit their types: put() without its checks
-    // and conversions per value, which were most of a binary writer's work.
+    // and conversions per value, which would be most of a binary writer's work.
     // (An index up to index_max has the same bytes as int32 and uint32.)
     char b[13];
     char* e = m.enc.store(uint8_t{3}, b);

@@ -54,9 +54,9 @@ bool operator!=(const DefaultInitAllocator<T>&, const DefaultInitAllocator<U>&) 
 }
 
 // A triangle mesh in memory. The arrays are std::vectors with the
-// allocator above: resize() leaves new elements unset. (They were
-// std::vector<float> and std::vector<uint32_t> until 2026-11-26; code that
-// binds them to those types copies instead.)
+// allocator above: resize() leaves new elements unset. (They are not
+// std::vector<float> and std::vector<uint32_t>: code that needs those
+// types copies.)
 struct MeshBuffers {
   std::vector<float, DefaultInitAllocator<float>> positions;      // x, y, z of each vertex
   std::vector<uint32_t, DefaultInitAllocator<uint32_t>> indices;  // the three vertex indices of each triangle

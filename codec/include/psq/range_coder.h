@@ -17,8 +17,7 @@
 // (overran()). Decoding is therefore safe on untrusted input; what a corrupt
 // stream decodes to is garbage that the caller's checks must reject.
 //
-// The exact arithmetic becomes normative in spec/psq-format.md together with
-// the container that uses it (the codec issue).
+// The exact arithmetic is normative: spec/psq-format.md, section 5.
 #ifndef PSQ_RANGE_CODER_H_
 #define PSQ_RANGE_CODER_H_
 
@@ -37,7 +36,7 @@ struct BitModel {
 // shift, 2, 3, 4, 5, then 6 from n = 30 on (spec 5.1 counts on to 255; the
 // shift is the same from 30 on), and the count after the update,
 // min(n + 1, 30). One lookup instead of a lookup and a saturating
-// increment: 2 fewer instructions per decision.
+// increment, on every decision.
 struct AdaptStep {
   uint8_t shift;
   uint8_t next;
