@@ -315,6 +315,44 @@ TEST(Ply, RandomCorruptionNeverCrashes) {
   EXPECT_GT(failures, 0);
 }
 
+// A float PLY cannot hold a finite double beyond float range: the writer
+// refuses it (naming the vertex) rather than write an infinity, in every
+// encoding; doubles stay doubles.
+TEST(Ply, WriterRefusesFloatsBeyondTheirRange) {
+  for (PlyEncoding enc : {PlyEncoding::kAscii, PlyEncoding::kBinaryLittleEndian, PlyEncoding::kBinaryBigEndian}) {
+    Mesh m = test::make_grid(1);
+    m.positions[2][1] = -3.5e38;
+    test::TempDir dir;
+    OutputFile out;
+    ASSERT_TRUE(out.open(dir.file("m.ply"), false).ok());
+    PlyWriteOptions o;
+    o.encoding = enc;
+    PlyWriter writer(&out, o);
+    test::MemorySource source(m);
+    Status s = pump(source, writer);
+    EXPECT_EQ(s.code(), ErrorCode::kBadValue) << s.to_string();
+    EXPECT_NE(s.message().find("-3.5e+38"), std::string::npos) << s.to_string();
+    // A float property.
+    m = test::make_grid(1);
+    m.schema.vertex_properties.push_back({"quality", ScalarType::kFloat32});
+    for (auto& v : m.vertex_values) v = {1};
+    m.vertex_values[3] = {1e300};
+    OutputFile out2;
+    ASSERT_TRUE(out2.open(dir.file("n.ply"), false).ok());
+    PlyWriter writer2(&out2, o);
+    test::MemorySource source2(m);
+    s = pump(source2, writer2);
+    EXPECT_EQ(s.code(), ErrorCode::kBadValue) << s.to_string();
+    // Doubles are written.
+    m = test::make_grid(1);
+    m.schema.position_type = ScalarType::kFloat64;
+    m.positions[2][1] = -3.5e300;
+    Mesh back;
+    ASSERT_TRUE(read_ply(write_ply(m, enc), &back).ok());
+    EXPECT_EQ(back.positions[2][1], -3.5e300);
+  }
+}
+
 // ------------------------------------------------------ header leniency
 
 // One triangle's header and binary little-endian data: float x y z, then a
