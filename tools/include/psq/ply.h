@@ -72,7 +72,8 @@ struct PlyWriteOptions {
 // Writes a PLY file with the schema's properties and types. When the schema
 // knows the vertex and triangle counts the data is written straight through;
 // otherwise it is spooled to an unlinked temporary file and copied after the
-// header. Errors: kIo, kBadValue (a value that the declared type cannot hold).
+// header. Errors: kIo, kBadValue (a value that the declared type cannot
+// hold, such as a finite value beyond float range for a float type).
 class PlyWriter : public MeshSink {
  public:
   // `out` must be open and outlive the writer; the caller commits it after
