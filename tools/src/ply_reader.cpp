@@ -173,7 +173,7 @@ std::string printable(std::string_view text) {
 Status PlyReader::Impl::read_header() {
   // Header lines are read byte-wise, so that nothing after end_header's line
   // end is consumed. Each line ends in LF, CRLF or a lone CR; writers mix
-  // them (an LF header whose end_header alone ends in CRLF is common), so
+  // them (some end every line in LF but end_header's in CRLF), so
   // each line's own end counts, end_header's above all: binary data starts
   // right after it. The one ambiguous case is "end_header\r\n" in a header
   // whose other lines end in a lone CR: a CR line end followed by data whose
