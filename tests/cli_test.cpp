@@ -5,6 +5,9 @@
 #include <cstdlib>
 
 #include <dirent.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <regex>
@@ -459,5 +462,137 @@ TEST(CliInfo, SequenceStatisticsOfSharedMeshes) {
   }
 }
 
+
+// ----------------------------------------------- data safety (issue 32)
+
+namespace safety {
+
+// Runs `command` with /bin/sh; returns its exit status.
+int shell(const std::string& command) {
+  int rc = std::system(command.c_str());
+  return WIFEXITED(rc) ? WEXITSTATUS(rc) : 128;
+}
+
+std::string psq_binary() { return PSQ_BINARY; }
+
+// How many entries the directory `path` holds.
+size_t entry_count(const std::string& path) {
+  size_t n = 0;
+  DIR* d = ::opendir(path.c_str());
+  if (d == nullptr) return 0;
+  while (dirent* e = ::readdir(d)) n += std::string(e->d_name) != "." && std::string(e->d_name) != "..";
+  ::closedir(d);
+  return n;
+}
+
+// A reader that stops early ("| head -c 100") makes psq exit quietly with
+// 141, whatever it writes, and leaves no temporary file behind.
+TEST(CliSafety, ClosedOutputPipeExitsQuietlyWith141) {
+  test::TempDir dir;
+  std::string ply = write_sphere(dir, "big.ply", true, 200, 300);
+  ASSERT_EQ(::mkdir(dir.file("tmp").c_str(), 0700), 0);
+  for (const char* to : {"ply", "obj", "psq"}) {
+    SCOPED_TRACE(to);
+    std::string cmd = "{ " + psq_binary() + " convert " + ply + " - --to " + to + " --tmpdir " + dir.file("tmp") +
+                      " 2>" + dir.file("err") + "; echo $? >" + dir.file("rc") + "; } | head -c 100 >" +
+                      dir.file("out");
+    ASSERT_EQ(shell(cmd), 0);
+    EXPECT_EQ(test::read_file(dir.file("rc")), "141\n");
+    EXPECT_EQ(test::read_file(dir.file("err")), "");
+    EXPECT_EQ(test::read_file(dir.file("out")).size(), 100u);
+    EXPECT_EQ(entry_count(dir.file("tmp")), 0u);
+  }
+  // A dump too.
+  std::string cmd = "{ " + psq_binary() + " dump " + ply + " 2>" + dir.file("err") + "; echo $? >" + dir.file("rc") +
+                    "; } | head -c 10 >/dev/null";
+  ASSERT_EQ(shell(cmd), 0);
+  EXPECT_EQ(test::read_file(dir.file("rc")), "141\n");
+  EXPECT_EQ(test::read_file(dir.file("err")), "");
+  std::string out, err;
+  EXPECT_NE(run_psq("convert --help", &out, &err), 1);
+  EXPECT_NE(out.find("cannot be taken back"), std::string::npos);
+}
+
+// The issue's PLY: double coordinates whose range overflows the
+// quantization arithmetic. Refused (no output), kept exactly when lossless.
+TEST(CliSafety, UnrepresentablePositionsAreRefusedNotGarbled) {
+  test::TempDir dir;
+  test::write_file(dir.file("big.ply"),
+                   "ply\nformat ascii 1.0\nelement vertex 3\nproperty double x\nproperty double y\nproperty double z\n"
+                   "element face 1\nproperty list uchar int vertex_indices\nend_header\n"
+                   "9e307 0 0\n-9e307 0 0\n0 9e307 0\n3 0 1 2\n");
+  std::string out, err;
+  for (const char* target : {"q.psq", "q.drc"}) {
+    EXPECT_EQ(run_psq("convert " + dir.file("big.ply") + " " + dir.file(target), &out, &err), 1) << target;
+    EXPECT_EQ(count_lines(err), 1) << err;
+    EXPECT_FALSE(test::file_exists(dir.file(target))) << target;
+  }
+  EXPECT_EQ(run_psq("convert --lossless " + dir.file("big.ply") + " " + dir.file("l.psq"), &out, &err), 0) << err;
+  EXPECT_EQ(run_psq("verify " + dir.file("l.psq"), &out, &err), 0) << err;
+  EXPECT_EQ(run_psq("convert " + dir.file("l.psq") + " - --to obj", &out, &err), 0) << err;
+  EXPECT_NE(out.find("v 9e+307 0 0\nv -9e+307 0 0\nv 0 9e+307 0\n"), std::string::npos) << out;
+}
+
+// Header leniency as a user sees it: a note, not an error.
+TEST(CliSafety, BareHeaderLineGivesANoteAndMissingEndHeaderSaysSo) {
+  test::TempDir dir;
+  const std::string body = "element vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                           "element face 1\nproperty list uchar int vertex_indices\n";
+  test::write_file(dir.file("b.ply"), "ply\nformat ascii 1.0\nCreated by Blender3D 247 - www.blender.org, source "
+                                      "file: ''\n" + body + "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+  std::string out, err;
+  EXPECT_EQ(run_psq("convert " + dir.file("b.ply") + " " + dir.file("b.psq"), &out, &err), 0) << err;
+  EXPECT_NE(err.find("psq: note: " + dir.file("b.ply") + ": header line 3 is not PLY"), std::string::npos) << err;
+  test::write_file(dir.file("n.ply"), "ply\nformat ascii 1.0\n" + body);
+  EXPECT_EQ(run_psq("convert " + dir.file("n.ply") + " " + dir.file("n.psq"), &out, &err), 1);
+  EXPECT_NE(err.find("line 9: missing end_header"), std::string::npos) << err;
+}
+
+// -f keeps the replaced file's mode; pipes and devices are written in
+// place; a directory is refused; a symbolic link is written through.
+TEST(CliSafety, OutputTargetsOfEveryKind) {
+  test::TempDir dir;
+  std::string ply = write_sphere(dir, "s.ply");
+  std::string out, err;
+  const std::string kept = dir.file("kept.ply");
+  test::write_file(kept, "old");
+  ASSERT_EQ(::chmod(kept.c_str(), 0600), 0);
+  EXPECT_EQ(run_psq("convert -f " + ply + " " + kept, &out, &err), 0) << err;
+  struct stat st;
+  ASSERT_EQ(::stat(kept.c_str(), &st), 0);
+  EXPECT_EQ(st.st_mode & 07777, 0600u);
+  EXPECT_GT(st.st_size, 100);
+  // /dev/null, with or without -f: still the device.
+  EXPECT_EQ(run_psq("convert " + ply + " /dev/null --to ply", &out, &err), 0) << err;
+  EXPECT_EQ(run_psq("convert -f " + ply + " /dev/null --to psq", &out, &err), 0) << err;
+  ASSERT_EQ(::stat("/dev/null", &st), 0);
+  EXPECT_TRUE(S_ISCHR(st.st_mode));
+  // A FIFO with a reader.
+  const std::string fifo = dir.file("pipe.ply");
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  ASSERT_EQ(shell("cat " + fifo + " >" + dir.file("from_pipe.ply") + " & " + psq_binary() + " convert " + ply + " " +
+                  fifo + " 2>" + dir.file("err") + "; rc=$?; wait; exit $rc"),
+            0)
+      << test::read_file(dir.file("err"));
+  ASSERT_EQ(::lstat(fifo.c_str(), &st), 0);
+  EXPECT_TRUE(S_ISFIFO(st.st_mode));
+  Mesh a, b;
+  ASSERT_TRUE(test::load_mesh(ply, &a).ok());
+  ASSERT_TRUE(test::load_mesh(dir.file("from_pipe.ply"), &b).ok());
+  EXPECT_EQ(a.positions, b.positions);
+  // A directory.
+  ASSERT_EQ(::mkdir(dir.file("d.ply").c_str(), 0700), 0);
+  EXPECT_EQ(run_psq("convert -f " + ply + " " + dir.file("d.ply"), &out, &err), 2);
+  EXPECT_NE(err.find("is a directory"), std::string::npos) << err;
+  // A symbolic link: the link stays, its target gets the mesh.
+  ASSERT_EQ(::symlink("kept.ply", dir.file("link.ply").c_str()), 0);
+  EXPECT_EQ(run_psq("convert " + ply + " " + dir.file("link.ply"), &out, &err), 2);  // kept.ply exists
+  EXPECT_EQ(run_psq("convert -f --ascii " + ply + " " + dir.file("link.ply"), &out, &err), 0) << err;
+  ASSERT_EQ(::lstat(dir.file("link.ply").c_str(), &st), 0);
+  EXPECT_TRUE(S_ISLNK(st.st_mode));
+  EXPECT_NE(test::read_file(kept).find("format ascii"), std::string::npos);
+}
+
+}  // namespace safety
 }  // namespace
 }  // namespace psq

@@ -7,6 +7,7 @@
 #include <map>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <random>
 
 #include "psq/psq_codec.h"
@@ -110,6 +111,14 @@ Status decode(const std::vector<uint8_t>& bytes, Events* out, PsqStats* stats = 
   }
   if (stats) *stats = dec.stats();
   return Status();
+}
+
+// Opens a decoder on `bytes`: reads and checks the header only.
+Status decode_header_only(const std::vector<uint8_t>& bytes) {
+  InputStream in;
+  in.open_memory(bytes.data(), bytes.size(), "mem.psq");
+  PsqDecoder dec;
+  return dec.open(&in);
 }
 
 // A triangle rotated so that its smallest index is first, with its border
@@ -624,6 +633,160 @@ TEST(Codec, EncoderRefusesWhatTheDecoderWouldReject) {
   ASSERT_TRUE(enc.vertex(v0).ok());
   ASSERT_TRUE(enc.vertex(v1).ok());
   EXPECT_EQ(enc.finalize(1).code(), ErrorCode::kBadSequence);
+}
+
+// Encodes `ev` and returns the status (the bytes are dropped).
+Status try_encode(const Events& ev, const EncodeOptions& o) {
+  std::vector<uint8_t> bytes;
+  VectorWriter w(&bytes);
+  PsqEncoder enc(&w, o);
+  return replay(ev, enc);
+}
+
+// The largest distance of a decoded position from the encoded one, in
+// units of the grid's step.
+double worst_in_steps(const Events& a, const Events& b, double step) {
+  double worst = 0;
+  for (size_t i = 0; i < a.events.size(); ++i) {
+    if (a.events[i].kind != SequenceEvent::Kind::kVertex) continue;
+    for (int k = 0; k < 3; ++k)
+      worst = std::max(worst, std::fabs(a.events[i].vertex.position[k] - b.events[i].vertex.position[k]) / step);
+  }
+  return worst;
+}
+
+Mesh double_triangle(std::array<double, 3> a, std::array<double, 3> b, std::array<double, 3> c) {
+  Mesh m = test::make_mesh({a, b, c}, {{0, 1, 2}});
+  m.schema.position_type = ScalarType::kFloat64;
+  return m;
+}
+
+// Positions no grid can hold at the requested precision are refused, never
+// clamped: the range overflows, the step underflows, a position lies
+// outside the box the encoder was given. Lossless keeps them exactly.
+TEST(Codec, QuantizationRefusesWhatItCannotRepresent) {
+  struct Case {
+    const char* name;
+    Mesh mesh;
+    const char* says;
+  } cases[] = {
+      {"x range overflows", double_triangle({9e307, 0, 0}, {-9e307, 0, 0}, {0, 9e307, 0}), "overflows a double"},
+      {"y range overflows", double_triangle({0, -1.7e308, 0}, {0, 1.7e308, 0}, {1, 0, 0}), "overflows a double"},
+      {"z range overflows", double_triangle({0, 0, -1e308}, {1, 0, 1e308}, {0, 1, 0}), "overflows a double"},
+      {"step underflows", double_triangle({0, 0, 0}, {4.9e-324, 0, 0}, {0, 0, 0}), "underflow"},
+  };
+  for (Case& c : cases) {
+    Events ev = sequence_of(c.mesh);
+    for (bool fast : {false, true}) {
+      EncodeOptions o;
+      o.fast = fast;
+      o.bits = 31;
+      Status s = try_encode(ev, o);
+      EXPECT_EQ(s.code(), ErrorCode::kLimit) << c.name << ": " << s.to_string();
+      EXPECT_NE(s.message().find(c.says), std::string::npos) << c.name << ": " << s.to_string();
+      o.lossless = true;
+      Events back = round_trip(ev, o);
+      expect_same(ev, back, 0);
+    }
+  }
+  // A box that does not hold every position: the vertex is named.
+  Events ev = sequence_of(test::make_grid(3));
+  for (double& hi : ev.schema.bounds_max) hi = 0.5;  // the grid is a cube of the largest extent
+  EncodeOptions o;
+  Status s = try_encode(ev, o);
+  EXPECT_EQ(s.code(), ErrorCode::kBadValue) << s.to_string();
+  EXPECT_NE(s.message().find("outside the quantization grid"), std::string::npos) << s.to_string();
+  EXPECT_EQ(s.message().rfind("vertex ", 0), 0u) << s.to_string();
+  ev = sequence_of(test::make_grid(3));
+  ev.schema.bounds_min[1] = 0.25;
+  EXPECT_EQ(try_encode(ev, o).code(), ErrorCode::kBadValue);
+  ev.schema.bounds_min[1] = 1e6;  // above the maximum
+  EXPECT_EQ(try_encode(ev, o).code(), ErrorCode::kUsage);
+  // A double that is not a float, with the float position type.
+  ev = sequence_of(test::make_grid(2));
+  for (auto& e : ev.events)
+    if (e.kind == SequenceEvent::Kind::kVertex && e.vertex.index == 4) e.vertex.position[2] = 0.1;
+  for (bool lossless : {false, true}) {
+    o.lossless = lossless;
+    s = try_encode(ev, o);
+    EXPECT_EQ(s.code(), ErrorCode::kBadValue) << s.to_string();
+    EXPECT_NE(s.message().find("vertex 4: z = 0.1 is not a float"), std::string::npos) << s.to_string();
+  }
+}
+
+// Extreme but representable ranges quantize within half a step (with the
+// decoder's roundings) at every precision.
+TEST(Codec, ExtremeRangesQuantizeWithinHalfAStep) {
+  std::mt19937_64 rng(11);
+  const double kRanges[][2] = {{-8e307, 8e307}, {1e300, 1e300 + 1e290}, {-1e-300, 1e-300},
+                               {1e15, 1e15 + 3}, {-5e-310, 5e-310}};
+  for (const auto& r : kRanges) {
+    std::vector<std::array<double, 3>> p;
+    std::vector<Tri> t;
+    for (uint32_t i = 0; i < 60; ++i) {
+      std::array<double, 3> q;
+      for (double& c : q) c = r[0] + (r[1] / 2 - r[0] / 2) * 2 * std::uniform_real_distribution<double>(0, 1)(rng);
+      p.push_back(q);
+      if (i % 3 == 2) t.push_back({i - 2, i - 1, i});
+    }
+    p[0] = {r[0], r[0], r[0]};
+    p[1] = {r[1], r[1], r[1]};
+    Mesh m = test::make_mesh(p, t);
+    m.schema.position_type = ScalarType::kFloat64;
+    Events ev = sequence_of(m);
+    for (int bits : {1, 16, 31}) {
+      EncodeOptions o;
+      o.bits = bits;
+      std::vector<uint8_t> bytes;
+      VectorWriter w(&bytes);
+      PsqEncoder enc(&w, o);
+      Status s = replay(ev, enc);
+      ASSERT_TRUE(s.ok()) << r[0] << " " << bits << ": " << s.to_string();
+      Events back;
+      InputStream in;
+      in.open_memory(bytes.data(), bytes.size());
+      PsqDecoder dec;
+      ASSERT_TRUE(dec.open(&in).ok());
+      const double step = (dec.schema().bounds_max[0] - dec.schema().bounds_min[0]) / (std::pow(2.0, bits) - 1);
+      ASSERT_TRUE(decode(bytes, &back).ok());
+      ASSERT_EQ(back.events.size(), ev.events.size());
+      EXPECT_LE(worst_in_steps(ev, back, step), 0.5 + 1e-5) << r[0] << " " << bits;
+    }
+  }
+}
+
+// The decoder refuses a grid that would give positions that are not finite
+// (spec 4.2), so that verify cannot call such a stream valid: a quantized
+// stream's step patched and its header re-signed.
+TEST(Codec, GridBeyondTheRangeOfDoublesIsRefused) {
+  Events ev = sequence_of(test::make_grid(2));
+  for (ScalarType type : {ScalarType::kFloat32, ScalarType::kFloat64}) {
+    ev.schema.position_type = type;
+    std::vector<uint8_t> bytes = encode(ev, EncodeOptions());
+    ASSERT_TRUE(decode_header_only(bytes).ok());
+    for (double step : {1e304, 1e300, std::numeric_limits<double>::infinity(), 0.0, -1.0}) {
+      std::vector<uint8_t> b = bytes;
+      // Spec 4.2: step at payload offset 26, after the 12 fixed bytes and a
+      // one-byte payload length; the header's CRC-32C follows the payload.
+      ASSERT_LT(b[12], 0x80);
+      std::memcpy(&b[13 + 26], &step, 8);
+      const size_t crc_at = 13 + b[12];
+      uint32_t c = 0xffffffffu;
+      for (size_t i = 0; i < crc_at; ++i) {
+        c ^= b[i];
+        for (int k = 0; k < 8; ++k) c = (c >> 1) ^ (0x82f63b78u & (0u - (c & 1u)));
+      }
+      c = ~c;
+      for (int k = 0; k < 4; ++k) b[crc_at + k] = static_cast<uint8_t>(c >> (8 * k));
+      Status s = decode_header_only(b);
+      if (step == 1e300 && type == ScalarType::kFloat64) {
+        // The grid's corner, 1e300 * 65535, is finite: a valid header.
+        EXPECT_TRUE(s.ok()) << s.to_string();
+        continue;
+      }
+      EXPECT_EQ(s.code(), ErrorCode::kBadHeader) << step << ": " << s.to_string();
+    }
+  }
 }
 
 std::vector<uint8_t> small_file(bool fast = false) {

@@ -4,7 +4,14 @@
 #include <cstdint>
 #include <cstring>
 #include <string>
+#include <thread>
 #include <vector>
+
+#include <fcntl.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/un.h>
+#include <unistd.h>
 
 #include "psq/io.h"
 #include "test_util.h"
@@ -106,6 +113,147 @@ TEST(OutputFile, RefusesToOverwriteWithoutForce) {
   ASSERT_TRUE(forced.write("new").ok());
   ASSERT_TRUE(forced.commit().ok());
   EXPECT_EQ(test::read_file(dir.file("x")), "new");
+}
+
+// Writes `text` to `path` through an OutputFile opened with `overwrite`.
+Status write_output(const std::string& path, bool overwrite, const std::string& text) {
+  OutputFile out;
+  PSQ_RETURN_IF_ERROR(out.open(path, overwrite));
+  PSQ_RETURN_IF_ERROR(out.write(text));
+  return out.commit();
+}
+
+mode_t mode_of(const std::string& path) {
+  struct stat st;
+  EXPECT_EQ(::lstat(path.c_str(), &st), 0) << path;
+  return st.st_mode;
+}
+
+TEST(OutputFile, ReplacedFileKeepsItsPermissions) {
+  test::TempDir dir;
+  const std::string path = dir.file("m.ply");
+  for (mode_t mode : {0600, 0640, 0444, 0755}) {
+    test::write_file(path, "old");
+    ASSERT_EQ(::chmod(path.c_str(), mode), 0);
+    ASSERT_TRUE(write_output(path, true, "new").ok());
+    EXPECT_EQ(test::read_file(path), "new");
+    EXPECT_EQ(mode_of(path) & 07777, mode) << std::oct << mode;
+    ASSERT_EQ(::chmod(path.c_str(), 0600), 0);
+    ASSERT_EQ(::unlink(path.c_str()), 0);
+  }
+  // The owner and group, where the system allows it (as root: any).
+  if (::geteuid() == 0) {
+    test::write_file(path, "old");
+    ASSERT_EQ(::chown(path.c_str(), 4321, 4322), 0);
+    ASSERT_EQ(::chmod(path.c_str(), 0604), 0);
+    ASSERT_TRUE(write_output(path, true, "new").ok());
+    struct stat st;
+    ASSERT_EQ(::stat(path.c_str(), &st), 0);
+    EXPECT_EQ(st.st_uid, 4321u);
+    EXPECT_EQ(st.st_gid, 4322u);
+    EXPECT_EQ(st.st_mode & 07777, 0604u);
+    ASSERT_EQ(::unlink(path.c_str()), 0);
+  }
+  // A new file: 0666 less the umask.
+  for (mode_t mask : {022, 077, 002}) {
+    const mode_t old = ::umask(mask);
+    ASSERT_TRUE(write_output(path, false, "new").ok());
+    ::umask(old);
+    EXPECT_EQ(mode_of(path) & 07777, 0666 & ~mask) << std::oct << mask;
+    ASSERT_EQ(::unlink(path.c_str()), 0);
+  }
+}
+
+TEST(OutputFile, PipesAndDevicesAreWrittenInPlaceNeverReplaced) {
+  // /dev/null stays the character device (replacing it as root would
+  // break the system), with or without overwrite.
+  for (bool overwrite : {false, true}) {
+    ASSERT_TRUE(write_output("/dev/null", overwrite, "mesh").ok());
+    EXPECT_TRUE(S_ISCHR(mode_of("/dev/null")));
+  }
+  // A FIFO: its reader gets the data; it is still a FIFO after.
+  test::TempDir dir;
+  const std::string fifo = dir.file("pipe");
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  std::string got;
+  std::thread reader([&] {
+    int fd = ::open(fifo.c_str(), O_RDONLY);
+    char buf[256];
+    ssize_t n;
+    while ((n = ::read(fd, buf, sizeof buf)) > 0) got.append(buf, static_cast<size_t>(n));
+    ::close(fd);
+  });
+  Status s = write_output(fifo, false, "through the pipe");
+  reader.join();
+  ASSERT_TRUE(s.ok()) << s.to_string();
+  EXPECT_EQ(got, "through the pipe");
+  EXPECT_TRUE(S_ISFIFO(mode_of(fifo)));
+  EXPECT_EQ(dir.entries(), (std::vector<std::string>{"pipe"}));  // no temporary left
+}
+
+TEST(OutputFile, DirectoriesAndSocketsAreRefused) {
+  test::TempDir dir;
+  ASSERT_EQ(::mkdir(dir.file("sub").c_str(), 0700), 0);
+  for (const std::string& path : {dir.file("sub"), dir.file("sub/"), dir.file("new/"), dir.path()}) {
+    for (bool overwrite : {false, true}) {
+      OutputFile out;
+      Status s = out.open(path, overwrite);
+      EXPECT_EQ(s.code(), ErrorCode::kUsage) << path << ": " << s.to_string();
+      EXPECT_NE(s.message().find("directory"), std::string::npos) << s.to_string();
+    }
+  }
+  // A Unix socket.
+  const std::string sock = dir.file("sock");
+  int fd = ::socket(AF_UNIX, SOCK_STREAM, 0);
+  ASSERT_GE(fd, 0);
+  sockaddr_un addr{};
+  addr.sun_family = AF_UNIX;
+  ASSERT_LT(sock.size(), sizeof addr.sun_path);
+  std::memcpy(addr.sun_path, sock.c_str(), sock.size() + 1);
+  ASSERT_EQ(::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr), 0);
+  OutputFile out;
+  Status s = out.open(sock, true);
+  EXPECT_EQ(s.code(), ErrorCode::kUsage) << s.to_string();
+  EXPECT_NE(s.message().find("socket"), std::string::npos) << s.to_string();
+  ::close(fd);
+  EXPECT_EQ(dir.entries(), (std::vector<std::string>{"sock", "sub"}));
+}
+
+TEST(OutputFile, SymbolicLinksAreWrittenThrough) {
+  test::TempDir dir;
+  ASSERT_EQ(::mkdir(dir.file("real").c_str(), 0700), 0);
+  const std::string target = dir.file("real/m.ply");
+  const std::string link = dir.file("link.ply");
+  test::write_file(target, "old");
+  ASSERT_EQ(::chmod(target.c_str(), 0640), 0);
+  ASSERT_EQ(::symlink("real/m.ply", link.c_str()), 0);
+  // The target exists: overwriting it needs overwrite.
+  OutputFile out;
+  EXPECT_EQ(out.open(link, false).code(), ErrorCode::kUsage);
+  ASSERT_TRUE(write_output(link, true, "new").ok());
+  EXPECT_TRUE(S_ISLNK(mode_of(link)));  // still the link
+  EXPECT_EQ(test::read_file(target), "new");
+  EXPECT_EQ(mode_of(target) & 07777, 0640u);
+  EXPECT_EQ(dir.entries(), (std::vector<std::string>{"link.ply", "real"}));
+  // A chain of links.
+  const std::string link2 = dir.file("link2.ply");
+  ASSERT_EQ(::symlink("link.ply", link2.c_str()), 0);
+  ASSERT_TRUE(write_output(link2, true, "newer").ok());
+  EXPECT_EQ(test::read_file(target), "newer");
+  EXPECT_TRUE(S_ISLNK(mode_of(link2)));
+  // A link to a missing file is refused, and stays.
+  const std::string dangling = dir.file("dangling.ply");
+  ASSERT_EQ(::symlink("real/none.ply", dangling.c_str()), 0);
+  OutputFile out2;
+  Status s = out2.open(dangling, true);
+  EXPECT_EQ(s.code(), ErrorCode::kIo) << s.to_string();
+  EXPECT_TRUE(S_ISLNK(mode_of(dangling)));
+  // A link to a device is written in place.
+  const std::string null_link = dir.file("null.ply");
+  ASSERT_EQ(::symlink("/dev/null", null_link.c_str()), 0);
+  ASSERT_TRUE(write_output(null_link, true, "gone").ok());
+  EXPECT_TRUE(S_ISLNK(mode_of(null_link)));
+  EXPECT_TRUE(S_ISCHR(mode_of("/dev/null")));
 }
 
 TEST(SpoolFile, WritesAndReadsBackLargeData) {

@@ -271,6 +271,22 @@ TEST(Off, BadInput) {
   }
 }
 
+// Comments and blank lines before the keyword and counts are skipped, but
+// only within 1 MiB: a header that never ends is an error, not a hang.
+TEST(Off, HeaderIsBounded) {
+  std::string comments;
+  while (comments.size() < (3u << 20)) comments += "# a comment line of some length\n";
+  for (const std::string& text : {comments + "OFF\n3 1 0\n", std::string(3u << 20, '\n') + "OFF\n3 1 0\n",
+                                  "OFF\n" + std::string(3u << 20, '\n') + "3 1 0\n"}) {
+    Status s = read_memory<OffReader>(text);
+    EXPECT_EQ(s.code(), ErrorCode::kLimit) << s.to_string();
+    EXPECT_NE(s.message().find("first 1 MiB"), std::string::npos) << s.to_string();
+  }
+  // Within the limit, the comments are fine.
+  Status s = read_memory<OffReader>(comments.substr(0, 500000) + "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+  EXPECT_TRUE(s.ok()) << s.to_string();
+}
+
 TEST(Off, CountsBeyondTheFileFailUpFront) {
   // A count the remaining bytes cannot hold: kTruncated with the offset
   // where the data begins, before any line is read.

@@ -2,9 +2,15 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <csignal>
 #include <cstring>
 #include <random>
 #include <string>
+#include <thread>
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include "psq/mesh_formats.h"
 #include "psq/ply.h"
@@ -307,6 +313,240 @@ TEST(Ply, RandomCorruptionNeverCrashes) {
     if (!read_ply(bad, &m).ok()) ++failures;
   }
   EXPECT_GT(failures, 0);
+}
+
+// A float PLY cannot hold a finite double beyond float range: the writer
+// refuses it (naming the vertex) rather than write an infinity, in every
+// encoding; doubles stay doubles.
+TEST(Ply, WriterRefusesFloatsBeyondTheirRange) {
+  for (PlyEncoding enc : {PlyEncoding::kAscii, PlyEncoding::kBinaryLittleEndian, PlyEncoding::kBinaryBigEndian}) {
+    Mesh m = test::make_grid(1);
+    m.positions[2][1] = -3.5e38;
+    test::TempDir dir;
+    OutputFile out;
+    ASSERT_TRUE(out.open(dir.file("m.ply"), false).ok());
+    PlyWriteOptions o;
+    o.encoding = enc;
+    PlyWriter writer(&out, o);
+    test::MemorySource source(m);
+    Status s = pump(source, writer);
+    EXPECT_EQ(s.code(), ErrorCode::kBadValue) << s.to_string();
+    EXPECT_NE(s.message().find("-3.5e+38"), std::string::npos) << s.to_string();
+    // A float property.
+    m = test::make_grid(1);
+    m.schema.vertex_properties.push_back({"quality", ScalarType::kFloat32});
+    for (auto& v : m.vertex_values) v = {1};
+    m.vertex_values[3] = {1e300};
+    OutputFile out2;
+    ASSERT_TRUE(out2.open(dir.file("n.ply"), false).ok());
+    PlyWriter writer2(&out2, o);
+    test::MemorySource source2(m);
+    s = pump(source2, writer2);
+    EXPECT_EQ(s.code(), ErrorCode::kBadValue) << s.to_string();
+    // Doubles are written.
+    m = test::make_grid(1);
+    m.schema.position_type = ScalarType::kFloat64;
+    m.positions[2][1] = -3.5e300;
+    Mesh back;
+    ASSERT_TRUE(read_ply(write_ply(m, enc), &back).ok());
+    EXPECT_EQ(back.positions[2][1], -3.5e300);
+  }
+}
+
+// ------------------------------------------------------ header leniency
+
+// One triangle's header and binary little-endian data: float x y z, then a
+// face with an int index list.
+std::string binary_triangle_data() {
+  std::string d;
+  const float xyz[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+  d.append(reinterpret_cast<const char*>(xyz), sizeof xyz);
+  d.push_back(3);
+  const int32_t idx[3] = {0, 1, 2};
+  d.append(reinterpret_cast<const char*>(idx), sizeof idx);
+  return d;
+}
+
+TEST(PlyHeader, BareTextLineIsReadAsACommentWithANote) {
+  // Blender 2.47 wrote this line without "comment".
+  const std::string line = "Created by Blender3D 247 - www.blender.org, source file: ''";
+  std::string f = "ply\nformat ascii 1.0\n" + line + "\nelement vertex 3\nproperty float x\nproperty float y\n"
+                  "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+                  "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+  Mesh m;
+  SourceReport r;
+  Status s = read_ply(f, &m, &r);
+  ASSERT_TRUE(s.ok()) << s.to_string();
+  EXPECT_EQ(m.triangles.size(), 1u);
+  ASSERT_EQ(r.notes.size(), 1u);
+  EXPECT_NE(r.notes[0].find("header line 3"), std::string::npos) << r.notes[0];
+  EXPECT_NE(r.notes[0].find("Created by Blender3D"), std::string::npos) << r.notes[0];
+  ASSERT_EQ(m.schema.comments.size(), 1u);
+  EXPECT_EQ(m.schema.comments[0], line);
+  // Also between declarations, and in a binary file.
+  f = "ply\nformat binary_little_endian 1.0\nelement vertex 3\nexported by some tool, v1.2\nproperty float x\n"
+      "property float y\nproperty float z\nelement face 1\n  made on a Tuesday  \nproperty list uchar int "
+      "vertex_indices\nend_header\n" + binary_triangle_data();
+  s = read_ply(f, &m, &r);
+  ASSERT_TRUE(s.ok()) << s.to_string();
+  EXPECT_EQ(m.triangles.size(), 1u);
+  EXPECT_EQ(r.notes.size(), 2u);
+  EXPECT_EQ(m.schema.comments.back(), "made on a Tuesday");
+}
+
+TEST(PlyHeader, ManyUnknownLinesGiveBoundedNotes) {
+  std::string f = "ply\nformat ascii 1.0\n";
+  for (int i = 0; i < 1000; ++i) f += "some text " + std::to_string(i) + " here\n";
+  f += "element vertex 0\nproperty float x\nproperty float y\nproperty float z\nend_header\n";
+  Mesh m;
+  SourceReport r;
+  Status s = read_ply(f, &m, &r);
+  ASSERT_TRUE(s.ok()) << s.to_string();
+  ASSERT_LE(r.notes.size(), 10u);
+  EXPECT_NE(r.notes.back().find("992 more"), std::string::npos) << r.notes.back();
+}
+
+TEST(PlyHeader, UnknownLinesThatCouldBeStructureAreErrors) {
+  const std::string tail = "element vertex 0\nproperty float x\nproperty float y\nproperty float z\nend_header\n";
+  struct Case {
+    const char* name;
+    std::string bytes;
+    const char* says;
+  } cases[] = {
+      {"before format", "ply\nCreated by me\nformat ascii 1.0\n" + tail, "before the format line"},
+      {"keyword case", "ply\nformat ascii 1.0\nElement vertex 0\n" + tail, "lower case"},
+      {"upper property", "ply\nformat ascii 1.0\nelement vertex 0\nPROPERTY float x\n", "lower case"},
+      {"misspelled property", "ply\nformat ascii 1.0\nelement vertex 0\npropery float x\n", "property declaration"},
+      {"misspelled list", "ply\nformat ascii 1.0\n" + tail.substr(0, tail.size() - 11) +
+                              "element face 0\nprop list uchar int vertex_indices\nend_header\n",
+       "property declaration"},
+      {"misspelled element", "ply\nformat ascii 1.0\nelemnt vertex 3\n" + tail, "element declaration"},
+      {"no format", "ply\n" + tail, "no format line"},
+      {"two formats", "ply\nformat ascii 1.0\nformat binary_little_endian 1.0\n" + tail, "second format"},
+  };
+  for (const Case& c : cases) {
+    Mesh m;
+    Status s = read_ply(c.bytes, &m);
+    EXPECT_EQ(s.code(), ErrorCode::kBadHeader) << c.name << ": " << s.to_string();
+    EXPECT_NE(s.message().find(c.says), std::string::npos) << c.name << ": " << s.to_string();
+    EXPECT_NE(s.line(), Status::kNoPlace) << c.name;
+  }
+}
+
+// The header's lines end in `eol`, end_header's in `end_eol`.
+std::string mixed_header(const std::string& body, const std::string& eol, const std::string& end_eol,
+                         const std::string& format = "binary_little_endian") {
+  std::string h = header(format, body, eol);
+  return h.substr(0, h.size() - eol.size()) + end_eol;
+}
+
+const char kTriangleBody[] =
+    "element vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+    "element face 1\nproperty list uchar int vertex_indices\n";
+const char kPointBody[] = "element vertex 1\nproperty float x\nproperty float y\nproperty float z\n";
+
+TEST(PlyHeader, EndHeaderLineEndDecidesWhereBinaryDataStarts) {
+  // Each line's own end counts: an LF header whose end_header ends in CRLF
+  // (and every other mix) reads the same triangle.
+  for (const char* eol : {"\n", "\r\n", "\r"}) {
+    for (const char* end_eol : {"\n", "\r\n", "\r"}) {
+      if (std::string(eol) == "\r" && std::string(end_eol) == "\r\n") continue;  // ambiguous: below
+      std::string f = mixed_header(kTriangleBody, eol, end_eol) + binary_triangle_data();
+      Mesh m;
+      Status s = read_ply(f, &m);
+      ASSERT_TRUE(s.ok()) << "eol " << int(eol[0]) << " end " << int(end_eol[0]) << ": " << s.to_string();
+      ASSERT_EQ(m.triangles.size(), 1u);
+      EXPECT_EQ(m.positions[1][0], 1.0);
+    }
+  }
+  // Mixed within the header too.
+  std::string f = "ply\r\nformat binary_little_endian 1.0\nelement vertex 3\rproperty float x\r\nproperty float y\n"
+                  "property float z\relement face 1\nproperty list uchar int vertex_indices\r\nend_header\r\n" +
+                  binary_triangle_data();
+  Mesh m;
+  Status s = read_ply(f, &m);
+  ASSERT_TRUE(s.ok()) << s.to_string();
+  EXPECT_EQ(m.triangles.size(), 1u);
+}
+
+TEST(PlyHeader, CrHeaderWithCrLfEndHeaderIsSettledByTheDataSize) {
+  // A CR-only header, "end_header\r\n": either a CR line end and data whose
+  // first byte is 0x0a, or a CRLF. Fixed-size data settles it.
+  float xs[3] = {0, 2, 3};
+  uint32_t bits = 0x3f80000a;  // low byte 0x0a
+  std::memcpy(&xs[0], &bits, 4);
+  std::string data(reinterpret_cast<const char*>(xs), 12);
+  Mesh m;
+  // CR, then data starting with 0x0a.
+  Status s = read_ply(mixed_header(kPointBody, "\r", "\r") + data, &m);
+  ASSERT_TRUE(s.ok()) << s.to_string();
+  ASSERT_EQ(m.positions.size(), 1u);
+  EXPECT_EQ(m.positions[0][0], static_cast<double>(xs[0]));
+  // CRLF, then the data.
+  const float ys[3] = {5, 6, 7};
+  s = read_ply(mixed_header(kPointBody, "\r", "\r\n") + std::string(reinterpret_cast<const char*>(ys), 12), &m);
+  ASSERT_TRUE(s.ok()) << s.to_string();
+  ASSERT_EQ(m.positions.size(), 1u);
+  EXPECT_EQ(m.positions[0][0], 5.0);
+  // With a list the size does not settle it: read as the header's CR, and
+  // an error that follows names the doubt.
+  s = read_ply(mixed_header(kTriangleBody, "\r", "\r\n") + binary_triangle_data(), &m);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("end_header's line end was read as a lone CR"), std::string::npos) << s.to_string();
+}
+
+TEST(PlyHeader, MissingEndHeaderIsNamedWithItsPlace) {
+  const std::string head = "ply\nformat binary_little_endian 1.0\n" + std::string(kTriangleBody);
+  Mesh m;
+  // The header runs to the end of the input.
+  Status s = read_ply(head, &m);
+  EXPECT_EQ(s.code(), ErrorCode::kBadHeader);
+  EXPECT_NE(s.message().find("missing end_header"), std::string::npos) << s.to_string();
+  EXPECT_EQ(s.line(), 9u) << s.to_string();
+  // Binary data where end_header should be.
+  s = read_ply(head + binary_triangle_data(), &m);
+  EXPECT_EQ(s.code(), ErrorCode::kBadHeader);
+  EXPECT_NE(s.message().find("missing end_header"), std::string::npos) << s.to_string();
+  EXPECT_EQ(s.offset(), head.size()) << s.to_string();
+  EXPECT_EQ(s.line(), 9u) << s.to_string();
+  // An absurdly long header: blank lines or one long line, from a pipe too,
+  // end at 1 MiB.
+  for (const std::string& filler : {std::string(3 << 20, '\n'), std::string(3 << 20, 'x')}) {
+    s = read_ply("ply\nformat ascii 1.0\n" + filler, &m);
+    EXPECT_EQ(s.code(), ErrorCode::kLimit) << s.to_string();
+    EXPECT_NE(s.message().find("missing end_header"), std::string::npos) << s.to_string();
+  }
+  // end_header at the very end, without a line end: an empty mesh.
+  s = read_ply("ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty float y\nproperty float z\nend_header", &m);
+  EXPECT_TRUE(s.ok()) << s.to_string();
+  // "end_header" inside a comment is not the end.
+  s = read_ply("ply\nformat ascii 1.0\ncomment end_header\n", &m);
+  EXPECT_NE(s.message().find("missing end_header"), std::string::npos) << s.to_string();
+}
+
+TEST(PlyHeader, LongHeaderFromAPipeStopsAtTheLimit) {
+  std::signal(SIGPIPE, SIG_IGN);
+  test::TempDir dir;
+  std::string path = dir.file("fifo");
+  ASSERT_EQ(::mkfifo(path.c_str(), 0600), 0);
+  std::thread writer([&] {
+    int fd = ::open(path.c_str(), O_WRONLY);
+    std::string chunk = "ply\nformat ascii 1.0\n";
+    std::string blank(1 << 16, '\n');
+    bool ok = ::write(fd, chunk.data(), chunk.size()) > 0;
+    // Far more than the limit: the reader must stop on its own.
+    for (int i = 0; ok && i < 64; ++i) ok = ::write(fd, blank.data(), blank.size()) > 0;
+    ::close(fd);
+  });
+  {
+    InputStream in;
+    ASSERT_TRUE(in.open(path).ok());
+    PlyReader reader;
+    Status s = reader.open(&in);
+    EXPECT_EQ(s.code(), ErrorCode::kLimit) << s.to_string();
+    EXPECT_LE(in.offset(), (1u << 20) + 64);
+  }  // closes the pipe: the writer's next write fails (EPIPE, ignored)
+  writer.join();
 }
 
 // ---------------------------------------------------------- shared real data

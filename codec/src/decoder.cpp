@@ -527,6 +527,16 @@ Status PsqDecoder::Impl::decode_into(MeshBuffers* mesh, const uint8_t* data, siz
   qhead = qcount = 0;
   mesh->positions.resize(direct_np);
   mesh->indices.resize(direct_ni);
+  // The arrays hold floats: a double stream's position beyond float range
+  // (finite, by 7.1 and 7.2) became an infinity, which is refused rather
+  // than returned.
+  if (header.schema.position_type == ScalarType::kFloat64) {
+    for (size_t i = 0; i < direct_np; ++i)
+      if (!std::isfinite(mesh->positions[i]))
+        return Status(ErrorCode::kLimit, "vertex " + std::to_string(i / 3) +
+                                             ": position beyond float range (decode_mesh returns floats; "
+                                             "PsqDecoder gives doubles)");
+  }
   return Status();
 }
 

@@ -1,6 +1,7 @@
 // codec/src/encoder.cpp: the .psq encoder (psq/psq_codec.h). Section
 // numbers refer to spec/psq-format.md.
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <unordered_map>
 
@@ -15,6 +16,19 @@
 namespace psq {
 
 using namespace codec;
+
+namespace {
+
+const char* const kAxisName[3] = {"x", "y", "z"};
+
+// A double for a message: the shortest text that reads back to it.
+std::string number_text(double v) {
+  char buf[32];
+  auto r = std::to_chars(buf, buf + sizeof buf, v);
+  return std::string(buf, r.ptr);
+}
+
+}  // namespace
 
 Status PsqEncoder::Impl::begin(const MeshSchema& schema) {
   if (begun) return bad_sequence("begin() called twice");
@@ -43,18 +57,35 @@ Status PsqEncoder::Impl::begin(const MeshSchema& schema) {
                     "quantization needs the bounding box before the first vertex (encode from the sequence "
                     "builder, or use lossless)");
     // Spec 7.1: the grid is the cube of the largest extent from the box's
-    // minimum corner, divided into 2^bits - 1 steps, as Draco quantizes.
+    // minimum corner, divided into 2^bits - 1 steps, as Draco quantizes. A
+    // box no grid of binary64 steps can cover is refused here, before any
+    // output: quantizing it anyway would clamp positions to garbage (2.3).
     double extent = 0;
     for (int i = 0; i < 3; ++i) {
-      if (!std::isfinite(schema.bounds_min[i]) || !std::isfinite(schema.bounds_max[i]))
+      const double lo = schema.bounds_min[i], hi = schema.bounds_max[i];
+      if (!std::isfinite(lo) || !std::isfinite(hi))
         return Status(ErrorCode::kBadValue, "bounding box is not finite");
-      extent = std::max(extent, schema.bounds_max[i] - schema.bounds_min[i]);
-      header.origin[i] = schema.bounds_min[i];
+      if (lo > hi)
+        return Status(ErrorCode::kUsage, std::string("bounding box minimum above its maximum on ") + kAxisName[i]);
+      const double e = hi - lo;
+      if (!std::isfinite(e))
+        return Status(ErrorCode::kLimit, std::string("positions span ") + number_text(lo) + " to " + number_text(hi) +
+                                             " on " + kAxisName[i] +
+                                             ": the extent overflows a double, so no quantization grid holds "
+                                             "them (encode lossless)");
+      extent = std::max(extent, e);
+      header.origin[i] = lo;
     }
     const double steps = static_cast<double>((uint64_t{1} << opt.bits) - 1);
     header.bits = opt.bits;
-    header.step = extent > 0 && std::isfinite(extent) ? extent / steps : 1.0;
-    if (!(header.step > 0) || !std::isfinite(header.step)) header.step = 1.0;
+    // A flat or single-point box: any step keeps every position exactly.
+    header.step = extent > 0 ? extent / steps : 1.0;
+    if (!(header.step > 0))
+      return Status(ErrorCode::kLimit, "positions span " + number_text(extent) + " at most: " +
+                                           std::to_string(opt.bits) +
+                                           "-bit quantization steps of it underflow to zero (encode lossless)");
+    half_step = 0.5 * header.step;
+    grid_max = steps;
     for (int i = 0; i < 3; ++i) last_pos[i] = static_cast<int64_t>(((uint64_t{1} << opt.bits) - 1) / 2);
   }
   boundary = Boundary(opt.boundary_limit);
@@ -85,24 +116,56 @@ Status PsqEncoder::Impl::begin(const MeshSchema& schema) {
   return emit(h);
 }
 
-Status PsqEncoder::Impl::coded_position(const double p[3], int64_t q[3]) {
+Status PsqEncoder::Impl::coded_position(const double p[3], uint32_t index, int64_t q[3]) {
   const bool is_float = header.schema.position_type == ScalarType::kFloat32;
   for (int i = 0; i < 3; ++i) {
-    if (!std::isfinite(p[i])) return Status(ErrorCode::kBadValue, "vertex position is not finite");
+    if (!std::isfinite(p[i]))
+      return Status(ErrorCode::kBadValue, "vertex " + std::to_string(index) + ": position is not finite");
     if (is_float && round_to_float(p[i]) != p[i])
-      return Status(ErrorCode::kBadValue, "vertex position is not a float although the position type is float");
+      return Status(ErrorCode::kBadValue, "vertex " + std::to_string(index) + ": " + kAxisName[i] + " = " +
+                                              number_text(p[i]) + " is not a float although the position type is");
     if (opt.lossless) {
       q[i] = is_float ? ordered_from_float(static_cast<float>(p[i])) : ordered_from_double(p[i]);
-    } else {
-      // floor(v) clamped to [0, max] is v clamped and then truncated: max is
-      // an integer, and truncation is floor for v >= 0. (std::floor is a
-      // sequence with branches on x86-64 without SSE4.1.)
-      const double max = static_cast<double>((uint64_t{1} << header.bits) - 1);
-      const double v = (p[i] - header.origin[i]) / header.step + 0.5;
-      q[i] = static_cast<int64_t>(std::min(max, std::max(0.0, v)));
+      continue;
     }
+    // floor(v) for v in [0, max + 1) is v truncated. Outside it the nearest
+    // grid point is more than half a step away: the box given to begin()
+    // does not hold the position, and clamping would move it silently.
+    const double v = (p[i] - header.origin[i]) / header.step + 0.5;
+    if (!(v >= 0.0 && v < grid_max + 1.0))
+      return Status(ErrorCode::kBadValue, "vertex " + std::to_string(index) + ": " + kAxisName[i] + " = " +
+                                              number_text(p[i]) + " lies outside the quantization grid (" +
+                                              number_text(header.origin[i]) + " to " +
+                                              number_text(header.origin[i] + grid_max * header.step) +
+                                              ", the bounding box given before the first vertex)");
+    q[i] = static_cast<int64_t>(v);
+    // The position as the decoder computes it (spec 7.1) must be within
+    // half a step of the input, as 2.3 promises. Nearly always it is at
+    // once; else the bound allows for the roundings of that computation.
+    double x = header.origin[i] + static_cast<double>(q[i]) * header.step;
+    if (is_float) x = round_to_float(x);
+    const double off = std::fabs(x - p[i]);
+    if (!(off <= half_step) && !(off <= round_trip_bound(p[i], x, header.origin[i], is_float)))
+      return Status(ErrorCode::kLimit, "vertex " + std::to_string(index) + ": " + kAxisName[i] + " = " +
+                                           number_text(p[i]) + " would decode as " + number_text(x) +
+                                           ", more than half a quantization step (" + number_text(header.step) +
+                                           ") away (encode lossless)");
   }
   return Status();
+}
+
+double PsqEncoder::Impl::round_trip_bound(double p, double x, double origin, bool is_float) const {
+  // Half a step, plus the decoder's roundings (spec 7.1): the product
+  // q * step (at most 2^31 * step * 2^-53), the sum and the rounding to the
+  // position type (an ulp of the result, or of the origin when it is the
+  // larger term), and the encoder's own rounding of (p - origin) / step
+  // (under 2^-21 steps).
+  const double a = std::max(std::fabs(p), std::fabs(x));
+  const double ulp = is_float ? static_cast<double>(std::nextafter(static_cast<float>(a), HUGE_VALF) -
+                                                    static_cast<float>(a))
+                              : std::nextafter(a, HUGE_VAL) - a;
+  const double o = std::fabs(origin);
+  return half_step + header.step * 0x1p-19 + ulp + (std::nextafter(o, HUGE_VAL) - o);
 }
 
 // Gives the next decoded index to `v`, remembering it when it differs from
@@ -700,7 +763,7 @@ Status PsqEncoder::vertex(const SequenceVertex& v) {
   p.in_slot = v.slot;
   p.reappears = v.reappears;
   if (!v.values.empty()) p.values = v.values;
-  Status s = m.coded_position(v.position, p.pos);
+  Status s = m.coded_position(v.position, v.index, p.pos);
   if (!s.ok()) return m.fail(s);
   ++m.next_in;
   m.pending.push_back(std::move(p));

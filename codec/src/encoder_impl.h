@@ -73,6 +73,9 @@ struct PsqEncoder::Impl {
   int last_op = 5;
   uint32_t last_gate = 0;              // the previous gate symbol (gate context)
   int64_t last_pos[3] = {0, 0, 0};
+  // Quantized: half the grid step, and the highest grid index 2^bits - 1.
+  double half_step = 0;
+  double grid_max = 0;
   uint64_t choices_coded = 0;          // adds with a choice of parallelogram so far
 
   // The open chunk.
@@ -99,7 +102,12 @@ struct PsqEncoder::Impl {
   }
 
   Status begin(const MeshSchema& schema);
-  Status coded_position(const double p[3], int64_t out[3]);
+  // The coded coordinates of vertex `index` at `p` (spec 7.1, 7.2). Errors:
+  // kBadValue (not finite, not a float for a float position type, outside
+  // the grid), kLimit (would not decode within half a step).
+  Status coded_position(const double p[3], uint32_t index, int64_t out[3]);
+  // How far from `p` its decoded value `x` may be (spec 2.3 and 7.1).
+  double round_trip_bound(double p, double x, double origin, bool is_float) const;
   // The reference encoder's choice of the parallelogram that predicts an
   // add's new vertex at `pos` (spec 7.3), among those of `mask`; sets
   // *pred to its prediction. Out of line: inlined, it made GCC stop

@@ -29,6 +29,9 @@ char g_pending[kMaxPending][kMaxPath];
 std::atomic<bool> g_pending_used[kMaxPending];
 std::mutex g_pending_mutex;
 
+// Set when a write failed with EPIPE: the reader of a pipe is gone.
+std::atomic<bool> g_pipe_closed{false};
+
 int register_pending(const std::string& path) {
   if (path.size() >= kMaxPath) return -1;
   std::lock_guard<std::mutex> lock(g_pending_mutex);
@@ -59,6 +62,7 @@ Status write_all(int fd, const void* data, size_t n, const std::string& what) {
     ssize_t w = ::write(fd, p, n);
     if (w < 0) {
       if (errno == EINTR) continue;
+      if (errno == EPIPE) g_pipe_closed.store(true);
       return io_error("cannot write", what);
     }
     p += w;
@@ -102,6 +106,8 @@ Status pread_exact(int fd, uint64_t offset, void* dst, size_t n) {
 }  // namespace detail
 
 using detail::write_all;
+
+bool output_pipe_closed() { return g_pipe_closed.load(); }
 
 void remove_pending_outputs_from_signal() {
   for (int i = 0; i < kMaxPending; ++i) {
@@ -284,6 +290,16 @@ Status InputStream::read_line(std::string_view* line, bool* eof) {
 
 OutputFile::~OutputFile() { discard(); }
 
+namespace {
+
+mode_t current_umask() {
+  const mode_t m = ::umask(0);
+  ::umask(m);
+  return m;
+}
+
+}  // namespace
+
 Status OutputFile::open(const std::string& path, bool overwrite) {
   path_ = path;
   buffer_.reserve(kBufferSize);
@@ -292,27 +308,71 @@ Status OutputFile::open(const std::string& path, bool overwrite) {
     fd_ = STDOUT_FILENO;
     return Status();
   }
-  struct stat st;
-  if (!overwrite && ::stat(path.c_str(), &st) == 0) {
-    return Status(ErrorCode::kUsage, "output exists (use -f to overwrite)");
+  if (path.empty()) return Status(ErrorCode::kUsage, "empty output path");
+  // Where the data goes: the path itself, or, for a symbolic link, the file
+  // it names (resolved through every link), so that the link stays and its
+  // target gets the new contents.
+  std::string target = path;
+  struct stat lst;
+  if (::lstat(path.c_str(), &lst) == 0 && S_ISLNK(lst.st_mode)) {
+    char* resolved = ::realpath(path.c_str(), nullptr);
+    if (resolved == nullptr) {
+      if (errno == ENOENT) return Status(ErrorCode::kIo, "is a symbolic link to a missing file; psq does not write through it");
+      return Status(ErrorCode::kIo, std::string("cannot resolve the symbolic link: ") + std::strerror(errno));
+    }
+    target = resolved;
+    std::free(resolved);
   }
-  std::string dir = ".";
-  std::string base = path;
-  size_t slash = path.rfind('/');
+  struct stat st;
+  const bool exists = ::stat(target.c_str(), &st) == 0;
+  if (!exists && errno != ENOENT) return Status(ErrorCode::kIo, std::string("cannot examine the output: ") + std::strerror(errno));
+  if (exists) {
+    if (S_ISDIR(st.st_mode)) return Status(ErrorCode::kUsage, "is a directory; name a file");
+    if (S_ISSOCK(st.st_mode)) return Status(ErrorCode::kUsage, "is a socket; psq writes files, pipes and devices");
+    // Pipes and character devices (/dev/null, a terminal) hold nothing that
+    // writing would replace: they are written in place, with or without
+    // overwrite. A block device holds data: in place, and only with
+    // overwrite. Never renamed over: that would put a regular file where
+    // the device or pipe was (/dev/null, as root).
+    if (S_ISFIFO(st.st_mode) || S_ISCHR(st.st_mode) || S_ISBLK(st.st_mode)) {
+      if (S_ISBLK(st.st_mode) && !overwrite) return Status(ErrorCode::kUsage, "output exists (use -f to overwrite)");
+      fd_ = ::open(target.c_str(), O_WRONLY | O_CLOEXEC);
+      if (fd_ < 0) return Status(ErrorCode::kIo, std::string("cannot open: ") + std::strerror(errno));
+      in_place_ = true;
+      return Status();
+    }
+    if (!overwrite) return Status(ErrorCode::kUsage, "output exists (use -f to overwrite)");
+  } else if (target.back() == '/') {
+    return Status(ErrorCode::kUsage, "names a directory; name a file");
+  }
+  target_ = target;
+  std::string dir;
+  std::string base = target;
+  size_t slash = target.rfind('/');
   if (slash != std::string::npos) {
-    dir = path.substr(0, slash + 1);
-    base = path.substr(slash + 1);
-  } else {
-    dir = "";
+    dir = target.substr(0, slash + 1);
+    base = target.substr(slash + 1);
   }
   std::string tmpl = dir + "." + base + ".psq-tmp-XXXXXX";
   std::vector<char> name(tmpl.begin(), tmpl.end());
   name.push_back('\0');
-  fd_ = ::mkstemp(name.data());
+  fd_ = ::mkostemp(name.data(), O_CLOEXEC);
   if (fd_ < 0) return Status(ErrorCode::kIo, std::string("cannot create a temporary file beside the output: ") + std::strerror(errno));
   temp_path_ = name.data();
-  ::fchmod(fd_, 0644 & ~[] { mode_t m = ::umask(0); ::umask(m); return m; }());
   register_pending(temp_path_);
+  // The replaced file's permission bits (not set-user-ID, set-group-ID or
+  // sticky), and its owner and group where the system lets us (as root, or
+  // a group we are in); a new file gets what open(O_CREAT) with 0666 gives
+  // (the umask applies).
+  if (exists) {
+    if (st.st_uid != ::geteuid() || st.st_gid != ::getegid()) {
+      // Owner first, then group alone: a user may keep a group it is in.
+      if (::fchown(fd_, st.st_uid, st.st_gid) != 0) (void)::fchown(fd_, static_cast<uid_t>(-1), st.st_gid);
+    }
+    ::fchmod(fd_, st.st_mode & 0777);
+  } else {
+    ::fchmod(fd_, 0666 & ~current_umask());
+  }
   return Status();
 }
 
@@ -347,7 +407,8 @@ Status OutputFile::commit() {
     return io_error("cannot close", path_);
   }
   fd_ = -1;
-  if (::rename(temp_path_.c_str(), path_.c_str()) != 0) return io_error("cannot rename to", path_);
+  if (in_place_) return Status();
+  if (::rename(temp_path_.c_str(), target_.c_str()) != 0) return io_error("cannot rename to", target_);
   unregister_pending(temp_path_);
   temp_path_.clear();
   return Status();

@@ -1,5 +1,6 @@
 #include "cli_util.h"
 
+#include <poll.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -7,13 +8,17 @@
 #include <cctype>
 #include <cmath>
 #include <csignal>
+#include <cerrno>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
 
 #include "psq/io.h"
 
 namespace psq::cli {
 
 int report_error(const std::string& file, const Status& status) {
+  if (status.code() == ErrorCode::kIo && output_pipe_closed()) return kExitBrokenPipe;
   std::string where = file.empty() ? "" : (file == "-" ? "<stdin>" : file) + ": ";
   std::fprintf(stderr, "psq: error: %s%s\n", where.c_str(), status.to_string().c_str());
   return status.code() == ErrorCode::kUsage ? kExitUsage : kExitFailure;
@@ -158,10 +163,33 @@ bool same_file(const std::string& a, const std::string& b) {
 }
 
 namespace {
+
 extern "C" void on_signal(int sig) {
   remove_pending_outputs_from_signal();
   ::_exit(128 + sig);
 }
+
+// Whether standard output is a pipe or socket whose reader has gone: poll()
+// reports POLLERR on such a write end.
+bool stdout_reader_gone() {
+  struct stat st;
+  if (::fstat(STDOUT_FILENO, &st) != 0 || !(S_ISFIFO(st.st_mode) || S_ISSOCK(st.st_mode))) return false;
+  struct pollfd p = {STDOUT_FILENO, POLLOUT, 0};
+  return ::poll(&p, 1, 0) == 1 && (p.revents & (POLLERR | POLLHUP)) != 0;
+}
+
+// At exit: what stdio still holds for standard output must get there; a
+// write that failed (now or earlier) must not end in status 0.
+extern "C" void flush_stdout_at_exit() {
+  errno = 0;
+  const bool flushed = std::fflush(stdout) == 0;
+  const int err = errno;
+  if (flushed && !std::ferror(stdout)) return;
+  if (err == EPIPE || stdout_reader_gone()) ::_exit(kExitBrokenPipe);
+  std::fprintf(stderr, "psq: error: standard output: %s\n", err != 0 ? std::strerror(err) : "write failed");
+  ::_exit(kExitFailure);
+}
+
 }  // namespace
 
 void install_signal_cleanup() {
@@ -171,7 +199,11 @@ void install_signal_cleanup() {
   ::sigaction(SIGINT, &sa, nullptr);
   ::sigaction(SIGTERM, &sa, nullptr);
   ::sigaction(SIGHUP, &sa, nullptr);
-  ::sigaction(SIGPIPE, &sa, nullptr);
+  struct sigaction ignore {};
+  ignore.sa_handler = SIG_IGN;
+  sigemptyset(&ignore.sa_mask);
+  ::sigaction(SIGPIPE, &ignore, nullptr);
+  std::atexit(flush_stdout_at_exit);
 }
 
 }  // namespace psq::cli

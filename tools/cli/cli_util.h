@@ -15,8 +15,15 @@ namespace psq::cli {
 constexpr int kExitOk = 0;
 constexpr int kExitFailure = 1;
 constexpr int kExitUsage = 2;
+// The reader of standard output (or of an output pipe) went away, as when
+// "psq ... | head" has what it wants: the status a shell shows for a
+// process killed by SIGPIPE (128 + 13), which is how GNU tools end there.
+constexpr int kExitBrokenPipe = 141;
 
-// Prints "psq: error: FILE: <status>" and returns the exit code for it.
+// Prints "psq: error: FILE: <status>" and returns the exit code for it:
+// 2 for kUsage, 1 otherwise; but for a write that failed because the
+// output pipe's reader had gone (output_pipe_closed()), prints nothing and
+// returns kExitBrokenPipe.
 int report_error(const std::string& file, const Status& status);
 // For an error of a pipeline from IN to OUT: a status that names a place
 // (line or byte) is about IN, any other (a write failure) about OUT.
@@ -63,7 +70,18 @@ bool parse_size(const std::string& text, uint64_t* bytes);
 bool same_file(const std::string& a, const std::string& b);
 
 // Installs SIGINT/SIGTERM/SIGHUP handlers that remove pending temporary
-// outputs and exit with 130/143.
+// outputs and exit with 128 + the signal (130, 143, 129).
+//
+// SIGPIPE is ignored instead: a write to a pipe whose reader has gone
+// ("psq convert big.ply - --to ply | head -c 100") fails with EPIPE, the
+// command unwinds as for any error (its temporary files are removed), and
+// psq exits quietly with kExitBrokenPipe (141), the status GNU tools end
+// with there; no message, since the reader wanted no more. Data already
+// written to a pipe cannot be taken back; any other failure still exits 1
+// with its one line. The same holds for what stdio buffered for standard
+// output (summaries, --json, help): at exit it is flushed, and a failure
+// exits 141 quietly when the pipe's reader has gone, else 1 with one line
+// ("psq: error: standard output: ...").
 void install_signal_cleanup();
 
 }  // namespace psq::cli

@@ -36,6 +36,7 @@ const char kHelp[] =
     "normals, uchar colors, u/v and other scalar vertex\n"
     "properties are kept; face and list properties are dropped (named in a\n"
     "note). The output is written to a temporary file and renamed on success.\n"
+    "Output to stdout, a pipe or a device cannot be taken back after an error.\n"
     "When standard error is a terminal, a progress line (percent of input,\n"
     "triangles per second, time left; at most ten updates a second) and a\n"
     "one-line summary go there.\n"

@@ -2,6 +2,7 @@
 #include "psq/draco.h"
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -95,6 +96,25 @@ void put_component(draco::DataType dt, uint8_t* p, int k, double v) {
     default: put(v); break;
   }
 }
+
+// True when `v` converts to float without overflowing to an infinity (NaN
+// and infinities stay what they are).
+bool fits_float(double v) { return !(std::fabs(v) > std::numeric_limits<float>::max()) || std::isinf(v); }
+
+// A double for a message: the shortest text that reads back to it.
+std::string number_text(double v) {
+  char buf[32];
+  auto r = std::to_chars(buf, buf + sizeof buf, v);
+  return std::string(buf, r.ptr);
+}
+
+std::string number_text(float v) {
+  char buf[32];
+  auto r = std::to_chars(buf, buf + sizeof buf, v);
+  return std::string(buf, r.ptr);
+}
+
+const char* const kAxisName[3] = {"x", "y", "z"};
 
 // "what: libdraco's message", on one line.
 std::string corrupt(const char* what, const draco::Status& s) {
@@ -657,6 +677,58 @@ struct DracoWriter::Impl {
   std::vector<std::string> dropped;
   std::vector<std::string> notes;
 
+  // Positions Draco stores as floats: each must fit a float; quantized,
+  // the range Draco computes in float must be finite, and a double
+  // position's rounding to float must stay within half of Draco's
+  // quantization step, or the output would not hold the positions at the
+  // precision asked for. Errors: kBadValue, kLimit (naming the vertex).
+  Status check_float_positions(uint32_t nv) const {
+    float lo[3], hi[3];
+    for (uint32_t i = 0; i < nv; ++i) {
+      for (int k = 0; k < 3; ++k) {
+        const double v = positions[3 * size_t{i} + k];
+        if (!fits_float(v))
+          return Status(ErrorCode::kBadValue, "vertex " + std::to_string(i) + ": " + kAxisName[k] + " = " +
+                                                  number_text(v) +
+                                                  " is beyond float range (Draco stores float positions)");
+        const float f = static_cast<float>(v);
+        lo[k] = i == 0 ? f : std::min(lo[k], f);
+        hi[k] = i == 0 ? f : std::max(hi[k], f);
+      }
+    }
+    if (options.lossless) return Status();
+    // Draco's quantization (AttributeQuantizationTransform): the largest
+    // per-axis range, in float, 1 when it is 0.
+    float range = 0;
+    for (int k = 0; k < 3; ++k) {
+      const float e = hi[k] - lo[k];
+      if (!std::isfinite(e))
+        return Status(ErrorCode::kLimit, std::string("positions span ") + number_text(lo[k]) + " to " +
+                                             number_text(hi[k]) + " on " + kAxisName[k] +
+                                             ": the range overflows Draco's float quantization (write .psq, or "
+                                             "Draco lossless)");
+      range = std::max(range, e);
+    }
+    if (range == 0) range = 1;
+    if (schema.position_type != ScalarType::kFloat64) return Status();
+    const double half_step = 0.5 * static_cast<double>(range) / static_cast<double>((uint64_t{1} << options.bits) - 1);
+    for (uint32_t i = 0; i < nv; ++i) {
+      for (int k = 0; k < 3; ++k) {
+        const double v = positions[3 * size_t{i} + k];
+        volatile float f = static_cast<float>(v);  // volatile: the GCC 12 rounding trap (toolchain/README)
+        const double stored = f;
+        if (std::fabs(stored - v) > half_step)
+          return Status(ErrorCode::kLimit, "vertex " + std::to_string(i) + ": " + kAxisName[k] + " = " +
+                                               number_text(v) + " becomes " + number_text(stored) +
+                                               " as a float, more than half a quantization step (" +
+                                               number_text(2 * half_step) +
+                                               ") away (Draco stores float positions; Draco lossless keeps "
+                                               "doubles)");
+      }
+    }
+    return Status();
+  }
+
   Status charge(uint64_t bytes) {
     used += bytes;
     if (used > options.memory_budget) {
@@ -794,6 +866,9 @@ Status DracoWriter::finish() {
       m.notes.push_back(std::to_string(degenerate) + " degenerate triangle(s) dropped by Draco");
   }
 
+  const bool double_positions = m.options.lossless && m.schema.position_type == ScalarType::kFloat64;
+  if (!double_positions) PSQ_RETURN_IF_ERROR(m.check_float_positions(nv));
+
   draco::Mesh mesh;
   mesh.set_num_points(nv);
   auto add_attribute = [&](draco::GeometryAttribute::Type type, draco::DataType dt, int nc, bool normalized) {
@@ -801,7 +876,6 @@ Status DracoWriter::finish() {
     ga.Init(type, nullptr, static_cast<uint8_t>(nc), dt, normalized, int64_t{draco::DataTypeLength(dt)} * nc, 0);
     return mesh.AddAttribute(ga, true, nv);
   };
-  const bool double_positions = m.options.lossless && m.schema.position_type == ScalarType::kFloat64;
   const draco::DataType pos_type = double_positions ? draco::DT_FLOAT64 : draco::DT_FLOAT32;
   const int pos_id = add_attribute(draco::GeometryAttribute::POSITION, pos_type, 3, false);
   {
@@ -820,8 +894,14 @@ Status DracoWriter::finish() {
     draco::PointAttribute* att = mesh.attribute(id);
     std::vector<uint8_t> buf(static_cast<size_t>(draco::DataTypeLength(g.data_type)) * nc);
     for (uint32_t i = 0; i < nv; ++i) {
-      for (int k = 0; k < nc; ++k)
-        put_component(g.data_type, buf.data(), k, m.values[size_t{i} * m.slots + m.kept[g.props[k]]]);
+      for (int k = 0; k < nc; ++k) {
+        const double v = m.values[size_t{i} * m.slots + m.kept[g.props[k]]];
+        if (g.data_type == draco::DT_FLOAT32 && !fits_float(v))
+          return Status(ErrorCode::kBadValue, "vertex " + std::to_string(i) + ": " +
+                                                  m.schema.vertex_properties[g.props[k]].name + " = " +
+                                                  number_text(v) + " is beyond float range (Draco stores a float)");
+        put_component(g.data_type, buf.data(), k, v);
+      }
       att->SetAttributeValue(draco::AttributeValueIndex(i), buf.data());
     }
     if (g.type == draco::GeometryAttribute::GENERIC) {

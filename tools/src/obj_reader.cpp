@@ -221,6 +221,19 @@ struct Attribute {
 
 }  // namespace
 
+// The statements of the OBJ specification (Wavefront's Appendix B1); psq
+// reads v, vt, vn and f, counts l and p, and skips the others quietly.
+bool is_obj_keyword(std::string_view kw) {
+  static constexpr std::string_view kAll[] = {
+      "v",     "vt",       "vn",       "vp",     "cstype", "deg",       "bmat",      "step",  "p",     "l",
+      "f",     "curv",     "curv2",    "surf",   "parm",   "trim",      "hole",      "scrv",  "sp",    "end",
+      "con",   "g",        "s",        "mg",     "o",      "bevel",     "c_interp",  "d_interp", "lod", "usemtl",
+      "mtllib", "shadow_obj", "trace_obj", "ctech", "stech", "maplib", "usemap", "call", "csh"};
+  for (std::string_view k : kAll)
+    if (kw == k) return true;
+  return false;
+}
+
 bool looks_like_obj(const uint8_t* data, size_t size) {
   size_t i = 0;
   for (;;) {
@@ -288,6 +301,9 @@ struct ObjReader::Impl {
   uint64_t v_count = 0;
   uint64_t vt_count = 0;
   uint64_t vn_count = 0;
+  uint64_t unknown_statements = 0;  // with no OBJ keyword: noted, skipped
+  uint64_t first_unknown_line = 0;
+  std::string first_unknown;
   uint64_t colours_ignored = 0;
   uint64_t texcoord_refs_ignored = 0;
   uint64_t normal_refs_ignored = 0;
@@ -393,9 +409,23 @@ Status ObjReader::Impl::prescan() {
       has_vt = true;
     } else if (kw == "l" || kw == "p") {
       ++lines_points;
+    } else if (!is_obj_keyword(kw)) {
+      // Not an OBJ statement (a bare "Created by ..." line, or bytes that
+      // are not text): skipped, as readers do, but not silently.
+      if (unknown_statements++ == 0) {
+        first_unknown_line = reader.line();
+        first_unknown = std::string(stmt.substr(0, 60));
+        for (char& c : first_unknown) c = static_cast<unsigned char>(c) < 0x20 ? '?' : c;
+        if (stmt.size() > 60) first_unknown += "...";
+      }
     }
   }
   if (lines_points > 0) report.notes.push_back(std::to_string(lines_points) + " line/point elements ignored");
+  if (unknown_statements > 0) {
+    report.notes.push_back(std::to_string(unknown_statements) +
+                           " statement(s) with no OBJ keyword ignored (the first, line " +
+                           std::to_string(first_unknown_line) + ": '" + first_unknown + "')");
+  }
   return Status();
 }
 

@@ -2,6 +2,8 @@
 // psq/obj.h for which properties OBJ can hold).
 
 #include <charconv>
+#include <cmath>
+#include <limits>
 #include <cstdint>
 #include <cstring>
 #include <string>
@@ -127,6 +129,24 @@ struct CornerSlot {
   }
 };
 
+// Whether `v` can be written with conversion `c` without a finite value
+// overflowing to an infinity (NaN and infinities are written as they are).
+bool fits(double v, Conversion c) {
+  return c != Conversion::kFloat || !(std::fabs(v) > std::numeric_limits<float>::max()) || std::isinf(v);
+}
+
+// A double for a message: the shortest text that reads back to it.
+std::string number_text(double v) {
+  char buf[32];
+  auto r = std::to_chars(buf, buf + sizeof buf, v);
+  return std::string(buf, r.ptr);
+}
+
+Status beyond_float(const char* what, uint64_t index, double v) {
+  return Status(ErrorCode::kBadValue, std::string(what) + " " + std::to_string(index) + ": " + number_text(v) +
+                                          " is beyond float range");
+}
+
 // Shortest text that reads back to the same float or double: float data
 // round-trips bit-exactly and the files stay small.
 char* put_number(char* p, double v, Conversion c) {
@@ -162,6 +182,7 @@ Status put_corners(CornerSlot& c, const PropertyValues& values, size_t at, char*
     double v[3] = {0, 0, 0};
     for (size_t j = 0; j < c.arity; ++j) {
       double x = values[at + 1 + c.arity * k + j];
+      if (!fits(x, c.conversion)) return beyond_float(c.name, c.lines, x);
       v[j] = c.conversion == Conversion::kFloat ? static_cast<double>(static_cast<float>(x)) : x;
     }
     if (c.lines > 0 && std::memcmp(v, c.last, sizeof v) == 0) {
@@ -193,6 +214,8 @@ struct ObjWriter::Impl {
   Layout vertex_layout;
   Layout face_layout;
   std::vector<std::string> dropped;
+  std::vector<const Slot*> written;  // the colour, normal and texcoord slots in use
+  uint64_t vertices = 0;             // written so far
   char line[kLineBuffer];
 
   double value(const PropertyValues& values, const Slot& s) const {
@@ -249,6 +272,11 @@ Status ObjWriter::begin(const MeshSchema& schema) {
     w.dropped.push_back(schema.face_properties[i].name);
   }
 
+  w.written.clear();
+  if (w.has_colour) for (const Slot& s : w.colour) w.written.push_back(&s);
+  if (w.has_normal) for (const Slot& s : w.normal) w.written.push_back(&s);
+  if (w.has_texcoord) for (const Slot& s : w.texcoord) w.written.push_back(&s);
+  w.vertices = 0;
   w.vertex_layout.reset(props);
   w.face_layout.reset(schema.face_properties);
 
@@ -266,6 +294,11 @@ Status ObjWriter::begin(const MeshSchema& schema) {
 Status ObjWriter::vertex(const double position[3], const PropertyValues& values) {
   Impl& w = *impl_;
   if (!w.vertex_layout.locate(values)) return Status(ErrorCode::kInternal, "vertex values do not match the schema");
+  for (int k = 0; k < 3; ++k)
+    if (!fits(position[k], w.position)) return beyond_float("vertex", w.vertices, position[k]);
+  for (const Slot* s : w.written)
+    if (!fits(w.value(values, *s), s->conversion)) return beyond_float("vertex", w.vertices, w.value(values, *s));
+  ++w.vertices;
   char* p = w.line;
   p = put_text(p, "v");
   for (int k = 0; k < 3; ++k) p = put_number(p, position[k], w.position);

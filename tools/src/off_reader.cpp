@@ -31,6 +31,8 @@ constexpr size_t kMaxFaceColour = 4;
 // Leading comments are kept as schema comments, but only a bounded amount.
 constexpr size_t kMaxComments = 64;
 constexpr size_t kMaxCommentBytes = 16 * 1024;
+// The most bytes before the end of the counts line.
+constexpr uint64_t kMaxHeader = uint64_t{1} << 20;
 
 bool is_blank(unsigned char c) { return c <= ' '; }
 
@@ -110,6 +112,10 @@ struct OffReader::Impl {
   Status error;
   uint64_t line = 0;  // lines read so far
   size_t comment_bytes = 0;  // kept in schema.comments
+  // While the header is read: the offset it must end by. Comments and blank
+  // lines before the keyword and the counts are skipped, but not without
+  // end (a stream of them from a pipe would never finish).
+  uint64_t header_end = ~uint64_t{0};
 
   bool normals = false;
   size_t colour_components = 0;  // 0, 3 or 4
@@ -147,6 +153,10 @@ struct OffReader::Impl {
 
 Status OffReader::Impl::content_line(bool* eof, std::vector<std::string>* comments) {
   for (;;) {
+    if (in->offset() > header_end) {
+      return Status(ErrorCode::kLimit, "no OFF keyword and counts in the first 1 MiB (a header may not be longer)",
+                    in->offset(), line + 1);
+    }
     std::string_view text;
     Status s = in->read_line(&text, eof);
     if (!s.ok()) return Status(s.code(), s.message(), s.offset(), line + 1);
@@ -170,6 +180,7 @@ Status OffReader::Impl::content_line(bool* eof, std::vector<std::string>* commen
 Status OffReader::Impl::open() {
   auto header = [this](ErrorCode code, const std::string& m) { return Status(code, m, Status::kNoPlace, line); };
   bool eof = false;
+  header_end = in->offset() + kMaxHeader;
   PSQ_RETURN_IF_ERROR(content_line(&eof, &schema.comments));
   if (eof) return Status(ErrorCode::kBadHeader, "not an OFF file (no OFF keyword)", Status::kNoPlace, line + 1);
   Keyword k;
@@ -199,6 +210,7 @@ Status OffReader::Impl::open() {
     if (eof) return Status(ErrorCode::kTruncated, "file ends before the vertex and face counts", Status::kNoPlace, line + 1);
     counts = tokens;
   }
+  header_end = ~uint64_t{0};
   if (counts.size() < 2 || counts.size() > 3) {
     return header(ErrorCode::kBadHeader, "expected the counts 'vertices faces [edges]', found " +
                                              std::to_string(counts.size()) + " values");

@@ -21,6 +21,8 @@ constexpr size_t kMaxHeader = size_t{1} << 20;
 // list is rejected so that a corrupt count cannot grow memory without bound.
 constexpr uint64_t kMaxList = uint64_t{1} << 20;
 constexpr uint64_t kMaxVertices = 0xffffffffu;  // indices are 32-bit
+// Unknown header lines get a note each up to this many, then one in all.
+constexpr uint64_t kMaxIgnoredNotes = 8;
 
 bool parse_type(std::string_view s, ScalarType* t) {
   static const struct {
@@ -114,6 +116,10 @@ struct PlyReader::Impl {
   std::vector<PlyElement> elements;
   Status error;
   uint64_t line = 0;  // lines consumed so far (ascii)
+  bool format_seen = false;
+  uint64_t ignored_lines = 0;  // unknown header lines read as comments
+  // Appended to data errors when end_header's line end was ambiguous.
+  std::string eol_note;
 
   // Position in the data: element `elem`, item `item` of it.
   size_t elem = 0;
@@ -136,7 +142,10 @@ struct PlyReader::Impl {
   }
 
   Status read_header();
-  Status parse_header_line(std::string_view line, uint64_t lineno, bool* done);
+  Status parse_header_line(std::string_view text, const std::vector<std::string_view>& t, uint64_t lineno);
+  Status unknown_header_line(std::string_view text, const std::vector<std::string_view>& t, uint64_t lineno);
+  // The bytes of the data when no element has a list property.
+  bool fixed_data_size(uint64_t* size) const;
   Status next(MeshItem* item);
   Status read_element_binary(const PlyElement& e, MeshItem* item, bool* yields);
   Status read_element_ascii(const PlyElement& e, MeshItem* item, bool* yields);
@@ -144,59 +153,138 @@ struct PlyReader::Impl {
   bool emit_triangle(MeshItem* item);
 };
 
+namespace {
+
+// A byte that text never holds: a control character other than the blanks
+// tab, vertical tab and form feed (CR and LF end lines). Such a byte in the
+// header means that binary data began before any end_header.
+bool is_binary_byte(uint8_t c) { return (c < 0x20 && c != '\t' && c != '\v' && c != '\f') || c == 0x7f; }
+
+// The line for a note: control bytes as '?', at most 80 bytes.
+std::string printable(std::string_view text) {
+  std::string out;
+  for (char c : text.substr(0, 80)) out.push_back(static_cast<unsigned char>(c) < 0x20 ? '?' : c);
+  if (text.size() > 80) out += "...";
+  return out;
+}
+
+}  // namespace
+
 Status PlyReader::Impl::read_header() {
-  // Header lines are read byte-wise: the line end style of the first line
-  // ("ply\n", "ply\r\n" or "ply\r") decides how end_header's line ends, so
-  // that binary data starting with 0x0a after a CR-only header is not eaten.
+  // Header lines are read byte-wise, so that nothing after end_header's line
+  // end is consumed. Each line ends in LF, CRLF or a lone CR; writers mix
+  // them (some end every line in LF but end_header's in CRLF), so
+  // each line's own end counts, end_header's above all: binary data starts
+  // right after it. The one ambiguous case is "end_header\r\n" in a header
+  // whose other lines end in a lone CR: a CR line end followed by data whose
+  // first byte is 0x0a, or a CRLF. It is settled by the data's size when
+  // every element has a fixed size, and otherwise read as a CR (the
+  // header's own style) with a word about it in any later error.
+  enum class End { kNone, kLf, kCr, kCrLf };
+  const uint64_t start = in->offset();
   std::string text;
-  std::string eol;
+  std::vector<std::string_view> t;
   uint64_t lineno = 0;
-  uint64_t header_bytes = 0;
-  bool done = false;
-  while (!done) {
+  uint64_t ends_cr = 0;      // earlier lines ending in a lone CR
+  uint64_t ends_other = 0;   // earlier lines ending in LF or CRLF
+  for (;;) {
     text.clear();
+    uint64_t binary_at = Status::kNoPlace;  // the line's first binary byte
+    End end = End::kNone;
     for (;;) {
+      if (in->offset() - start >= kMaxHeader) {
+        return Status(ErrorCode::kLimit, "missing end_header in the first 1 MiB (a header may not be longer)",
+                      in->offset(), lineno + 1);
+      }
       size_t avail;
       PSQ_RETURN_IF_ERROR(in->fill(2, &avail));
-      if (avail == 0) {
-        return Status(ErrorCode::kBadHeader, "header ends without end_header", in->offset(), lineno + 1);
-      }
-      uint8_t c = *in->cursor();
-      if (c == '\n' || c == '\r') {
-        std::string this_eol(1, static_cast<char>(c));
-        if (c == '\r' && avail >= 2 && in->cursor()[1] == '\n') this_eol = "\r\n";
-        if (eol.empty()) eol = this_eol;
-        // After end_header consume exactly the style of the first line.
-        bool is_end = text.find("end_header") != std::string::npos;
-        size_t take = this_eol.size();
-        if (is_end && eol.size() < take) take = eol.size();
-        in->advance(take);
-        header_bytes += take;
+      if (avail == 0) break;
+      const uint8_t c = *in->cursor();
+      if (c == '\n') {
+        end = End::kLf;
         break;
       }
+      if (c == '\r') {
+        end = avail >= 2 && in->cursor()[1] == '\n' ? End::kCrLf : End::kCr;
+        break;
+      }
+      if (is_binary_byte(c) && binary_at == Status::kNoPlace) binary_at = in->offset();
       text.push_back(static_cast<char>(c));
       in->advance(1);
-      if (++header_bytes > kMaxHeader) {
-        return Status(ErrorCode::kLimit, "header longer than 1 MiB (no end_header?)", in->offset());
-      }
     }
     ++lineno;
+    split(text, &t);
+    const bool is_end = t.size() == 1 && t[0] == "end_header";
     if (lineno == 1) {
-      std::vector<std::string_view> t;
-      split(text, &t);
+      if (end == End::kNone && text.empty()) return Status(ErrorCode::kBadHeader, "not a PLY file (empty input)", 0, 1);
       if (t.size() != 1 || t[0] != "ply") return Status(ErrorCode::kBadHeader, "not a PLY file (no 'ply' magic)", 0, 1);
-      continue;
+    } else if (binary_at != Status::kNoPlace && !is_end &&
+               !(!t.empty() && (t[0] == "comment" || t[0] == "obj_info"))) {
+      // Control bytes outside a comment: the data has begun, but no
+      // end_header said where.
+      return Status(ErrorCode::kBadHeader,
+                    "missing end_header: header line " + std::to_string(lineno) + " holds binary data (byte " +
+                        std::to_string(binary_at) + ") before any end_header",
+                    binary_at, lineno);
     }
-    PSQ_RETURN_IF_ERROR(parse_header_line(text, lineno, &done));
+    if (end == End::kNone && !is_end) {
+      return Status(ErrorCode::kBadHeader,
+                    "missing end_header: the input ends in header line " + std::to_string(lineno) + " (byte " +
+                        std::to_string(in->offset()) + ")",
+                    in->offset(), lineno);
+    }
+    size_t take = end == End::kCrLf ? 2 : end == End::kNone ? 0 : 1;
+    if (is_end && end == End::kCrLf && ends_cr > 0 && ends_other == 0 && encoding != PlyEncoding::kAscii) {
+      take = 1;
+      uint64_t fixed = 0;
+      bool settled = false;
+      if (in->size() >= 0 && fixed_data_size(&fixed)) {
+        const uint64_t after_cr = static_cast<uint64_t>(in->size()) - (in->offset() + 1);
+        if (after_cr == fixed + 1) take = 2;
+        settled = after_cr == fixed || after_cr == fixed + 1;
+      }
+      if (!settled) {
+        eol_note = "; end_header's line end was read as a lone CR like the header's other lines, taking the 0x0a "
+                   "after it as data (if it was CRLF, the data starts one byte later)";
+      }
+    }
+    in->advance(take);
+    if (end == End::kCr) {
+      ++ends_cr;
+    } else if (end != End::kNone) {
+      ++ends_other;
+    }
+    if (lineno == 1) continue;
+    if (is_end) break;
+    PSQ_RETURN_IF_ERROR(parse_header_line(text, t, lineno));
+  }
+  if (!format_seen) return Status(ErrorCode::kBadHeader, "no format line before end_header", Status::kNoPlace, lineno);
+  if (ignored_lines > kMaxIgnoredNotes) {
+    report.notes.push_back(std::to_string(ignored_lines - kMaxIgnoredNotes) +
+                           " more header lines that are not PLY read as comments");
   }
   this->line = lineno;
   return Status();
 }
 
-Status PlyReader::Impl::parse_header_line(std::string_view text, uint64_t lineno, bool* done) {
+bool PlyReader::Impl::fixed_data_size(uint64_t* size) const {
+  uint64_t total = 0;
+  for (const PlyElement& e : elements) {
+    uint64_t per = 0;
+    for (const PlyProperty& p : e.props) {
+      if (p.prop.is_list) return false;
+      per += static_cast<uint64_t>(scalar_size(p.prop.type));
+    }
+    if (per != 0 && e.count > (~uint64_t{0} - total) / per) return false;
+    total += e.count * per;
+  }
+  *size = total;
+  return true;
+}
+
+Status PlyReader::Impl::parse_header_line(std::string_view text, const std::vector<std::string_view>& t,
+                                          uint64_t lineno) {
   auto bad = [lineno](const std::string& m) { return Status(ErrorCode::kBadHeader, m, Status::kNoPlace, lineno); };
-  std::vector<std::string_view> t;
-  split(text, &t);
   if (t.empty()) return Status();  // blank lines are tolerated
   if (t[0] == "comment" || t[0] == "obj_info") {
     size_t at = text.find(t[0]) + t[0].size();
@@ -209,6 +297,8 @@ Status PlyReader::Impl::parse_header_line(std::string_view text, uint64_t lineno
   }
   if (t[0] == "format") {
     if (t.size() != 3) return bad("malformed format line");
+    if (format_seen) return bad("a second format line");
+    format_seen = true;
     if (t[1] == "ascii") {
       encoding = PlyEncoding::kAscii;
     } else if (t[1] == "binary_little_endian") {
@@ -267,12 +357,52 @@ Status PlyReader::Impl::parse_header_line(std::string_view text, uint64_t lineno
     e.props.push_back(std::move(p));
     return Status();
   }
-  if (t[0] == "end_header") {
-    if (t.size() != 1) return bad("malformed end_header line");
-    *done = true;
-    return Status();
+  if (t[0] == "end_header") return bad("malformed end_header line");
+  return unknown_header_line(text, t, lineno);
+}
+
+// A header line with no PLY keyword. Several writers put bare text in the
+// header (Blender 2.47: "Created by Blender3D 247 - www.blender.org, ..."),
+// and widely used readers skip any line they do not know; psq reads such a
+// line as a comment and says so in a note. It stays an error where skipping
+// it could change how the data is read:
+// - before the format line, which must come first (Turk's description; rply
+//   refuses anything else there): until it, psq cannot tell a PLY file with
+//   a stray line from another file that happens to start with "ply";
+// - a structural keyword in the wrong case ("Element", "PROPERTY"), which a
+//   writer meant as a declaration;
+// - a line shaped like a declaration: a type name or "list" second (a
+//   misspelled property: skipping it would shift every value after it) or,
+//   like an element line, a name and a count ("elemnt face 12").
+Status PlyReader::Impl::unknown_header_line(std::string_view text, const std::vector<std::string_view>& t,
+                                            uint64_t lineno) {
+  const std::string word(t[0]);
+  auto bad = [&](const std::string& why) {
+    return Status(ErrorCode::kBadHeader, "unknown header keyword '" + printable(word) + "' " + why, Status::kNoPlace,
+                  lineno);
+  };
+  if (!format_seen) return bad("before the format line");
+  std::string lower = word;
+  for (char& c : lower) c = static_cast<char>(c >= 'A' && c <= 'Z' ? c - 'A' + 'a' : c);
+  for (const char* k : {"ply", "format", "element", "property", "end_header", "comment", "obj_info"}) {
+    if (lower == k) return bad("(PLY keywords are lower case)");
   }
-  return bad("unknown header keyword '" + std::string(t[0]) + "'");
+  ScalarType type;
+  if (t.size() >= 3 && (t[1] == "list" || parse_type(t[1], &type))) {
+    return bad("in what looks like a property declaration (skipping it would misread the data)");
+  }
+  if (t.size() == 3 && !t[2].empty() && std::all_of(t[2].begin(), t[2].end(), [](char c) { return c >= '0' && c <= '9'; })) {
+    return bad("in what looks like an element declaration (skipping it would misread the data)");
+  }
+  std::string_view rest = text;
+  while (!rest.empty() && static_cast<unsigned char>(rest.front()) <= ' ') rest.remove_prefix(1);
+  while (!rest.empty() && static_cast<unsigned char>(rest.back()) <= ' ') rest.remove_suffix(1);
+  schema.comments.emplace_back(rest);
+  if (++ignored_lines <= kMaxIgnoredNotes) {
+    report.notes.push_back("header line " + std::to_string(lineno) + " is not PLY; read as a comment: '" +
+                           printable(rest) + "'");
+  }
+  return Status();
 }
 
 Status PlyReader::open(InputStream* in) {
@@ -378,7 +508,10 @@ Status PlyReader::next(MeshItem* item) {
   if (!impl_) return Status(ErrorCode::kUsage, "PlyReader::next before open");
   if (!impl_->error.ok()) return impl_->error;
   Status s = impl_->next(item);
-  if (!s.ok()) impl_->error = s;
+  if (!s.ok()) {
+    if (!impl_->eol_note.empty()) s = Status(s.code(), s.message() + impl_->eol_note, s.offset(), s.line());
+    impl_->error = s;
+  }
   return s;
 }
 

@@ -3,6 +3,8 @@
 // unlinked temporary files and copied after the header at finish().
 #include <algorithm>
 #include <charconv>
+#include <cmath>
+#include <limits>
 #include <cstring>
 #include <string>
 
@@ -11,15 +13,29 @@
 namespace psq {
 namespace {
 
+// A double for a message: the shortest text that reads back to it.
+std::string number_text(double v) {
+  char buf[32];
+  auto r = std::to_chars(buf, buf + sizeof buf, v);
+  return std::string(buf, r.ptr);
+}
+
+// Whether float type `t` holds `v` without overflowing to an infinity (NaN
+// and infinities are written as they are).
+bool fits(ScalarType t, double v) {
+  return t != ScalarType::kFloat32 || !(std::fabs(v) > std::numeric_limits<float>::max()) || std::isinf(v);
+}
+
 // Appends `v` as type `t` to `out`: binary (little or big endian) or ascii.
 class ValueEncoder {
  public:
   explicit ValueEncoder(PlyEncoding enc) : enc_(enc) {}
 
-  // Errors: kBadValue when type `t` cannot hold `v`.
+  // Errors: kBadValue when type `t` cannot hold `v` (for float, a finite
+  // value beyond its range, which would become an infinity).
   Status put(ScalarType t, double v, std::string* out) const {
-    if (!scalar_is_float(t) && !scalar_holds(t, v)) {
-      return Status(ErrorCode::kBadValue, "value " + std::to_string(v) + " does not fit PLY type " + scalar_name(t));
+    if (scalar_is_float(t) ? !fits(t, v) : !scalar_holds(t, v)) {
+      return Status(ErrorCode::kBadValue, "value " + number_text(v) + " does not fit PLY type " + scalar_name(t));
     }
     if (enc_ == PlyEncoding::kAscii) {
       char buf[64];
@@ -197,6 +213,10 @@ Status PlyWriter::vertex(const double p[3], const PropertyValues& values) {
     // dispatch per value, in one append.
     char b[24];
     char* e = b;
+    for (int k = 0; k < 3; ++k)
+      if (!fits(m.schema.position_type, p[k]))
+        return Status(ErrorCode::kBadValue, "vertex " + std::to_string(m.vertices) + ": position " +
+                                                number_text(p[k]) + " does not fit PLY type float");
     for (int k = 0; k < 3; ++k)
       e = m.schema.position_type == ScalarType::kFloat32 ? m.enc.store(static_cast<float>(p[k]), e)
                                                          : m.enc.store(p[k], e);

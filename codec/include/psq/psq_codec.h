@@ -129,15 +129,21 @@ class PsqEncoder : public SequenceSink {
   ~PsqEncoder() override;
 
   // Writes the header. Errors: kUsage (bad options; quantization without
-  // the schema's bounds), kLimit (schema too large), the writer's.
+  // the schema's bounds, or bounds with a minimum above the maximum),
+  // kBadValue (bounds not finite), kLimit (schema too large; quantized, a
+  // box whose extent overflows a double or whose step underflows to zero:
+  // no grid holds it, encode lossless), the writer's.
   Status begin(const MeshSchema& schema) override;
   // A vertex introduced with a boundary slot (SequenceVertex::slot) must be
   // referenced by triangles with that slot (SequenceTriangle::vslot), as the
   // converter and the decoder do; the encoder then finds it without
   // hashing. Errors for the events: kBadSequence when they do not form a
   // valid processing sequence (spec/psq-dump.md A.2), kLimit when the boundary
-  // exceeds the limit, kBadValue for a position that is not finite or not of
-  // the position type, and the writer's errors. Errors are sticky.
+  // exceeds the limit, kBadValue for a position that is not finite, not of
+  // the position type, or (quantized) outside the grid of the bounds given
+  // to begin(), kLimit for a quantized position that would not decode
+  // within half a step (spec 2.3, 7.1: never clamped), and the writer's
+  // errors; position errors name the vertex. Errors are sticky.
   Status vertex(const SequenceVertex& v) override;
   Status triangle(const SequenceTriangle& t) override;
   Status finalize(uint32_t index) override;

@@ -83,7 +83,8 @@ Status encode_mesh(const float* positions, size_t vertex_count, const uint32_t* 
 // the order of vertices and triangles); triangles keep their orientation.
 // Positions are converted to float. Vertex and face properties are not
 // returned: read them with PsqDecoder. Errors: the decoder's (every one
-// names the byte offset); on an error `mesh` is empty.
+// names the byte offset), and kLimit when a position of a double stream is
+// beyond float range; on an error `mesh` is empty.
 Status decode_mesh(const uint8_t* data, size_t size, MeshBuffers* mesh);
 
 }  // namespace psq

@@ -2,9 +2,10 @@
 //
 // InputStream reads a file, standard input or a memory buffer through one
 // buffer and always knows the byte offset of its cursor, so that every reader
-// built on it can say where an error is. OutputFile writes through a temporary
-// file in the destination's directory and renames it over the destination
-// only on commit(): a failed or interrupted run leaves no half-written file.
+// built on it can say where an error is. OutputFile writes a regular file
+// through a temporary file in the destination's directory and renames it
+// over the destination only on commit(): a failed or interrupted run leaves
+// no half-written file. Pipes and devices are written in place (see open()).
 #ifndef PSQ_IO_H_
 #define PSQ_IO_H_
 
@@ -96,8 +97,25 @@ class OutputFile {
   OutputFile(const OutputFile&) = delete;
   OutputFile& operator=(const OutputFile&) = delete;
 
-  // Opens a temporary file beside `path`; "-" writes standard output
-  // directly. Errors: kIo, and kUsage when `path` exists and !overwrite.
+  // Opens the output `path`:
+  // - "-": standard output, written directly;
+  // - a new or existing regular file: a temporary file beside it, renamed
+  //   over it by commit(). Replacing an existing file needs `overwrite`;
+  //   the new file keeps the old one's permission bits (rwx for user, group
+  //   and others) and, where the system allows, its owner and group. A new
+  //   file gets 0666 less the umask. (Other hard links to the old file keep
+  //   the old contents; extended attributes and ACLs are not copied.)
+  // - a FIFO or a character device (/dev/null, a terminal): written in
+  //   place, never renamed over, with or without `overwrite`; a block
+  //   device likewise, but only with `overwrite`. What was written before
+  //   an error stays written, as with "-".
+  // - a symbolic link: followed (through every link) to the file it names,
+  //   which is then treated as above: the link stays a link and its target
+  //   gets the new contents, as cp does. A link to a missing file is
+  //   refused (kIo).
+  // - a directory, a path ending in '/', or a socket: refused (kUsage).
+  // Errors: kIo, and kUsage when `path` exists and !overwrite (a regular
+  // file or block device).
   Status open(const std::string& path, bool overwrite);
   const std::string& name() const { return path_; }
   // Bytes written so far.
@@ -107,22 +125,31 @@ class OutputFile {
   Status write(const void* data, size_t n);
   Status write(std::string_view s) { return write(s.data(), s.size()); }
 
-  // Flushes, closes and renames the temporary file to the destination.
-  // Errors: kIo.
+  // Flushes, closes and renames the temporary file to the destination (a
+  // pipe or device is only flushed and closed). Errors: kIo.
   Status commit();
-  // Closes and removes the temporary file; idempotent.
+  // Closes and removes the temporary file; idempotent. (Output to "-", a
+  // pipe or a device cannot be taken back.)
   void discard();
 
  private:
   Status flush();
 
   std::string path_;
+  std::string target_;     // the file renamed over: path_, or a link's target
   std::string temp_path_;
   int fd_ = -1;
   bool is_stdout_ = false;
+  bool in_place_ = false;  // a pipe or device, written directly
   std::vector<uint8_t> buffer_;
   uint64_t written_ = 0;
 };
+
+// True once a write of an OutputFile or SpoolFile failed because the reader
+// of its pipe or socket had gone (EPIPE; the process ignores SIGPIPE, as the
+// psq tool does). The write's Status is kIo; a tool can tell this case,
+// "psq ... | head", from a real failure and exit quietly.
+bool output_pipe_closed();
 
 // Removes every temporary output file still open; async-signal-safe, for a
 // SIGINT/SIGTERM handler of a tool.

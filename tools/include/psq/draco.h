@@ -111,9 +111,14 @@ struct DracoWriteOptions {
 
 // Buffers the mesh and encodes it at finish() with Draco's edgebreaker
 // (compression level 7: encoding and decoding speed 3); a mesh without
-// triangles is written as a Draco point cloud. Errors: kLimit (over the
-// memory budget, or more than 2^31 vertices), kUsage (bits out of range),
-// kInternal (Draco refused to encode), kIo.
+// triangles is written as a Draco point cloud. Positions are stored as
+// floats (doubles only when lossless with double positions): a position or
+// float attribute beyond float range is refused (kBadValue), and, quantized,
+// a range that overflows Draco's float arithmetic or a double position that
+// rounding to float would move by more than half a quantization step
+// (kLimit), naming the vertex, rather than written changed. Errors: kLimit
+// (also over the memory budget, or more than 2^31 vertices), kUsage (bits
+// out of range), kInternal (Draco refused to encode), kIo.
 class DracoWriter : public MeshSink {
  public:
   // `out` must be open and outlive the writer; the caller commits it after

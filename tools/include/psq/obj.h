@@ -3,8 +3,9 @@
 // ObjReader is a MeshSource over `v` (with optional r g b colour), `vn`,
 // `vt` and `f` lines in every slash form (v, v/t, v//n, v/t/n), negative
 // (relative) indices, polygons (split into fans: corners 0, i-1, i) and
-// comments; other statements (o, g, s, usemtl, mtllib, l, p, ...) are
-// ignored. Numbers are parsed as float, rounded once from the decimal text
+// comments; other statements of the OBJ specification (o, g, s, usemtl,
+// mtllib, l, p, ...) are ignored, and lines with no OBJ keyword are ignored
+// with a note in report(). Numbers are parsed as float, rounded once from the decimal text
 // (a leading '+' is accepted; a value beyond float range is an error, one
 // below it becomes 0 or a denormal), and positions and attributes are
 // declared float, so that ObjWriter reproduces them exactly.
@@ -81,8 +82,9 @@ class ObjReader : public MeshSource {
 // corner: before each `f` line, vn (vt) lines for its corners, which the
 // face refers to (a corner equal to the line just written reuses it).
 // Properties OBJ cannot hold are not written; dropped() names them after
-// begin(). Errors: kIo; kInternal when values do not match the schema or a
-// triangle's corner list does not have 9 (6) values.
+// begin(). Errors: kIo; kBadValue for a finite value beyond float range
+// where the type is float (naming the vertex); kInternal when values do not
+// match the schema or a triangle's corner list does not have 9 (6) values.
 class ObjWriter : public MeshSink {
  public:
   explicit ObjWriter(OutputFile* out);

@@ -60,7 +60,8 @@ class OffReader : public MeshSource {
   // learn whether colours have 3 or 4 components) from `in`, which must
   // outlive the reader. Errors: kBadHeader (no OFF keyword, missing or
   // malformed counts), kUnsupported (binary OFF, ST, 4 or n variants),
-  // kLimit (more than 4294967295 vertices, a count beyond 64 bits),
+  // kLimit (more than 4294967295 vertices, a count beyond 64 bits, no
+  // keyword and counts in the first 1 MiB),
   // kTruncated (the input ends in the header, or the counts need more bytes
   // than follow: at least 6 per vertex and per face, when the input's size
   // is known), kBadValue (the first vertex line of a C file has neither 3

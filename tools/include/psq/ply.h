@@ -2,7 +2,12 @@
 //
 // PlyReader is a MeshSource over ascii, binary little-endian and binary
 // big-endian PLY. It reads one element at a time: memory does not depend on
-// the file's size. Header lines may end in LF, CRLF or CR. The vertex element
+// the file's size. Header lines may end in LF, CRLF or CR, mixed; binary
+// data starts right after end_header's own line end ("end_header\r\n" after
+// lines ending in a lone CR is settled by the data's size when it can be,
+// else read as CR, and a later error says so). A header line with no PLY
+// keyword after the format line is read as a comment, with a note in
+// report(), unless it looks like a declaration (see open()). The vertex element
 // needs float or double x, y, z; every other vertex property, scalar or list,
 // of any type, is carried. Faces come from a `face` element (list property
 // `vertex_indices` or `vertex_index`; polygons are split into fans) or a
@@ -34,9 +39,13 @@ class PlyReader : public MeshSource {
   ~PlyReader() override;
 
   // Reads and checks the header from `in`, which must outlive the reader.
-  // Errors: kBadHeader (no "ply" magic, no end_header, unknown format or
-  // type, no vertex element or no x/y/z, a face element without an index
-  // list), kLimit (a header over 1 MiB), kIo.
+  // Errors: kBadHeader (no "ply" magic; no format line, or two; missing
+  // end_header: the input ends, or binary bytes come, before it; unknown
+  // format or type; a line with no PLY keyword before the format line, or
+  // one that looks like a declaration: a keyword in the wrong case, a type
+  // name or "list" as second word, or a name and a count; no vertex element
+  // or no x/y/z; a face element without an index list), kLimit (no
+  // end_header in the first 1 MiB), kIo.
   Status open(InputStream* in);
 
   PlyEncoding encoding() const;
@@ -63,7 +72,8 @@ struct PlyWriteOptions {
 // Writes a PLY file with the schema's properties and types. When the schema
 // knows the vertex and triangle counts the data is written straight through;
 // otherwise it is spooled to an unlinked temporary file and copied after the
-// header. Errors: kIo, kBadValue (a value that the declared type cannot hold).
+// header. Errors: kIo, kBadValue (a value that the declared type cannot
+// hold, such as a finite value beyond float range for a float type).
 class PlyWriter : public MeshSink {
  public:
   // `out` must be open and outlive the writer; the caller commits it after
