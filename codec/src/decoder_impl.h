@@ -307,7 +307,16 @@ struct PsqDecoder::Impl {
     if (measure) measure_symbol(table, s);
     return s;
   }
-  void measure_symbol(int table, int s);
+  void measure_symbol(int table, int s) {
+    if (static_cast<unsigned>(s) < kFastSymbolStride) cost[fast_table_cost(table)] += fsymbol_cost[table * kFastSymbolStride + s];
+  }
+  // Measuring: the information content of each symbol of the chunk's
+  // tables, kRansScaleBits - log2(frequency), 0 for a symbol the table
+  // cannot code; per table, kFastSymbolStride entries (every symbol a
+  // table decodes, kRansAbsent included). A lookup per symbol instead of a
+  // logarithm.
+  static constexpr int kFastSymbolStride = kRansAbsent + 1;
+  std::vector<double> fsymbol_cost;
   double fraw_geometry_bits = 0;  // raw bits of position residuals in the chunk, when measuring
   uint64_t fraw_total_bits = 0;   // the chunk's raw block
   // A new vertex's event: its index and, when it re-appears, the distance.

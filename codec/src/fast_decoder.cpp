@@ -51,7 +51,16 @@ Status PsqDecoder::Impl::fast_open_chunk() {
     if (!ftables[i].read(tables, fast_table_size(i))) return bad("table " + std::to_string(i) + " is invalid", at);
     if (measure) cost[fast_table_cost(i)] += static_cast<double>(tables.consumed_bits() - before);
   }
-  if (measure) cost[kCostConnectivity] += kFastTables;  // the presence bits
+  if (measure) {
+    cost[kCostConnectivity] += kFastTables;  // the presence bits
+    fsymbol_cost.assign(size_t{kFastTables} * kFastSymbolStride, 0.0);
+    for (int i = 0; i < kFastTables; ++i) {
+      const RansTable& t = ftables[i];
+      for (int sym = 0; sym < t.size(); ++sym) {
+        if (t.freq(sym) != 0) fsymbol_cost[i * kFastSymbolStride + sym] = kRansScaleBits - std::log2(t.freq(sym));
+      }
+    }
+  }
   if (!tables.at_clean_end()) return bad("the table block does not end with its last table", at);
   frans = std::make_unique<RansDecoder>(cdata + at + table_bytes, rans_bytes);
   const size_t raw_at = at + table_bytes + rans_bytes;
@@ -114,11 +123,6 @@ PSQ_INLINE int64_t residual_of_code(const LengthCode& e, uint32_t v) {
 
 }  // namespace
 
-void PsqDecoder::Impl::measure_symbol(int table, int s) {
-  const RansTable& t = ftables[table];
-  if (s < t.size() && t.freq(s) != 0) cost[fast_table_cost(table)] += kRansScaleBits - std::log2(t.freq(s));
-}
-
 PSQ_INLINE bool PsqDecoder::Impl::fast_residual(RansDecoder& d, RawReader& rawbits, int table, int64_t* r, int* k,
                                                 bool measure_it) {
   const int s = d.decode(ftables[table]);
@@ -173,17 +177,24 @@ Status PsqDecoder::Impl::fast_early_end() const {
 
 PSQ_INLINE Status PsqDecoder::Impl::fast_position(RansDecoder& d, RawReader& bits, const int64_t pred[3], int kind,
                                                   const int extent[3], int64_t pos[3], bool measure_it) {
-  if (kind != kPredOther && !measure_it) {
+  if (kind != kPredOther) {
     // A predicted vertex's three length contexts are its extents (13.8.1),
     // so its three symbols decode first and its raw bits, which follow each
     // other in the raw block, come in one read when they fit (they do
     // unless a residual is long): one refill instead of three.
-    int s[3];
-    for (int i = 0; i < 3; ++i) s[i] = d.decode(ftables[fast_length_table(kind, i, fast_length_context(kind, i, extent[i], 0))]);
+    int s[3], table[3];
+    for (int i = 0; i < 3; ++i) {
+      table[i] = fast_length_table(kind, i, fast_length_context(kind, i, extent[i], 0));
+      s[i] = d.decode(ftables[table[i]]);
+    }
+    if (measure_it) {
+      for (int i = 0; i < 3; ++i) measure_symbol(table[i], s[i]);
+    }
     if (__builtin_expect((s[0] | s[1] | s[2]) < kFastLengthEscape, 1)) {
       const LengthCode* e[3] = {&kLengthCodes.c[s[0]], &kLengthCodes.c[s[1]], &kLengthCodes.c[s[2]]};
       const int total = e[0]->raw_bits + e[1]->raw_bits + e[2]->raw_bits;
       if (__builtin_expect(total <= 56, 1)) {
+        if (measure_it) fraw_geometry_bits += total;
         uint64_t w = bits.get_wide(total);
         for (int i = 0; i < 3; ++i) {
           const uint32_t v = static_cast<uint32_t>(w & ((uint64_t{1} << e[i]->raw_bits) - 1));
@@ -196,6 +207,11 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_position(RansDecoder& d, RawReader& bit
     for (int i = 0; i < 3; ++i) {
       int64_t r;
       int k;
+      if (measure_it) {
+        // As fast_residual() measures a position's residual.
+        if (s[i] < kFastLengthEscape) fraw_geometry_bits += kLengthCodes.c[s[i]].raw_bits;
+        else if (s[i] == kFastLengthEscape) measure_escape = true;
+      }
       if (!residual_of_symbol(bits, s[i], &r, &k)) return corrupt("bad residual");
       pos[i] = wrap_add(pred[i], r);
     }

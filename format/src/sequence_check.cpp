@@ -3,9 +3,12 @@
 // stream's claims against it, counting Table 1's statistics on the way.
 #include "psq/sequence_check.h"
 
+#include <cstdlib>
 #include <string>
 #include <unordered_set>
 #include <vector>
+
+#include "flat_map.h"
 
 namespace psq {
 namespace {
@@ -41,69 +44,7 @@ class UnionFind {
   std::vector<uint32_t> parent_;
 };
 
-// uint64_t -> V, open addressing with linear probing and backward-shift
-// deletion: no allocation per element. Key ~0 is reserved.
-template <class V>
-class FlatMap {
- public:
-  FlatMap() { rehash(64); }
-  size_t size() const { return size_; }
-  V* find(uint64_t key) {
-    for (size_t i = hash(key);; i = (i + 1) & mask_) {
-      if (cells_[i].key == kEmpty) return nullptr;
-      if (cells_[i].key == key) return &cells_[i].value;
-    }
-  }
-  // False (and nothing changed) when the key is there already. Invalidates
-  // pointers from find().
-  bool insert(uint64_t key, const V& value) {
-    if (2 * (size_ + 1) > cells_.size()) rehash(2 * cells_.size());
-    size_t i = hash(key);
-    for (; cells_[i].key != kEmpty; i = (i + 1) & mask_) {
-      if (cells_[i].key == key) return false;
-    }
-    cells_[i].key = key;
-    cells_[i].value = value;
-    ++size_;
-    return true;
-  }
-  void erase(uint64_t key) {
-    size_t i = hash(key);
-    while (cells_[i].key != key) {
-      if (cells_[i].key == kEmpty) return;
-      i = (i + 1) & mask_;
-    }
-    for (size_t j = (i + 1) & mask_; cells_[j].key != kEmpty; j = (j + 1) & mask_) {
-      size_t home = hash(cells_[j].key);
-      if (((j - home) & mask_) >= ((j - i) & mask_)) {
-        cells_[i] = cells_[j];
-        i = j;
-      }
-    }
-    cells_[i].key = kEmpty;
-    --size_;
-  }
-
- private:
-  static constexpr uint64_t kEmpty = ~uint64_t{0};
-  struct Cell {
-    uint64_t key = kEmpty;
-    V value{};
-  };
-  size_t hash(uint64_t key) const { return static_cast<size_t>((key * 0x9E3779B97F4A7C15ull) >> 24) & mask_; }
-  void rehash(size_t capacity) {
-    std::vector<Cell> old(capacity);
-    old.swap(cells_);
-    mask_ = capacity - 1;
-    size_ = 0;
-    for (const Cell& c : old) {
-      if (c.key != kEmpty) insert(c.key, c.value);
-    }
-  }
-  std::vector<Cell> cells_;
-  size_t mask_ = 0;
-  size_t size_ = 0;
-};
+using detail::FlatMap;
 
 struct Empty {};
 
@@ -182,7 +123,14 @@ struct SequenceChecker::Impl {
   UnionFind holes;                        // by first occurrence, over true border edges
   std::vector<uint32_t> origin;           // dense index -> first occurrence
   std::unordered_set<uint32_t> cut_origins;
-  std::unordered_set<uint64_t> cut_edges;  // undirected, by origin
+  // Cut edges of non-degenerate triangles, undirected, by origin: their
+  // triangles, and +1 / -1 for each that runs up / down (smaller origin to
+  // larger / larger to smaller).
+  struct Cut {
+    uint32_t triangles = 0;
+    int32_t direction = 0;
+  };
+  FlatMap<Cut> cut_edges;
   std::vector<uint8_t> used;               // dense index -> used by a triangle
   std::vector<uint8_t> on_border;          // dense index -> has a border edge
   std::vector<uint8_t> on_hole;            // first occurrence -> has a true border edge
@@ -364,6 +312,9 @@ Status SequenceChecker::triangle(const SequenceTriangle& t) {
     --a[k]->open_edges;
     --a[(k + 1) % 3]->open_edges;
   }
+  const uint32_t o[3] = {m.origin[t.v[0]], m.origin[t.v[1]], m.origin[t.v[2]]};
+  const bool degenerate = o[0] == o[1] || o[1] == o[2] || o[2] == o[0];
+  if (degenerate) ++m.stats.degenerate_triangles;
   for (int k = 0; k < 3; ++k) {
     uint32_t x = t.v[k], y = t.v[(k + 1) % 3];
     Active* ax = a[k];
@@ -392,11 +343,17 @@ Status SequenceChecker::triangle(const SequenceTriangle& t) {
       ++m.stats.border_edges;
       m.loops.unite(x, y);
       m.on_border[x] = m.on_border[y] = 1;
+      const uint32_t ox = o[k], oy = o[(k + 1) % 3];
       if ((t.nonmanifold_mask >> k) & 1) {
-        m.cut_edges.insert(undirected(m.origin[x], m.origin[y]));
+        if (!degenerate) {
+          Impl::Cut& c = m.cut_edges[undirected(ox, oy)];
+          ++c.triangles;
+          c.direction += ox < oy ? 1 : -1;
+        }
       } else {
-        m.holes.unite(m.origin[x], m.origin[y]);
-        m.on_hole[m.origin[x]] = m.on_hole[m.origin[y]] = 1;
+        if (!degenerate) ++m.stats.mesh_border_edges;
+        m.holes.unite(ox, oy);
+        m.on_hole[ox] = m.on_hole[oy] = 1;
       }
     }
   }
@@ -481,14 +438,19 @@ Status SequenceChecker::finish() {
   // Components of the cut mesh (for its Euler characteristic), then of the
   // input mesh: a cut vertex joins the component of its first occurrence.
   uint64_t used = 0, cut_components = 0, components = 0, loops = 0, holes = 0;
+  std::vector<uint8_t> referenced(m.introduced, 0);  // first occurrence -> some occurrence is used
   for (uint32_t v = 0; v < m.introduced; ++v) {
+    if (m.on_hole[v] && m.holes.find(v) == v) ++holes;
     if (!m.used[v]) continue;
     ++used;
+    referenced[m.origin[v]] = 1;
     if (m.components.find(v) == v) ++cut_components;
     // Each border vertex of the cut mesh has exactly two border edges, so
     // the border edges form disjoint cycles: count their components.
     if (m.on_border[v] && m.loops.find(v) == v) ++loops;
-    if (m.on_hole[v] && m.holes.find(v) == v) ++holes;
+  }
+  for (uint32_t v = 0; v < m.introduced; ++v) {
+    if (m.origin[v] == v && !referenced[v]) ++m.stats.unreferenced_vertices;
   }
   for (uint32_t v = 0; v < m.introduced; ++v) {
     if (m.used[v] && m.used[m.origin[v]]) m.components.unite(v, m.origin[v]);
@@ -505,6 +467,12 @@ Status SequenceChecker::finish() {
   m.stats.handles = (2 * static_cast<int64_t>(cut_components) - static_cast<int64_t>(loops) - chi) / 2;
   m.stats.nonmanifold_vertices = m.cut_origins.size();
   m.stats.nonmanifold_edges = m.cut_edges.size();
+  // An edge with two triangles of opposite orientation is manifold: it was
+  // cut only where a fan was split (it counts as neither).
+  m.cut_edges.for_each([&](uint64_t, const Impl::Cut& c) {
+    if (c.triangles > 2) ++m.stats.mesh_nonmanifold_edges;
+    else if (c.triangles == 2 && std::abs(c.direction) == 2) ++m.stats.mesh_misoriented_edges;
+  });
   return Status();
 }
 

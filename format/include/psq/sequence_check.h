@@ -19,9 +19,11 @@
 // three zero on every triangle. Slots are checked where given (not kNoSlot).
 //
 // It also counts what `psq info` reports. Memory is proportional to the
-// boundary (its vertices with their closed edges), plus 16 bytes per vertex
-// for the component, border-loop and hole union-finds and the index of the
-// active vertices.
+// boundary (its vertices with their closed edges), plus about 24 bytes per
+// vertex for the component, border-loop and hole union-finds, the first
+// occurrences and the index of the active vertices. SequenceCounter
+// (psq/sequence_count.h) counts the same without checking, in memory
+// proportional to the boundary.
 #ifndef PSQ_SEQUENCE_CHECK_H_
 #define PSQ_SEQUENCE_CHECK_H_
 
@@ -43,9 +45,20 @@ struct SequenceStats {
   uint64_t border_loops = 0;       // holes: connected loops of border edges that are not cuts
   int64_t handles = 0;             // genus, from the Euler characteristic of the cut mesh
   uint64_t nonmanifold_vertices = 0;  // input vertices that re-appear
-  uint64_t nonmanifold_edges = 0;     // input edges cut (more than two triangles or misoriented)
+  uint64_t nonmanifold_edges = 0;     // input edges cut (more than two triangles, misoriented, or split off a fan)
   uint64_t max_boundary_vertices = 0; // most vertices active (introduced, not finalized) at once
   uint64_t max_boundary_edges = 0;    // most open boundary edges at once
+  // The input mesh: each re-appearing vertex merged into its first
+  // occurrence (spec/psq-dump.md A.2.1), counted as SequenceConverter counts
+  // its input (ConverterStats), so that a sequence and the mesh it was made
+  // from give the same numbers. Cut edges are recognised by the
+  // non-manifold flag, which A.2.1 puts on every triangle of a cut edge;
+  // edges of degenerate triangles are not counted.
+  uint64_t unreferenced_vertices = 0;   // input vertices no triangle uses
+  uint64_t degenerate_triangles = 0;    // two corners are occurrences of one input vertex
+  uint64_t mesh_border_edges = 0;       // used by one triangle (border edges not cut)
+  uint64_t mesh_nonmanifold_edges = 0;  // cut edges of more than two triangles
+  uint64_t mesh_misoriented_edges = 0;  // cut edges of two triangles of the same orientation
 };
 
 class SequenceChecker : public SequenceSink {
