@@ -98,6 +98,19 @@ TEST(Cli, HelpCommandAndSuggestions) {
   EXPECT_EQ(err.find("did you mean"), std::string::npos) << err;
 }
 
+TEST(Cli, VerifyJson) {
+  test::TempDir dir;
+  std::string ply = write_sphere(dir, "s.ply");
+  std::string out, err;
+  ASSERT_EQ(run_psq("convert -q " + ply + " " + dir.file("s.psq"), &out, &err), 0) << err;
+  ASSERT_EQ(run_psq("verify --json " + dir.file("s.psq"), &out, &err), 0) << err;
+  EXPECT_TRUE(std::regex_search(out, std::regex("^\\{\"file\": \".*s\\.psq\", \"ok\": true, \"version\": \"[0-9]+\\.[0-9]+\", "
+                                                "\"profile\": \"compact\", \"vertices\": [0-9]+, \"triangles\": 288, "
+                                                "\"chunks\": 1, \"bytes\": [0-9]+, \"max_boundary_vertices\": [0-9]+\\}\n$")))
+      << out;
+  EXPECT_TRUE(err.empty()) << err;
+}
+
 TEST(Cli, ConvertTakesOutputFromDashO) {
   test::TempDir dir;
   std::string ply = write_sphere(dir, "s.ply");

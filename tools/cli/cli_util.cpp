@@ -25,7 +25,10 @@ int report_error(const std::string& file, const Status& status) {
 }
 
 int report_pipeline_error(const std::string& in, const std::string& out, const Status& status) {
-  bool about_input = status.line() != Status::kNoPlace || status.offset() != Status::kNoPlace;
+  // A write fails with kIo; every other error is about the data, which
+  // comes from IN (a position the output cannot hold, a mesh over a limit).
+  bool about_input = status.line() != Status::kNoPlace || status.offset() != Status::kNoPlace ||
+                     status.code() != ErrorCode::kIo;
   return report_error(about_input ? in : out, status);
 }
 

@@ -26,7 +26,8 @@ constexpr int kExitBrokenPipe = 141;
 // returns kExitBrokenPipe.
 int report_error(const std::string& file, const Status& status);
 // For an error of a pipeline from IN to OUT: a status that names a place
-// (line or byte) is about IN, any other (a write failure) about OUT.
+// (line or byte) or is about the data (any code but kIo) is about IN; an
+// I/O error without a place (a write failure) is about OUT.
 int report_pipeline_error(const std::string& in, const std::string& out, const Status& status);
 // Prints "psq: error: MESSAGE" and a hint to the command's --help; returns 2.
 int usage_error(const std::string& command, const std::string& message);

@@ -41,6 +41,7 @@ const char kHelp[] =
     "\n"
     "Options:\n"
     "  --json         print one JSON object instead of text\n"
+    "  -q, --quiet    no progress line\n"
     "  --memory SIZE  memory budget for the external sort (default 512M)\n"
     "  --tmpdir DIR   directory for temporary files (default $TMPDIR)\n"
     "  -h, --help     show this help\n"
@@ -263,6 +264,7 @@ int cmd_info(int argc, char** argv) {
     return kExitOk;
   }
   bool json = args.flag("--json");
+  bool quiet = args.flag("--quiet", "-q");
   std::string memory = args.option("--memory", "512M");
   BuildOptions build_options;
   build_options.tmpdir = args.option("--tmpdir");
@@ -279,7 +281,7 @@ int cmd_info(int argc, char** argv) {
   open_options.spool_dir = build_options.tmpdir;
   Status s = open_mesh(file, open_options, &mesh);
   if (!s.ok()) return report_error(file, s);
-  Progress progress(mesh.stream.get(), true);
+  Progress progress(mesh.stream.get(), !quiet);
   Report r;
   // Kept alive until the report is printed (r points into them).
   PsqInfoSink psq_sink(&progress);

@@ -11,7 +11,7 @@ namespace psq::cli {
 namespace {
 
 const char kHelp[] =
-    "Usage: psq verify FILE [-q]\n"
+    "Usage: psq verify FILE [-q] [--json]\n"
     "\n"
     "Decodes the .psq FILE ('-' for standard input) in one pass, checks every\n"
     "checksum, limit and count of the stream (spec/psq-format.md), and every\n"
@@ -23,6 +23,9 @@ const char kHelp[] =
     "\n"
     "Options:\n"
     "  -q, --quiet    print nothing on success\n"
+    "  --json         print the summary as one JSON object (file, version,\n"
+    "                 profile, vertices, triangles, chunks, bytes,\n"
+    "                 max_boundary_vertices)\n"
     "  -h, --help     show this help\n";
 
 }  // namespace
@@ -34,6 +37,7 @@ int cmd_verify(int argc, char** argv) {
     return kExitOk;
   }
   bool quiet = args.flag("--quiet", "-q");
+  bool json = args.flag("--json");
   std::vector<std::string> files = args.positionals();
   if (!args.error().empty()) return usage_error("verify", args.error());
   if (files.size() != 1) return usage_error("verify", files.empty() ? "missing FILE" : "verify takes one FILE");
@@ -57,8 +61,17 @@ int cmd_verify(int argc, char** argv) {
   s = mesh.decoder->pump(sink);
   if (!s.ok()) return report_error(file, s);
   progress.finish(file, "verified", std::to_string(mesh.decoder->stats().triangles) + " triangles");
-  if (!quiet) {
-    const PsqStats& st = mesh.decoder->stats();
+  const PsqStats& st = mesh.decoder->stats();
+  if (json) {
+    const PsqHeader& h = mesh.decoder->header();
+    std::printf("{\"file\": \"%s\", \"ok\": true, \"version\": \"%d.%d\", \"profile\": \"%s\", "
+                "\"vertices\": %llu, \"triangles\": %llu, \"chunks\": %llu, \"bytes\": %llu, "
+                "\"max_boundary_vertices\": %u}\n",
+                json_escape(file).c_str(), h.version_major, h.version_minor, h.fast ? "fast" : "compact",
+                static_cast<unsigned long long>(st.vertices), static_cast<unsigned long long>(st.triangles),
+                static_cast<unsigned long long>(st.chunks), static_cast<unsigned long long>(st.total_bytes),
+                st.max_active_vertices);
+  } else if (!quiet) {
     std::printf("%s: ok: %llu vertices, %llu triangles, %llu chunks, %llu bytes, boundary at most %u vertices\n",
                 file.c_str(), static_cast<unsigned long long>(st.vertices), static_cast<unsigned long long>(st.triangles),
                 static_cast<unsigned long long>(st.chunks), static_cast<unsigned long long>(st.total_bytes),

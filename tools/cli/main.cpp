@@ -28,7 +28,8 @@ const char kUsage[] =
     "  --version        print the version\n"
     "\n"
     "FILE may be '-' for standard input; OUT may be '-' for standard output.\n"
-    "Exit status: 0 success, 1 data or I/O failure, 2 usage error.\n";
+    "Exit status: 0 success, 1 data or I/O failure, 2 usage error, 141 (quietly)\n"
+    "when the reader of standard output goes away (psq ... | head).\n";
 
 struct Command {
   const char* name;
