@@ -16,8 +16,11 @@
 //
 // The streaming direction (psq/distance.h, "Size") inverts the usual
 // query: the held mesh's samples sit in a BVH whose nodes carry the largest
-// current distance bound below them, and each triangle that streams past
-// descends only where it could lower one. Both paths take, per sample, the
+// current distance bound below them; each batch of streamed triangles gets
+// a BVH of its own, and the two trees are descended together (a dual-tree
+// traversal), a pair of nodes dropped when they are farther apart than the
+// sample node's bound; under a leaf of samples each sample searches the
+// batch's subtree within its own bound. Both paths take, per sample, the
 // minimum of the same function over every triangle that could attain it
 // (every pruning test leaves a margin far above the rounding error), so
 // both give the same bits.
@@ -51,6 +54,10 @@ constexpr double kZeroScale = 0x1p-40;
 constexpr size_t kBatchTriangles = size_t{1} << 16;
 constexpr size_t kWindowSamples = size_t{1} << 18;
 constexpr uint32_t kTriangleLeaf = 4;
+// The streamed mesh's vertices that give the held samples their first
+// distance bounds (at most; a BVH of 28 bytes and more a vertex, while it
+// is used).
+constexpr uint64_t kBoundVertices = uint64_t{4} << 20;
 constexpr uint32_t kSampleLeaf = 8;
 
 // ------------------------------------------------------------------ geometry
@@ -402,9 +409,12 @@ inline void item_bounds(const double* item, double* lo, double* hi) {
   }
 }
 
-// A bounding volume hierarchy over points or triangles, by median splits
-// along the widest extent of the items' box centres. Nodes are in
-// depth-first order: a node's children come after it.
+// A bounding volume hierarchy over points or triangles, built as a linear
+// BVH (Lauterbach, Garland, Sengupta, Luebke, Manocha, "Fast BVH
+// construction on GPUs", Eurographics 2009): the items sorted along a
+// Morton curve of their box centres (a radix sort: linear time, which the
+// streamed batches need), each range split where its codes first differ.
+// Nodes are in depth-first order: a node's children come after it.
 template <int kStride>
 class Bvh {
  public:
@@ -421,8 +431,10 @@ class Bvh {
       }
     }
     const double* c = kStride == 3 ? data.data() : centres.data();
-    const size_t cs = kStride == 3 ? 3 : 3;
-    build_topology(n, leaf, c, cs);
+    order_.resize(n);
+    morton_order(n, c);
+    build_topology(n, leaf);
+    std::vector<uint32_t>().swap(codes_);
     std::vector<double>().swap(centres);
     // The items in leaf order, permuted in place (cycle by cycle).
     items_ = std::move(data);
@@ -518,11 +530,52 @@ class Bvh {
   }
 
  private:
-  void build_topology(size_t n, uint32_t leaf, const double* c, size_t cs) {
+  // order_: the items by the Morton code of their centres (10 bits an axis
+  // within the centres' box; ties by index), by an LSD radix sort.
+  void morton_order(size_t n, const double* c) {
+    double lo[3] = {kInf, kInf, kInf}, hi[3] = {-kInf, -kInf, -kInf};
+    for (size_t i = 0; i < n; ++i) {
+      for (int k = 0; k < 3; ++k) {
+        lo[k] = std::min(lo[k], c[3 * i + k]);
+        hi[k] = std::max(hi[k], c[3 * i + k]);
+      }
+    }
+    auto spread = [](uint32_t v) {  // 10 bits to every third of 30
+      v = (v | (v << 16)) & 0x030000ffu;
+      v = (v | (v << 8)) & 0x0300f00fu;
+      v = (v | (v << 4)) & 0x030c30c3u;
+      return (v | (v << 2)) & 0x09249249u;
+    };
+    // One scale for the three axes (the cube around the box): a flat batch
+    // is then cut across its width, not into layers.
+    const double side = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
+    const double scale = side > 0 ? 1024 / side : 0;
+    std::vector<uint32_t> code(n), tmp(n);
+    for (size_t i = 0; i < n; ++i) {
+      uint32_t q[3];
+      for (int k = 0; k < 3; ++k) q[k] = static_cast<uint32_t>(std::min(1023.0, std::max(0.0, (c[3 * i + k] - lo[k]) * scale)));
+      code[i] = spread(q[0]) | spread(q[1]) << 1 | spread(q[2]) << 2;
+    }
+    // order_ is 0..n-1; three stable passes of 10 bits keep index order in ties.
+    std::iota(order_.begin(), order_.end(), 0u);
+    std::vector<uint32_t> count(1025);
+    for (int shift = 0; shift < 30; shift += 10) {
+      std::fill(count.begin(), count.end(), 0);
+      for (size_t i = 0; i < n; ++i) ++count[((code[order_[i]] >> shift) & 1023) + 1];
+      for (size_t d = 1; d < count.size(); ++d) count[d] += count[d - 1];
+      for (size_t i = 0; i < n; ++i) tmp[count[(code[order_[i]] >> shift) & 1023]++] = order_[i];
+      order_.swap(tmp);
+    }
+    codes_.resize(n);
+    for (size_t i = 0; i < n; ++i) codes_[i] = code[order_[i]];
+  }
+
+  // Nodes over order_ (sorted by codes_): each range split at the highest
+  // bit in which its codes differ (an octree cell's split), or in the
+  // middle when they are all equal.
+  void build_topology(size_t n, uint32_t leaf) {
     nodes_.clear();
     parents_.clear();
-    order_.resize(n);
-    std::iota(order_.begin(), order_.end(), 0u);
     if (n == 0) return;
     nodes_.reserve(2 * (n / leaf + 1));
     parents_.reserve(2 * (n / leaf + 1));
@@ -544,23 +597,14 @@ class Bvh {
         continue;
       }
       nodes_[idx].count = 0;
-      double lo[3] = {kInf, kInf, kInf}, hi[3] = {-kInf, -kInf, -kInf};
-      for (uint32_t i = t.begin; i < t.end; ++i) {
-        const double* ci = c + cs * order_[i];
-        for (int k = 0; k < 3; ++k) {
-          lo[k] = std::min(lo[k], ci[k]);
-          hi[k] = std::max(hi[k], ci[k]);
-        }
+      uint32_t mid = t.begin + (t.end - t.begin) / 2;
+      if (codes_[t.begin] != codes_[t.end - 1]) {
+        const uint32_t bit = 31 - static_cast<uint32_t>(__builtin_clz(codes_[t.begin] ^ codes_[t.end - 1]));
+        const uint32_t prefix = codes_[t.begin] >> bit;
+        mid = static_cast<uint32_t>(std::partition_point(codes_.begin() + t.begin, codes_.begin() + t.end,
+                                                         [&](uint32_t k) { return (k >> bit) == prefix; }) -
+                                    codes_.begin());
       }
-      int axis = 0;
-      for (int k = 1; k < 3; ++k)
-        if (hi[k] - lo[k] > hi[axis] - lo[axis]) axis = k;
-      const uint32_t mid = t.begin + (t.end - t.begin) / 2;
-      std::nth_element(order_.begin() + t.begin, order_.begin() + mid, order_.begin() + t.end,
-                       [&](uint32_t a, uint32_t b) {
-                         double ka = c[cs * a + axis], kb = c[cs * b + axis];
-                         return ka < kb || (ka == kb && a < b);
-                       });
       stack.push_back({mid, t.end, idx, true});
       stack.push_back({t.begin, mid, idx, false});
     }
@@ -568,6 +612,7 @@ class Bvh {
 
   std::vector<Node> nodes_;
   std::vector<uint32_t> order_, parents_;
+  std::vector<uint32_t> codes_;  // kMorton: the items' codes in order
   std::vector<double> items_;  // leaf order
 };
 
@@ -578,44 +623,32 @@ class Bvh {
 // stale bound is only larger: it prunes less, never wrongly).
 class SampleTree {
  public:
-  SampleTree(std::vector<double> samples, double margin) : margin_(margin) {
+  // `bounds`: an upper bound on each sample's distance to the streamed
+  // surface, in the samples' order.
+  SampleTree(std::vector<double> samples, const std::vector<double>& bounds, double margin) : margin_(margin) {
     tree_.build(std::move(samples), kSampleLeaf);
-    const size_t n = tree_.size(), nodes = tree_.nodes().size();
+    const std::vector<Node>& nodes = tree_.nodes();
+    const size_t n = tree_.size();
     bound_.reset(new std::atomic<double>[n]);
     best_.reset(new std::atomic<double>[n]);
-    for (size_t i = 0; i < n; ++i) {
-      bound_[i].store(kInf, std::memory_order_relaxed);
+    for (uint32_t i = 0; i < n; ++i) {
+      bound_[i].store(bounds[tree_.original(i)], std::memory_order_relaxed);
       best_[i].store(kInf, std::memory_order_relaxed);
     }
-    node_bound_.assign(nodes, kInf);
-    dirty_.reset(new std::atomic<uint8_t>[nodes]);
-    for (size_t k = 0; k < nodes; ++k) dirty_[k].store(0, std::memory_order_relaxed);
-  }
-
-  // Bounds every sample by its nearest point of `points` (points on the
-  // streamed surface).
-  void bound_by(const Bvh<3>& points, int threads) {
-    constexpr size_t kChunk = 512;
-    const size_t n = tree_.size();
-    parallel_for(threads, (n + kChunk - 1) / kChunk, [&](int, size_t c) {
-      uint32_t hint = kNone;
-      for (size_t s = kChunk * c; s < std::min(n, kChunk * c + kChunk); ++s) {
-        double d = std::sqrt(points.closest_d2(load3(tree_.item(static_cast<uint32_t>(s))), margin_, &hint));
-        if (d < bound_[s].load(std::memory_order_relaxed)) bound_[s].store(d, std::memory_order_relaxed);
-      }
-    });
-    const std::vector<Node>& nodes = tree_.nodes();
+    node_bound_.resize(nodes.size());
     for (size_t k = nodes.size(); k-- > 0;) {
       const Node& node = nodes[k];
       double m = 0;
       if (node.count > 0) {
-        for (uint32_t s = node.first; s < node.first + node.count; ++s)
-          m = std::max(m, bound_[s].load(std::memory_order_relaxed));
+        for (uint32_t i = node.first; i < node.first + node.count; ++i)
+          m = std::max(m, bound_[i].load(std::memory_order_relaxed));
       } else {
         m = std::max(node_bound_[k + 1], node_bound_[node.first]);
       }
       node_bound_[k] = m;
     }
+    dirty_.reset(new std::atomic<uint8_t>[nodes.size()]);
+    for (size_t k = 0; k < nodes.size(); ++k) dirty_[k].store(0, std::memory_order_relaxed);
   }
 
   // Measures the samples against a batch of streamed triangles: the two
@@ -677,47 +710,77 @@ class SampleTree {
   }
 
   void descend(const Bvh<9>& batch, Pair root, std::vector<uint32_t>* dirty) {
+    const std::vector<Node>& hn = tree_.nodes();
+    const std::vector<Node>& sn = batch.nodes();
+    // Each step replaces a pair by at most two whose depths add up to one
+    // more: the stack holds at most the two trees' depths (balanced, < 40).
     Pair stack[256];
     int top = 0;
     stack[top++] = root;
-    std::vector<Pair> kids;
     while (top > 0) {
       const Pair p = stack[--top];
-      if (pruned(batch, p)) continue;
-      kids.clear();
-      if (split_pair(batch, p, &kids)) {
-        stack[top++] = kids[1];
-        stack[top++] = kids[0];
-        continue;
+      const Node& h = hn[p.h];
+      const Node& s = sn[p.s];
+      if (box_box_d2(h.lo, h.hi, s.lo, s.hi) > sq(node_bound_[p.h] + margin_)) continue;
+      if (h.count > 0) {
+        leaves(batch, p, dirty);
+      } else if (s.count > 0 || extent(h) >= extent(s)) {
+        stack[top++] = {h.first, p.s};
+        stack[top++] = {p.h + 1, p.s};
+      } else {
+        stack[top++] = {p.h, s.first};
+        stack[top++] = {p.h, p.s + 1};
       }
-      leaves(batch, p, dirty);
     }
   }
 
+  // A leaf of samples against a subtree of the batch: each sample searches
+  // it nearest first, within its own bound (tighter than the leaf's).
   void leaves(const Bvh<9>& batch, const Pair& p, std::vector<uint32_t>* dirty) {
     const Node& h = tree_.nodes()[p.h];
-    const Node& s = batch.nodes()[p.s];
+    const std::vector<Node>& sn = batch.nodes();
     bool lowered = false;
+    struct Entry {
+      uint32_t node;
+      double d2;
+    };
+    Entry stack[128];
     for (uint32_t i = h.first; i < h.first + h.count; ++i) {
       const V3 q = load3(tree_.item(i));
       double u = bound_[i].load(std::memory_order_relaxed);
       double limit = sq(u + margin_);
-      if (box_point_d2(s.lo, s.hi, q) > limit) continue;
-      for (uint32_t t = s.first; t < s.first + s.count; ++t) {
-        const double* tri = batch.item(t);
-        double lo[3] = {kInf, kInf, kInf}, hi[3] = {-kInf, -kInf, -kInf};
-        item_bounds<9>(tri, lo, hi);
-        if (box_point_d2(lo, hi, q) > limit) continue;
-        const double d2 = triangle_d2(q, tri, limit);
-        // Above the limit: not this sample's nearest (see measure_distance).
-        if (d2 > limit) continue;
-        if (d2 < best_[i].load(std::memory_order_relaxed)) atomic_min(best_[i], d2);
-        const double d = std::sqrt(d2);
-        if (d < u) {
-          atomic_min(bound_[i], d);
-          u = bound_[i].load(std::memory_order_relaxed);
-          limit = sq(u + margin_);
-          lowered = true;
+      int top = 0;
+      stack[top++] = {p.s, box_point_d2(sn[p.s].lo, sn[p.s].hi, q)};
+      while (top > 0) {
+        const Entry e = stack[--top];
+        if (e.d2 > limit) continue;
+        const Node& node = sn[e.node];
+        if (node.count == 0) {
+          uint32_t l = e.node + 1, r = node.first;
+          double dl = box_point_d2(sn[l].lo, sn[l].hi, q), dr = box_point_d2(sn[r].lo, sn[r].hi, q);
+          if (dl > dr) {
+            std::swap(l, r);
+            std::swap(dl, dr);
+          }
+          if (dr <= limit) stack[top++] = {r, dr};
+          if (dl <= limit) stack[top++] = {l, dl};
+          continue;
+        }
+        for (uint32_t t = node.first; t < node.first + node.count; ++t) {
+          double lo[3] = {kInf, kInf, kInf}, hi[3] = {-kInf, -kInf, -kInf};
+          item_bounds<9>(batch.item(t), lo, hi);
+          if (box_point_d2(lo, hi, q) > limit) continue;
+          const double d2 = triangle_d2(q, batch.item(t), limit);
+          // Above the limit: not this sample's nearest (see measure_distance).
+          if (d2 > limit) continue;
+          if (d2 < best_[i].load(std::memory_order_relaxed)) atomic_min(best_[i], d2);
+          const double d = std::sqrt(d2);
+          if (d < u) {
+            atomic_min(bound_[i], d);
+            u = bound_[i].load(std::memory_order_relaxed);
+            limit = sq(u + margin_);
+            lowered = true;
+          }
         }
       }
     }
@@ -934,9 +997,11 @@ std::vector<double> all_samples(const MeshInput& m, uint64_t samples, uint64_t s
   return out;
 }
 
-// A BVH over up to `want` used vertices of `m`, evenly picked by index:
-// points on its surface, whose nearest gives a held sample its first bound.
-Bvh<3> vertex_subset(const MeshInput& m, uint64_t want) {
+// An upper bound on each sample's distance to the surface of `m`: the
+// distance to the nearest of up to `want` of its used vertices (evenly
+// picked by index; any point of a surface bounds the distance to it).
+std::vector<double> vertex_bounds(const std::vector<double>& samples, const MeshInput& m, uint64_t want,
+                                  double margin, int threads) {
   const uint64_t step = std::max<uint64_t>(1, (m.used + want - 1) / std::max<uint64_t>(want, 1));
   std::vector<double> pts;
   pts.reserve(3 * static_cast<size_t>(std::min(m.used, want) + 1));
@@ -949,7 +1014,15 @@ Bvh<3> vertex_subset(const MeshInput& m, uint64_t want) {
   }
   Bvh<3> bvh;
   bvh.build(std::move(pts), kSampleLeaf);
-  return bvh;
+  constexpr size_t kChunk = 512;
+  const size_t n = samples.size() / 3;
+  std::vector<double> bounds(n);
+  parallel_for(threads, (n + kChunk - 1) / kChunk, [&](int, size_t c) {
+    uint32_t hint = kNone;
+    for (size_t i = kChunk * c; i < std::min(n, kChunk * c + kChunk); ++i)
+      bounds[i] = std::sqrt(bvh.closest_d2(load3(&samples[3 * i]), margin, &hint));
+  });
+  return bounds;
 }
 
 // Frees a held mesh's arrays once its BVH and samples are made.
@@ -1041,8 +1114,10 @@ Status measure_distance(MeshSource& a, MeshSource& b, const DistanceOptions& opt
     h_to_s = m.accumulator();
     s_maker.triangles(s.tri.data(), static_cast<size_t>(s.triangles));
   } else {
-    SampleTree tree(std::move(h_points), margin);
-    tree.bound_by(vertex_subset(s, std::max<uint64_t>(h_samples, uint64_t{1} << 20)), threads);
+    // The bounds first, while the samples are in one array, then the tree.
+    std::vector<double> bounds = vertex_bounds(h_points, s, kBoundVertices, margin, threads);
+    SampleTree tree(std::move(h_points), bounds, margin);
+    std::vector<double>().swap(bounds);
     std::vector<double> coords;
     st = for_each_batch(s, [&](const uint32_t* idx, size_t n) {
       s_maker.triangles(idx, n);
