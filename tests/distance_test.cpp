@@ -387,6 +387,47 @@ TEST(Distance, SamplesAreVerticesThenPointsOnTriangles) {
   EXPECT_EQ(samples_of(m, 1000, 1), s);
 }
 
+TEST(Distance, NearestTriangles) {
+  Mesh m = bumpy_sphere(18, 26, 0.2);
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> U(-1.6, 1.6);
+  std::vector<double> pts;
+  for (int i = 0; i < 3000; ++i) pts.insert(pts.end(), {U(rng), U(rng), U(rng)});
+  // Points on the mesh too: its vertices.
+  for (int i = 0; i < 50; ++i) pts.insert(pts.end(), m.positions[7 * i].begin(), m.positions[7 * i].end());
+  std::vector<NearestTriangle> one, three;
+  for (auto [threads, out] : {std::pair{1, &one}, std::pair{3, &three}}) {
+    test::MemorySource src(m);
+    ASSERT_TRUE(nearest_triangles(src, pts, with(DistanceHold::kAuto, threads), out).ok());
+  }
+  ASSERT_EQ(one.size(), pts.size() / 3);
+  for (size_t i = 0; i < one.size(); ++i) {
+    P3 p = {pts[3 * i], pts[3 * i + 1], pts[3 * i + 2]};
+    double best = INFINITY;
+    for (const auto& t : m.triangles)
+      best = std::min(best, reference_d2(p, m.positions[t[0]], m.positions[t[1]], m.positions[t[2]]));
+    ASSERT_LT(one[i].triangle, m.triangles.size());
+    const auto& t = m.triangles[one[i].triangle];
+    const P3 &a = m.positions[t[0]], &b = m.positions[t[1]], &c = m.positions[t[2]];
+    EXPECT_NEAR(one[i].distance, std::sqrt(best), 1e-12);
+    EXPECT_NEAR(std::sqrt(reference_d2(p, a, b, c)), std::sqrt(best), 1e-12);
+    P3 u = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, v = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    P3 n = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
+    double len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    for (int k = 0; k < 3; ++k) EXPECT_NEAR(one[i].normal[k], n[k] / len, 1e-12);
+    EXPECT_EQ(one[i].triangle, three[i].triangle);
+    EXPECT_EQ(one[i].distance, three[i].distance);
+  }
+  for (size_t i = 3000; i < one.size(); ++i) EXPECT_EQ(one[i].distance, 0);
+  // Bad points and an empty mesh.
+  test::MemorySource src(m);
+  EXPECT_EQ(nearest_triangles(src, {1, 2}, DistanceOptions(), &one).code(), ErrorCode::kUsage);
+  test::MemorySource src2(m);
+  EXPECT_EQ(nearest_triangles(src2, {1, 2, NAN}, DistanceOptions(), &one).code(), ErrorCode::kUsage);
+  test::MemorySource none(test::make_mesh({{0, 0, 0}}, {}));
+  EXPECT_EQ(nearest_triangles(none, {1, 2, 3}, DistanceOptions(), &one).code(), ErrorCode::kBadValue);
+}
+
 // ------------------------------------------------ streaming and determinism
 
 TEST(Distance, StreamingGivesTheAllInMemoryNumbers) {

@@ -34,6 +34,7 @@
 #include <functional>
 #include <limits>
 #include <memory>
+#include <mutex>
 #include <numeric>
 #include <thread>
 
@@ -654,8 +655,10 @@ class SampleTree {
   // Measures the samples against a batch of streamed triangles: the two
   // trees are descended together, pairs of nodes farther apart than the
   // sample node's bound are dropped.
-  void measure(const Bvh<9>& batch, int threads) {
+  // `first`: the index of the batch's first triangle in the mesh.
+  void measure(const Bvh<9>& batch, uint64_t first, int threads) {
     if (tree_.size() == 0 || batch.size() == 0) return;
+    batch_first_ = first;
     const int use = std::max(1, threads);
     // Pairs to share among the threads: the root pair split breadth-first.
     std::vector<Pair> frontier{{0, 0}}, next;
@@ -673,6 +676,29 @@ class SampleTree {
     std::vector<std::vector<uint32_t>> dirty(static_cast<size_t>(use));
     parallel_for(use, frontier.size(), [&](int thread, size_t i) { descend(batch, frontier[i], &dirty[thread]); });
     refresh(dirty);
+  }
+
+  // Keeps, besides each sample's distance, its nearest triangle (the
+  // smallest index among equally near ones) and that triangle's normal.
+  void track_nearest() {
+    which_.assign(tree_.size(), UINT64_MAX);
+    normal_.assign(tree_.size(), V3{0, 0, 0});
+    locks_.reset(new std::mutex[kLocks]);
+  }
+
+  // The nearest triangles, in the order of the samples given to the
+  // constructor (after track_nearest()).
+  std::vector<NearestTriangle> nearest() const {
+    std::vector<NearestTriangle> out(tree_.size());
+    for (uint32_t i = 0; i < tree_.size(); ++i) {
+      NearestTriangle& n = out[tree_.original(i)];
+      n.distance = std::sqrt(best_[i].load(std::memory_order_relaxed));
+      n.triangle = which_[i];
+      n.normal[0] = normal_[i].x;
+      n.normal[1] = normal_[i].y;
+      n.normal[2] = normal_[i].z;
+    }
+    return out;
   }
 
   // Every sample's smallest triangle_d2(), in the order of the samples
@@ -773,7 +799,8 @@ class SampleTree {
           const double d2 = triangle_d2(q, batch.item(t), limit);
           // Above the limit: not this sample's nearest (see measure_distance).
           if (d2 > limit) continue;
-          if (d2 < best_[i].load(std::memory_order_relaxed)) atomic_min(best_[i], d2);
+          if (!which_.empty()) record(i, d2, batch_first_ + batch.original(t), batch.item(t));
+          else if (d2 < best_[i].load(std::memory_order_relaxed)) atomic_min(best_[i], d2);
           const double d = std::sqrt(d2);
           if (d < u) {
             atomic_min(bound_[i], d);
@@ -785,6 +812,21 @@ class SampleTree {
       }
     }
     if (lowered && dirty_[p.h].exchange(1, std::memory_order_relaxed) == 0) dirty->push_back(p.h);
+  }
+
+  // A triangle as near as sample i's nearest so far: it becomes the nearest
+  // when nearer, or as near with a smaller index (under a lock: the three
+  // go together).
+  void record(uint32_t i, double d2, uint64_t tri, const double* t) {
+    if (d2 > best_[i].load(std::memory_order_relaxed)) return;
+    std::lock_guard<std::mutex> lock(locks_[i % kLocks]);
+    const double b = best_[i].load(std::memory_order_relaxed);
+    if (d2 > b || (d2 == b && tri > which_[i])) return;
+    best_[i].store(d2, std::memory_order_relaxed);
+    which_[i] = tri;
+    const V3 n = cross(sub(load3(t + 3), load3(t)), sub(load3(t + 6), load3(t)));
+    const double len = std::sqrt(dot(n, n));
+    normal_[i] = len > 0 ? V3{n.x / len, n.y / len, n.z / len} : V3{0, 0, 0};
   }
 
   // New bounds for the leaves that changed, and up while they change.
@@ -812,6 +854,12 @@ class SampleTree {
   std::unique_ptr<std::atomic<double>[]> bound_, best_;  // leaf order
   std::vector<double> node_bound_;
   std::unique_ptr<std::atomic<uint8_t>[]> dirty_;
+  uint64_t batch_first_ = 0;
+  // track_nearest(): the nearest triangle and its normal (leaf order).
+  static constexpr size_t kLocks = 4096;
+  std::vector<uint64_t> which_;
+  std::vector<V3> normal_;
+  std::unique_ptr<std::mutex[]> locks_;
 };
 
 // ------------------------------------------------------------ statistics
@@ -973,14 +1021,14 @@ void triangle_coords(const MeshInput& m, const uint32_t* idx, size_t n, std::vec
   }
 }
 
-// Every triangle of `m`, a batch at a time: f(indices, count).
+// Every triangle of `m`, a batch at a time: f(first, indices, count).
 template <class F>
 Status for_each_batch(const MeshInput& m, const F& f) {
   std::vector<uint32_t> batch;
   for (uint64_t first = 0; first < m.triangles; first += kBatchTriangles) {
     size_t n = static_cast<size_t>(std::min<uint64_t>(kBatchTriangles, m.triangles - first));
     PSQ_RETURN_IF_ERROR(m.read_triangles(first, n, &batch));
-    f(batch.data(), n);
+    f(first, batch.data(), n);
   }
   return Status();
 }
@@ -1119,12 +1167,12 @@ Status measure_distance(MeshSource& a, MeshSource& b, const DistanceOptions& opt
     SampleTree tree(std::move(h_points), bounds, margin);
     std::vector<double>().swap(bounds);
     std::vector<double> coords;
-    st = for_each_batch(s, [&](const uint32_t* idx, size_t n) {
+    st = for_each_batch(s, [&](uint64_t first, const uint32_t* idx, size_t n) {
       s_maker.triangles(idx, n);
       triangle_coords(s, idx, n, &coords);
       Bvh<9> batch;
       batch.build(std::move(coords), kTriangleLeaf);
-      tree.measure(batch, threads);
+      tree.measure(batch, first, threads);
     });
     if (!st.ok()) return st;
     for (double d2 : tree.distances()) h_to_s.add(d2);
@@ -1154,6 +1202,35 @@ Status measure_distance(MeshSource& a, MeshSource& b, const DistanceOptions& opt
   for (int k = 0; k < 3; ++k) d2 += sq(result->a.bounds_max[k] - result->a.bounds_min[k]);
   result->diagonal = std::sqrt(d2);
   result->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return Status();
+}
+
+Status nearest_triangles(MeshSource& mesh, const std::vector<double>& xyz, const DistanceOptions& options,
+                         std::vector<NearestTriangle>* out) {
+  out->clear();
+  if (xyz.size() % 3 != 0) return Status(ErrorCode::kUsage, "points must be 3 coordinates each");
+  for (double v : xyz) {
+    if (!std::isfinite(v)) return Status(ErrorCode::kUsage, "points must be finite");
+  }
+  const int threads = options.threads > 0 ? options.threads
+                                          : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  MeshInput m;
+  PSQ_RETURN_IF_ERROR(read_mesh(mesh, false, options.tmpdir, &m));
+  if (m.triangles == 0) return Status(ErrorCode::kBadValue, "no triangles: there is no surface to measure");
+  if (xyz.empty()) return Status();
+  double scale = std::max(m.max_abs, std::numeric_limits<double>::min());
+  for (double v : xyz) scale = std::max(scale, std::fabs(v));
+  const double margin = kMarginScale * scale;
+  SampleTree tree(xyz, vertex_bounds(xyz, m, kBoundVertices, margin, threads), margin);
+  tree.track_nearest();
+  std::vector<double> coords;
+  PSQ_RETURN_IF_ERROR(for_each_batch(m, [&](uint64_t first, const uint32_t* idx, size_t n) {
+    triangle_coords(m, idx, n, &coords);
+    Bvh<9> batch;
+    batch.build(std::move(coords), kTriangleLeaf);
+    tree.measure(batch, first, threads);
+  }));
+  *out = tree.nearest();
   return Status();
 }
 

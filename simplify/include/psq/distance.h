@@ -124,6 +124,22 @@ struct DistanceResult {
 Status measure_distance(MeshSource& a, MeshSource& b, const DistanceOptions& options,
                         DistanceResult* result);
 
+struct NearestTriangle {
+  double distance = 0;           // from the point to the mesh's surface
+  uint64_t triangle = 0;         // the nearest triangle (its index in the mesh; the smallest of equally near ones)
+  double normal[3] = {0, 0, 0};  // its unit normal, (b - a) x (c - a); 0 for a triangle of zero area
+};
+
+// For each point of `xyz` (3 doubles a point), the nearest triangle of
+// `mesh`, found as measure_distance() finds the held samples' distances to
+// a streamed mesh: the points are held, the mesh streams (its positions
+// kept, its triangles spooled to options.tmpdir), exactly. Uses
+// options.threads. Errors: a source's error; kBadValue when the mesh has
+// no triangle; kUsage for a size not a multiple of 3 or a coordinate that
+// is not finite; kLimit and kIo as measure_distance().
+Status nearest_triangles(MeshSource& mesh, const std::vector<double>& xyz, const DistanceOptions& options,
+                         std::vector<NearestTriangle>* out);
+
 // The points that measure_distance() samples on `mesh` for `samples` (0:
 // the default) and `seed`, in their order: the used vertices by index, then
 // the points on the triangles by triangle. 3 doubles a point. Holds the
