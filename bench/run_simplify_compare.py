@@ -134,7 +134,17 @@ class Bench:
         self.meshopt_version = "?"
 
     def measure(self, src, out, row):
-        """Error, topology and triangle counts of `out`, into row."""
+        """Error, topology and triangle counts of `out`, into row. An empty
+        output has no surface to measure: its error and topology stay None."""
+        q = json_of([self.tool, "quality", src, out])
+        row["triangles"] = q["triangles"]
+        row["vertices"] = q["vertices"]
+        row["degenerate"] = q["degenerate_triangles"]
+        row["flipped"] = q["flipped_triangles"]
+        for k in ("rms", "hausdorff", "nonmanifold_vertices", "nonmanifold_edges", "border_edges", "components"):
+            row[k] = None
+        if q["triangles"] == 0:
+            return
         d = json_of([self.psq, "distance", "--json", src, out])
         row["rms"] = d["relative"]["symmetric"]["rms"]
         row["hausdorff"] = d["relative"]["hausdorff"]
@@ -142,11 +152,6 @@ class Bench:
         info = json_of([self.psq, "info", "--json", out])
         for k in ("nonmanifold_vertices", "nonmanifold_edges", "border_edges", "components"):
             row[k] = info[k]
-        q = json_of([self.tool, "quality", src, out])
-        row["triangles"] = q["triangles"]
-        row["vertices"] = q["vertices"]
-        row["degenerate"] = q["degenerate_triangles"]
-        row["flipped"] = q["flipped_triangles"]
         if info["triangles"] != q["triangles"]:
             raise Failure("%s: psq info counts %d triangles, the quality pass %d" % (out, info["triangles"], q["triangles"]))
 
@@ -225,7 +230,11 @@ class Bench:
 # ------------------------------------------------------------ the results
 
 def fmt_err(v):
-    return "%.2e" % v if v is not None else ""
+    return "%.2e" % v if v is not None else "-"
+
+
+def fmt_int(v):
+    return "%d" % v if v is not None else "-"
 
 
 def table(data):
@@ -246,13 +255,13 @@ def table(data):
                 lines.append("| %s | %s | %s | failed |%s" % (name, r["method"], r["target"], " |" * 12))
                 continue
             rate = m["triangles"] / r["seconds"] / 1e6 if r.get("seconds") else None
-            lines.append("| %s | %s | %s | %d | %d | %s | %s | %s | %d / %d | %d | %d | %d | %d | %s | %s | %s |" % (
+            lines.append("| %s | %s | %s | %d | %d | %s | %s | %s | %s / %s | %d | %d | %s | %s | %s | %s | %s |" % (
                 name, r["method"], r["target"], r["triangles"], r["vertices"], fmt_err(r["rms"]),
                 fmt_err(r["hausdorff"]), fmt_err(r.get("result_error")) if "result_error" in r else "",
-                r["nonmanifold_vertices"], r["nonmanifold_edges"], r["degenerate"], r["flipped"],
-                r["border_edges"], r["components"],
+                fmt_int(r["nonmanifold_vertices"]), fmt_int(r["nonmanifold_edges"]), r["degenerate"], r["flipped"],
+                fmt_int(r["border_edges"]), fmt_int(r["components"]),
                 "%.3f" % r["seconds"] if r.get("seconds") is not None else "",
-                "%.2f" % rate if rate else "",
+                "%.3g" % rate if rate else "",
                 "%.1f" % (r["peak_kib"] / 1024.0) if r.get("peak_kib") else ""))
     return "\n".join(lines)
 
@@ -321,7 +330,8 @@ def plot(data, path):
     for r in data["rows"]:
         if r["method"] not in methods:
             methods.append(r["method"])
-    meshes = [m for m in data["meshes"] if any(r["mesh"] == m["name"] and "rms" in r for r in data["rows"])]
+    meshes = [m for m in data["meshes"] if any(r["mesh"] == m["name"] and (r.get("rms") or 0) > 0
+                                               for r in data["rows"])]
     cols = min(6, max(1, len(meshes)))
     nrows = (len(meshes) + cols - 1) // cols
     with tempfile.TemporaryDirectory() as tmp:
@@ -337,7 +347,7 @@ def plot(data, path):
             plots = []
             for j, method in enumerate(methods):
                 pts = sorted((r["triangles"], r["rms"]) for r in data["rows"]
-                             if r["mesh"] == m["name"] and r["method"] == method and r.get("rms", 0) > 0)
+                             if r["mesh"] == m["name"] and r["method"] == method and (r.get("rms") or 0) > 0)
                 if not pts:
                     continue
                 f = os.path.join(tmp, "%d_%d.dat" % (i, j))

@@ -355,7 +355,7 @@ TEST(Distance, AgreesWithIndependentSampling) {
   // Far apart and overlapping; an independent sampler with many points.
   Mesh a = bumpy_sphere(14, 20, 0.25), b = translated(test::make_sphere(9, 13), 0.3, -0.2, 0.1);
   DistanceResult r = measure(a, b, with(DistanceHold::kB, 2, 400000));
-  Stats ab = brute_force(own_samples(a, 40000, 3), b), ba = brute_force(own_samples(b, 40000, 4), a);
+  Stats ab = brute_force(own_samples(a, 160000, 3), b), ba = brute_force(own_samples(b, 160000, 4), a);
   EXPECT_NEAR(r.a_to_b.mean, ab.mean, 0.01 * ab.mean);
   EXPECT_NEAR(r.a_to_b.rms, ab.rms, 0.01 * ab.rms);
   EXPECT_NEAR(r.b_to_a.mean, ba.mean, 0.01 * ba.mean);
