@@ -1114,19 +1114,14 @@ Status measure_distance(MeshSource& a, MeshSource& b, const DistanceOptions& opt
     result->error_input = h_input;
     return Status(ErrorCode::kBadValue, "no triangles: there is no surface to measure");
   }
-  // The held mesh's triangle BVH and samples, before the other is read.
-  std::vector<double> h_points;
+  // The held mesh's samples and triangle BVH, before the other is read.
+  std::vector<double> h_points = all_samples(h, sample_count(h, options.samples), options.seed, threads);
   Bvh<9> h_bvh;
-  double margin = 0, zero = 0;
-  uint64_t h_samples = 0;
-  auto prepare_held = [&]() {
-    h_samples = sample_count(h, options.samples);
-    h_points = all_samples(h, h_samples, options.seed, threads);
+  {
     std::vector<double> coords;
     triangle_coords(h, h.tri.data(), static_cast<size_t>(h.triangles), &coords);
     h_bvh.build(std::move(coords), kTriangleLeaf);
-  };
-  prepare_held();
+  }
   st = read_mesh(h_is_a ? b : a, both, options.tmpdir, &s);
   if (!st.ok()) {
     result->error_input = s_input;
@@ -1137,8 +1132,7 @@ Status measure_distance(MeshSource& a, MeshSource& b, const DistanceOptions& opt
     return Status(ErrorCode::kBadValue, "no triangles: there is no surface to measure");
   }
   const double scale = std::max({h.max_abs, s.max_abs, std::numeric_limits<double>::min()});
-  margin = kMarginScale * scale;
-  zero = kZeroScale * scale;
+  const double margin = kMarginScale * scale, zero = kZeroScale * scale;
   const uint64_t h_used = h.used;
   release(&h);
 
