@@ -21,6 +21,7 @@ const char kUsage[] =
     "  convert IN OUT   convert between PLY, OBJ and .psq, streaming\n"
     "  dump IN          print the processing sequence of a mesh as text\n"
     "  verify FILE      decode a .psq completely and check it\n"
+    "  distance A B     surface distance between two meshes (Metro: max, mean, RMS)\n"
     "\n"
     "Options:\n"
     "  -h, --help       show this help (psq help COMMAND or psq COMMAND --help\n"
@@ -41,6 +42,7 @@ const Command kCommands[] = {
     {"convert", psq::cli::cmd_convert},
     {"dump", psq::cli::cmd_dump},
     {"verify", psq::cli::cmd_verify},
+    {"distance", psq::cli::cmd_distance},
 };
 
 const Command* find_command(const std::string& name) {
