@@ -19,6 +19,7 @@ const char kUsage[] =
     "  convert IN OUT   convert between PLY, OBJ and .psq, streaming\n"
     "  dump IN          print the processing sequence of a mesh as text\n"
     "  verify FILE      decode a .psq completely and check it\n"
+    "  simplify IN OUT  simplify a mesh of any size out of core (--method clustering)\n"
     "\n"
     "Options:\n"
     "  -h, --help       show this help (psq COMMAND --help for a command's)\n"
@@ -48,5 +49,6 @@ int main(int argc, char** argv) {
   if (cmd == "convert") return psq::cli::cmd_convert(argc - 1, argv + 1);
   if (cmd == "dump") return psq::cli::cmd_dump(argc - 1, argv + 1);
   if (cmd == "verify") return psq::cli::cmd_verify(argc - 1, argv + 1);
+  if (cmd == "simplify") return psq::cli::cmd_simplify(argc - 1, argv + 1);
   return psq::cli::usage_error("", "unknown command '" + cmd + "'");
 }
