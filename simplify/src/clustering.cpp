@@ -556,7 +556,9 @@ bool ClusteringFilter::Impl::emit_vertex(uint32_t x) {
     return grid.key_of(p) == c.cell;
   };
   double p[3];
-  if (!place(rel, p) && !place(mean, p)) {
+  // A cluster of one vertex is that vertex (its planes all pass through
+  // it), exactly: a grid that keeps everything gives the input back.
+  if (c.count == 1 || (!place(rel, p) && !place(mean, p))) {
     for (int a = 0; a < 3; ++a) p[a] = c.first_pos[a];
   }
   c.out_id = next_out_id++;
