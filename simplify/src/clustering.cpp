@@ -108,13 +108,15 @@ class KeyMap {
   size_t size_ = 0;
 };
 
-// A boundary vertex of the input, by slot.
+// A boundary vertex of the input, by slot: 32 bytes, two to a cache line
+// (its cell is recomputed from the position where needed: cheaper than
+// the cache misses of a larger record on a long boundary).
 struct SlotData {
   double pos[3];
-  uint64_t cell;   // ClusterGrid::key_of(pos)
   uint32_t node;   // its cluster's node (kNone until its first triangle)
   uint32_t dense;  // its dense index; kNone when the slot is free
 };
+static_assert(sizeof(SlotData) == 32, "a slot is half a cache line");
 
 // A cluster (a root of the forest) or a cluster merged into another (a
 // child: only parent and refs matter).
@@ -248,6 +250,7 @@ struct ClusteringFilter::Impl {
   bool finished = false;
 
   ClusterGrid grid;
+  double inv_cell = 1;  // 1 / grid.cell, as ClusterGrid::cell_of() computes it
   double box_lo[3] = {0, 0, 0}, box_hi[3] = {0, 0, 0};
   bool float_positions = false;
   PropertyMerger vmerge, fmerge;
@@ -300,6 +303,16 @@ struct ClusteringFilter::Impl {
   uint64_t bytes() const;
   bool check_memory();
 
+  // ClusterGrid::key_of(), without its division.
+  uint64_t key(const double p[3]) const {
+    uint64_t k = 0;
+    for (int a = 0; a < 3; ++a) {
+      const double f = (p[a] - grid.origin[a]) * inv_cell;
+      const uint32_t c = f >= 1 ? (f < grid.dims[a] ? static_cast<uint32_t>(f) : grid.dims[a] - 1) : 0;
+      k |= uint64_t{c} << (21 * a);
+    }
+    return k;
+  }
   double* acc_of(uint32_t n) { return acc.data() + size_t{n} * vmerge.width(); }
   uint32_t new_node(uint64_t cell);
   void release(uint32_t n);
@@ -547,13 +560,30 @@ bool ClusteringFilter::Impl::emit_vertex(uint32_t x) {
       hi[a] = std::min(hi[a], box_hi[a]);
     }
   }
+  const uint32_t want[3] = {static_cast<uint32_t>(c.cell & 0x1fffff), static_cast<uint32_t>((c.cell >> 21) & 0x1fffff),
+                            static_cast<uint32_t>(c.cell >> 42)};
   auto place = [&](const double r[3], double p[3]) {
     for (int a = 0; a < 3; ++a) {
       double v = c.origin[a] + r[a];
       v = std::min(hi[a], std::max(lo[a], v));  // also turns NaN into lo
       p[a] = float_positions ? nearest_float(v) : v;
     }
-    return grid.key_of(p) == c.cell;
+    // On a cell's far face (or rounded across it) a point belongs to the
+    // next cell: step it back by the smallest amounts the type has.
+    for (int step = 0; step < 4; ++step) {
+      uint32_t ijk[3];
+      grid.cell_of(p, ijk);
+      bool inside = true;
+      for (int a = 0; a < 3; ++a) {
+        if (ijk[a] == want[a]) continue;
+        inside = false;
+        const double toward = ijk[a] > want[a] ? -HUGE_VAL : HUGE_VAL;
+        p[a] = float_positions ? static_cast<double>(std::nextafter(static_cast<float>(p[a]), static_cast<float>(toward)))
+                               : std::nextafter(p[a], toward);
+      }
+      if (inside) return true;
+    }
+    return false;
   };
   double p[3];
   // A cluster of one vertex is that vertex (its planes all pass through
@@ -697,7 +727,7 @@ bool ClusteringFilter::Impl::vertex(const SequenceVertex& v) {
   }
   if (slot >= slots.size()) {
     const size_t n = std::max<size_t>(slot + 1, 2 * slots.size());
-    slots.resize(n, SlotData{{0, 0, 0}, 0, kNone, kNone});
+    slots.resize(n, SlotData{{0, 0, 0}, kNone, kNone});
     if (vertex_values) slot_values.resize(n);
   }
   SlotData& sd = slots[slot];
@@ -708,7 +738,6 @@ bool ClusteringFilter::Impl::vertex(const SequenceVertex& v) {
     if (!std::isfinite(v.position[a])) return fail(Status(ErrorCode::kBadValue, "vertex position is not finite"));
     sd.pos[a] = v.position[a];
   }
-  sd.cell = grid.key_of(sd.pos);
   sd.node = kNone;
   sd.dense = v.index;
   if (vertex_values) slot_values[slot] = v.values;
@@ -726,7 +755,8 @@ bool ClusteringFilter::Impl::vertex(const SequenceVertex& v) {
     KeyMap& by_dense = slot_mode == 1 ? own_slot : dense_slot;
     if (v.reappears != kNoVertex) {
       const uint32_t first = by_dense.find(v.reappears);
-      if (first != kNone && first != slot && slots[first].node != kNone && slots[first].cell == sd.cell)
+      if (first != kNone && first != slot && slots[first].node != kNone &&
+          key(slots[first].pos) == key(sd.pos))
         adopt(slot, find(slots[first].node));
     }
     if (reappear_map) dense_slot.insert(v.index, slot);
@@ -744,7 +774,7 @@ bool ClusteringFilter::Impl::triangle(const SequenceTriangle& t) {
       return bad("a triangle uses vertex " + std::to_string(t.v[k]) + ", which is not on the boundary");
   }
   if (s[0] == s[1] || s[1] == s[2] || s[2] == s[0]) return bad("a triangle uses one vertex twice");
-  const uint64_t cell[3] = {slots[s[0]].cell, slots[s[1]].cell, slots[s[2]].cell};
+  const uint64_t cell[3] = {key(slots[s[0]].pos), key(slots[s[1]].pos), key(slots[s[2]].pos)};
   // Clusters for the corners new to any triangle.
   for (int k = 0; k < 3; ++k) {
     if (slots[s[k]].node != kNone) continue;
@@ -895,6 +925,7 @@ Status ClusteringFilter::begin(const MeshSchema& schema) {
                         : grid_with_size(in.bounds_min, in.bounds_max, o.cell_size, &m.grid);
   if (!s.ok()) return m.error = s;
   m.stats.grid = m.grid;
+  m.inv_cell = 1.0 / m.grid.cell;
   std::copy(in.bounds_min, in.bounds_min + 3, m.box_lo);
   std::copy(in.bounds_max, in.bounds_max + 3, m.box_hi);
   m.float_positions = schema.position_type == ScalarType::kFloat32;

@@ -77,9 +77,10 @@ const char kHelp[] =
     "                      more)\n"
     "  --ascii             write ascii PLY instead of binary little-endian\n"
     "  --tmpdir DIR        directory for temporary files (default $TMPDIR)\n"
-    "  --threads N         1 runs on one thread; 2 (the default on two or more\n"
-    "                      cores) reads the input on a second thread (the output\n"
-    "                      is the same)\n"
+    "  --threads N         1 runs on one thread; 2 reads the input on a second\n"
+    "                      thread; 3 (the default on two or more cores) also\n"
+    "                      encodes .psq output on a third (the output is the\n"
+    "                      same)\n"
     "  -f, --force         overwrite OUT if it exists\n"
     "  -q, --quiet         print no notes, no progress line and no summary\n"
     "  --json              print a JSON summary on standard output (not with OUT\n"
@@ -264,7 +265,7 @@ int cmd_simplify(int argc, char** argv) {
   const std::string bits_text = args.option("--bits");
   const std::string profile = args.option("--profile", "auto");
   const std::string tmpdir = args.option("--tmpdir");
-  const std::string threads_text = args.option("--threads", std::thread::hardware_concurrency() >= 2 ? "2" : "1");
+  const std::string threads_text = args.option("--threads", std::thread::hardware_concurrency() >= 2 ? "3" : "1");
   const std::vector<std::string> files = args.positionals();
   if (!args.error().empty()) return usage_error("simplify", args.error());
   if (files.size() != 2) return usage_error("simplify", "simplify takes IN and OUT");
@@ -296,9 +297,9 @@ int cmd_simplify(int argc, char** argv) {
     return usage_error("simplify", "bad --border-weight '" + border_text + "' (a number >= 0)");
   uint64_t memory_bytes = 0;
   if (!parse_size(memory, &memory_bytes)) return usage_error("simplify", "bad --memory '" + memory + "' (e.g. 256M, 2G)");
-  if (threads_text != "1" && threads_text != "2")
-    return usage_error("simplify", "bad --threads '" + threads_text + "' (1 or 2)");
-  const int threads = threads_text == "2" ? 2 : 1;
+  if (threads_text != "1" && threads_text != "2" && threads_text != "3")
+    return usage_error("simplify", "bad --threads '" + threads_text + "' (1, 2 or 3)");
+  const int threads = threads_text[0] - '0';
   if (profile != "compact" && profile != "fast" && profile != "auto")
     return usage_error("simplify", "bad --profile '" + profile + "' (compact, fast or auto)");
   uint64_t bits = 0;
@@ -416,6 +417,7 @@ int cmd_simplify(int argc, char** argv) {
   }
   FileWriter file_writer(&output);
   std::unique_ptr<PsqEncoder> encoder;
+  std::unique_ptr<ThreadedSequenceSink> threaded_encoder;
   std::unique_ptr<MeshSink> writer;
   std::unique_ptr<DenseMeshSink> dense;
   NullSequenceSink null_sink;
@@ -424,7 +426,12 @@ int cmd_simplify(int argc, char** argv) {
   StreamingMeshSink* sink = nullptr;
   if (out_format == MeshFormat::kPsq) {
     encoder = std::make_unique<PsqEncoder>(&file_writer, encode_options);
-    converter = std::make_unique<SequenceConverter>(encoder.get());
+    SequenceSink* encoding = encoder.get();
+    if (threads > 2) {
+      threaded_encoder = std::make_unique<ThreadedSequenceSink>(encoder.get());
+      encoding = threaded_encoder.get();
+    }
+    converter = std::make_unique<SequenceConverter>(encoding);
     converter->set_lookahead_budget(lookahead_share);
     sink = converter.get();
   } else {
@@ -451,6 +458,7 @@ int cmd_simplify(int argc, char** argv) {
   ++passes;
   s = feed(mesh, filter, build, progress, threads, &report);
   if (!s.ok()) {
+    threaded_encoder.reset();  // stops the encoder's thread before the output goes
     output.discard();
     return report_simplify_error(in, out, s);
   }
