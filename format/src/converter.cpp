@@ -297,6 +297,7 @@ struct SequenceConverter::Impl {
   uint64_t waiting = 0;
   uint64_t ready = 0;       // ready triangles not yet emitted
   uint64_t lookahead_cap = (uint64_t{128} << 20) / kLookaheadBytes;  // set_lookahead_budget()
+  uint64_t lookahead_min = kLookahead;                                // set_lookahead_minimum()
   bool finishing = false;   // no more input: start regions freely
 
   SequenceTriangle st;  // reused
@@ -409,6 +410,9 @@ SequenceConverter::SequenceConverter(SequenceSink* out) : impl_(std::make_unique
 SequenceConverter::~SequenceConverter() = default;
 
 void SequenceConverter::set_lookahead_budget(uint64_t bytes) { impl_->lookahead_cap = bytes / kLookaheadBytes; }
+void SequenceConverter::set_lookahead_minimum(uint64_t triangles) {
+  impl_->lookahead_min = std::max<uint64_t>(1, triangles);
+}
 const ConverterStats& SequenceConverter::stats() const { return impl_->stats; }
 
 // Every public call returns the first error again once there was one.
@@ -939,7 +943,7 @@ bool SequenceConverter::Impl::drain() {
   for (;;) {
     if (!finishing) {
       const uint64_t open_edges = edge_slots - free_edge_slots.size();
-      const uint64_t lookahead = std::max(kLookahead, std::min(lookahead_cap, kLookaheadPerEdge * open_edges));
+      const uint64_t lookahead = std::max(lookahead_min, std::min(lookahead_cap, kLookaheadPerEdge * open_edges));
       if (ready < lookahead) return true;
     }
     bool emitted = false;

@@ -65,7 +65,7 @@ const char kHelp[] =
     "  --border-weight W   weight of the border quadrics (default 1; 0: none)\n"
     "  --memory SIZE       memory budget (default 256M): half for the sequence\n"
     "                      builder (non-.psq input), a quarter for the filter,\n"
-    "                      a sixteenth for the output converter's lookahead\n"
+    "                      a 32nd for the output converter's lookahead\n"
     "  --to FORMAT         output format: psq, ply, obj or drc (needed when OUT\n"
     "                      is '-'; else from OUT's extension)\n"
     "  --bits N            quantize positions to N bits: .psq 1..31, .drc 1..30\n"
@@ -87,6 +87,13 @@ const char kHelp[] =
     "                      '-'): counts in and out, the output's non-manifold\n"
     "                      vertices and edges, the filter's peak memory, time\n"
     "  -h, --help          show this help\n";
+
+// The output converter keeps at least this many ready triangles waiting
+// (psq/converter.h, set_lookahead_minimum()): the converter's default of
+// 65536 and 32 per open edge made it the largest structure of a run (most
+// of the 65 MB peak of a 50M-triangle foam simplified to 10%); this, with
+// a 32nd of --memory as its cap, costs about 1% of the output's bytes.
+constexpr uint64_t kOutputLookahead = 4096;
 
 // As psq convert's --profile auto.
 constexpr int64_t kAutoFastTriangles = 131072;
@@ -324,7 +331,7 @@ int cmd_simplify(int argc, char** argv) {
   build.tmpdir = tmpdir;
   build.memory_budget = budget.draw(1, 2);
   options.memory_budget = budget.draw(1, 4);
-  const uint64_t lookahead_share = budget.draw(1, 16);
+  const uint64_t lookahead_share = budget.draw(1, 32);
   const uint64_t draco_share = budget.draw_rest();
   OpenOptions open_options;
   open_options.spool_dir = tmpdir;
@@ -433,6 +440,7 @@ int cmd_simplify(int argc, char** argv) {
     }
     converter = std::make_unique<SequenceConverter>(encoding);
     converter->set_lookahead_budget(lookahead_share);
+    converter->set_lookahead_minimum(kOutputLookahead);
     sink = converter.get();
   } else {
     WriteOptions write_options;
@@ -448,6 +456,7 @@ int cmd_simplify(int argc, char** argv) {
       // The converter counts the output's non-manifold vertices and edges.
       converter = std::make_unique<SequenceConverter>(&null_sink);
       converter->set_lookahead_budget(lookahead_share);
+      converter->set_lookahead_minimum(kOutputLookahead);
       tee = std::make_unique<TeeMeshSink>(dense.get(), converter.get());
       sink = tee.get();
     }
@@ -514,6 +523,7 @@ int cmd_simplify(int argc, char** argv) {
                     ", \"border_edges\": " + num(cs ? cs->border_edges : 0) + ", \"clusters\": " + num(st.clusters) +
                     ", \"duplicates\": " + num(st.duplicates) + ", \"max_clusters\": " + num(st.max_clusters) +
                     ", \"max_waiting_triangles\": " + num(st.max_waiting) +
+                    ", \"converter_max_waiting_triangles\": " + num(cs ? cs->max_waiting_triangles : 0) +
                     ", \"filter_peak_bytes\": " + num(st.peak_bytes) + ", \"bytes_in\": " + num(mesh.stream->offset()) +
                     ", \"bytes_out\": " + num(output.size()) + ", \"seconds\": " + json_number(seconds) +
                     ", \"triangles_per_second\": " +
