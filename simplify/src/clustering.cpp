@@ -206,10 +206,11 @@ Status grid_on(const double lo[3], const double hi[3], double size, ClusterGrid*
 
 }  // namespace
 
-Status grid_with_cells(const double lo[3], const double hi[3], uint32_t n, ClusterGrid* grid) {
+Status grid_with_cells(const double lo[3], const double hi[3], double n, ClusterGrid* grid) {
   PSQ_RETURN_IF_ERROR(check_box(lo, hi));
-  if (n < 1) return Status(ErrorCode::kUsage, "the grid needs at least one cell along the longest side");
-  if (n >= ClusterGrid::kMaxDim)
+  if (!(n >= 1) || !std::isfinite(n))
+    return Status(ErrorCode::kUsage, "the grid needs at least one cell along the longest side");
+  if (!(n < ClusterGrid::kMaxDim))
     return Status(ErrorCode::kLimit, "more than " + std::to_string(ClusterGrid::kMaxDim - 1) + " cells along an axis");
   const double longest = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
   if (!(longest > 0)) return grid_on(lo, hi, 1.0, grid);
@@ -226,19 +227,19 @@ Status grid_with_size(const double lo[3], const double hi[3], double size, Clust
   return grid_on(lo, hi, size, grid);
 }
 
-uint32_t first_grid_for_triangles(uint64_t target) {
+double first_grid_for_triangles(uint64_t target) {
   // About 8 n^2 triangles: a sphere inscribed in the box gives about 9.4
   // (twice its cells, 1.5 pi n^2), rougher surfaces more.
   const double n = std::sqrt(static_cast<double>(target) / 8);
-  return static_cast<uint32_t>(std::min<double>(ClusterGrid::kMaxDim - 1, std::max(1.0, std::round(n))));
+  return std::min<double>(ClusterGrid::kMaxDim - 1, std::max(1.0, n));
 }
 
-uint32_t corrected_grid_for_triangles(uint64_t target, uint32_t trial_grid, uint64_t trial_triangles) {
+double corrected_grid_for_triangles(uint64_t target, double trial_grid, uint64_t trial_triangles) {
   // No triangle at all: the grid was far too coarse; try 4 times finer.
   const double factor =
       trial_triangles == 0 ? 4.0 : std::sqrt(static_cast<double>(target) / static_cast<double>(trial_triangles));
-  const double n = static_cast<double>(trial_grid) * std::min(64.0, std::max(1.0 / 64, factor));
-  return static_cast<uint32_t>(std::min<double>(ClusterGrid::kMaxDim - 1, std::max(1.0, std::round(n))));
+  const double n = trial_grid * std::min(64.0, std::max(1.0 / 64, factor));
+  return std::min<double>(ClusterGrid::kMaxDim - 1, std::max(1.0, n));
 }
 
 struct ClusteringFilter::Impl {

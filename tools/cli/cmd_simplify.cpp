@@ -57,7 +57,8 @@ const char kHelp[] =
     "                        global: a cell for the whole run (the original OoCS;\n"
     "                          memory grows with the output)\n"
     "  --grid N            N cells along the longest side of the bounding box\n"
-    "                      (default 256)\n"
+    "                      (default 256; a fraction makes cells of the longest\n"
+    "                      side / N)\n"
     "  --cell SIZE         cells of edge SIZE instead\n"
     "  --triangles N       aim at N output triangles: a trial pass picks the grid\n"
     "                      (two passes over IN; a pipe is spooled to --tmpdir); the\n"
@@ -287,10 +288,8 @@ int cmd_simplify(int argc, char** argv) {
     return usage_error("simplify", "give one of --grid, --cell and --triangles");
   uint64_t target = 0;
   if (!grid_text.empty()) {
-    uint64_t g = 0;
-    if (!parse_uint(grid_text, ClusterGrid::kMaxDim - 1, &g) || g < 1)
+    if (!parse_double(grid_text, &options.grid) || !(options.grid >= 1) || !(options.grid < ClusterGrid::kMaxDim))
       return usage_error("simplify", "bad --grid '" + grid_text + "' (1 to " + std::to_string(ClusterGrid::kMaxDim - 1) + ")");
-    options.grid = static_cast<uint32_t>(g);
   } else if (!cell_text.empty()) {
     if (!parse_double(cell_text, &options.cell_size) || !(options.cell_size > 0))
       return usage_error("simplify", "bad --cell '" + cell_text + "' (a positive number)");
@@ -366,7 +365,7 @@ int cmd_simplify(int argc, char** argv) {
   // as the grid squared: one trial, a second only when the first was far
   // off, then the final grid interpolated in log-log).
   if (target > 0) {
-    uint32_t trial_grid[2] = {options.grid, 0};
+    double trial_grid[2] = {options.grid, 0};
     uint64_t trial_triangles[2] = {0, 0};
     for (int t = 0; t < 2; ++t) {
       ClusteringOptions trial = options;
@@ -383,23 +382,23 @@ int cmd_simplify(int argc, char** argv) {
       s = input.open(open_options, &mesh);
       if (!s.ok()) return report_error(in, s);
       const double off = std::fabs(static_cast<double>(count.triangles) - static_cast<double>(target)) / static_cast<double>(target);
-      if (off <= 0.05) {
+      if (off <= 0.02) {
         options.grid = trial_grid[t];
         break;
       }
       if (t == 0) {
         options.grid = corrected_grid_for_triangles(target, trial_grid[0], trial_triangles[0]);
         // Close enough for the square law to hold: no second trial.
-        const double ratio = static_cast<double>(options.grid) / trial_grid[0];
-        if ((ratio > 0.7 && ratio < 1.4) || options.grid == trial_grid[0]) break;
+        const double ratio = options.grid / trial_grid[0];
+        if (ratio > 0.8 && ratio < 1.25) break;
         trial_grid[1] = options.grid;
-      } else if (trial_triangles[0] > 0 && trial_triangles[1] > 0 && trial_triangles[0] != trial_triangles[1] &&
-                 trial_grid[0] != trial_grid[1]) {
+      } else if (trial_triangles[0] > 0 && trial_triangles[1] > 0 && trial_triangles[0] != trial_triangles[1]) {
+        // Interpolated in log-log through both trials.
         const double slope = std::log(static_cast<double>(trial_triangles[1]) / trial_triangles[0]) /
-                             std::log(static_cast<double>(trial_grid[1]) / trial_grid[0]);
-        const double g = slope > 0.5 ? trial_grid[1] * std::pow(static_cast<double>(target) / trial_triangles[1], 1 / slope)
-                                     : static_cast<double>(corrected_grid_for_triangles(target, trial_grid[1], trial_triangles[1]));
-        options.grid = static_cast<uint32_t>(std::min<double>(ClusterGrid::kMaxDim - 1, std::max(1.0, std::round(g))));
+                             std::log(trial_grid[1] / trial_grid[0]);
+        options.grid = slope > 0.5 ? trial_grid[1] * std::pow(static_cast<double>(target) / trial_triangles[1], 1 / slope)
+                                   : corrected_grid_for_triangles(target, trial_grid[1], trial_triangles[1]);
+        options.grid = std::min<double>(ClusterGrid::kMaxDim - 1, std::max(1.0, options.grid));
       } else {
         options.grid = corrected_grid_for_triangles(target, trial_grid[1], trial_triangles[1]);
       }
@@ -492,8 +491,8 @@ int cmd_simplify(int argc, char** argv) {
   if (st.triangles_in > 0 && st.triangles_out == 0)
     notes.push_back("no triangle has its corners in three cells: the output is empty (use a finer grid)");
   if (target > 0)
-    notes.push_back("--triangles " + std::to_string(target) + ": grid " + std::to_string(options.grid) + ", " +
-                    std::to_string(st.triangles_out) + " triangles");
+    notes.push_back("--triangles " + std::to_string(target) + ": " + json_number(options.grid) +
+                    " cells along the longest side, " + std::to_string(st.triangles_out) + " triangles");
   if (!quiet)
     for (const std::string& n : notes) note(in, n);
   {
@@ -510,7 +509,8 @@ int cmd_simplify(int argc, char** argv) {
     std::string o = "{\"input\": \"" + json_escape(in) + "\", \"output\": \"" + json_escape(out) +
                     "\", \"input_format\": \"" + format_name(mesh.format) + "\", \"output_format\": \"" +
                     format_name(out_format) + "\", \"method\": \"clustering\", \"cells\": \"" +
-                    cell_mode_name(options.cells) + "\", \"grid\": [" + num(st.grid.dims[0]) + ", " +
+                    cell_mode_name(options.cells) + "\", \"grid_longest\": " +
+                    (options.grid > 0 ? json_number(options.grid) : std::string("null")) + ", \"grid\": [" + num(st.grid.dims[0]) + ", " +
                     num(st.grid.dims[1]) + ", " + num(st.grid.dims[2]) + "], \"cell_size\": " +
                     json_number(st.grid.cell) + ", \"border_weight\": " + json_number(options.border_weight) +
                     ", \"target_triangles\": " + (target ? num(target) : std::string("null")) +

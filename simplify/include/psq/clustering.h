@@ -108,28 +108,31 @@ struct ClusterGrid {
 };
 
 // The grid over the box lo..hi with `n` (>= 1) cells along its longest
-// side, or cells of edge `size` (> 0). A box of no extent gets one cell.
-// Errors: kUsage (n < 1, size not a positive finite number, a box that is
-// not finite or inverted), kLimit (more than ClusterGrid::kMaxDim cells
-// along an axis).
-Status grid_with_cells(const double lo[3], const double hi[3], uint32_t n, ClusterGrid* grid);
+// side (a fraction makes cells of the longest side / n, the last one
+// reaching past the box), or cells of edge `size` (> 0). A box of no
+// extent gets one cell. Errors: kUsage (n < 1 or not finite, size not a
+// positive finite number, a box that is not finite or inverted), kLimit
+// (more than ClusterGrid::kMaxDim cells along an axis).
+Status grid_with_cells(const double lo[3], const double hi[3], double n, ClusterGrid* grid);
 Status grid_with_size(const double lo[3], const double hi[3], double size, ClusterGrid* grid);
 
 // For a target triangle count (psq simplify --triangles): a first grid to
-// try, and the grid that a trial's result suggests. A surface's output has
-// about c * n^2 triangles at n cells along the longest side (the cells a
-// surface passes through grow with the square of the resolution), so one
-// trial gives c and the correction n * sqrt(target / trial_triangles).
-// Both give 1 .. kMaxDim - 1.
-uint32_t first_grid_for_triangles(uint64_t target);
-uint32_t corrected_grid_for_triangles(uint64_t target, uint32_t trial_grid, uint64_t trial_triangles);
+// try, and the grid that a trial's result suggests, in cells along the
+// longest side (fractional: the count follows the cell size continuously,
+// not in the steps of whole cells across). A surface's output has about
+// c * n^2 triangles at n cells along the longest side (the cells a surface
+// passes through grow with the square of the resolution), so one trial
+// gives c and the correction n * sqrt(target / trial_triangles). Both give
+// 1 .. kMaxDim - 1.
+double first_grid_for_triangles(uint64_t target);
+double corrected_grid_for_triangles(uint64_t target, double trial_grid, uint64_t trial_triangles);
 
 struct ClusteringOptions {
   CellMode cells = CellMode::kConnected;
   // The grid: `grid` cells along the longest side of the input's bounds
-  // (the schema's; see begin()), or, when `grid` is 0, cells of edge
-  // `cell_size`.
-  uint32_t grid = 256;
+  // (the schema's; see begin(); fractional: see grid_with_cells()), or,
+  // when `grid` is 0, cells of edge `cell_size`.
+  double grid = 256;
   double cell_size = 0;
   // The box the grid is built on, instead of the schema's bounds: for an
   // input that declares none (a lossless .psq), whose box a first pass
