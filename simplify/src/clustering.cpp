@@ -252,6 +252,7 @@ struct ClusteringFilter::Impl {
 
   ClusterGrid grid;
   double inv_cell = 1;  // 1 / grid.cell, as ClusterGrid::cell_of() computes it
+  double last_cell[3] = {0, 0, 0};  // dims - 1
   double box_lo[3] = {0, 0, 0}, box_hi[3] = {0, 0, 0};
   bool float_positions = false;
   PropertyMerger vmerge, fmerge;
@@ -304,13 +305,14 @@ struct ClusteringFilter::Impl {
   uint64_t bytes() const;
   bool check_memory();
 
-  // ClusterGrid::key_of(), without its division.
+  // ClusterGrid::key_of() for a finite position (vertex() checks),
+  // without its division and branches: clamping the scaled coordinate to
+  // [0, dims - 1] before truncation gives the same cell.
   uint64_t key(const double p[3]) const {
     uint64_t k = 0;
     for (int a = 0; a < 3; ++a) {
-      const double f = (p[a] - grid.origin[a]) * inv_cell;
-      const uint32_t c = f >= 1 ? (f < grid.dims[a] ? static_cast<uint32_t>(f) : grid.dims[a] - 1) : 0;
-      k |= uint64_t{c} << (21 * a);
+      const double f = std::min(last_cell[a], std::max(0.0, (p[a] - grid.origin[a]) * inv_cell));
+      k |= uint64_t{static_cast<uint32_t>(f)} << (21 * a);
     }
     return k;
   }
@@ -927,6 +929,7 @@ Status ClusteringFilter::begin(const MeshSchema& schema) {
   if (!s.ok()) return m.error = s;
   m.stats.grid = m.grid;
   m.inv_cell = 1.0 / m.grid.cell;
+  for (int a = 0; a < 3; ++a) m.last_cell[a] = m.grid.dims[a] - 1.0;
   std::copy(in.bounds_min, in.bounds_min + 3, m.box_lo);
   std::copy(in.bounds_max, in.bounds_max + 3, m.box_hi);
   m.float_positions = schema.position_type == ScalarType::kFloat32;

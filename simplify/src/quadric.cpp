@@ -27,7 +27,9 @@ void symmetric_eigen(const double a[6], double w[3], double v[3][3]) {
     const double off = m[0][1] * m[0][1] + m[0][2] * m[0][2] + m[1][2] * m[1][2];
     const double diag = m[0][0] * m[0][0] + m[1][1] * m[1][1] + m[2][2] * m[2][2];
     // Off-diagonal elements 1e-12 of the diagonal's: far below the 1e-3
-    // by which minimize_quadric() tells directions apart.
+    // by which minimize_quadric() tells directions apart, and eigenvectors
+    // accurate enough that no part of a large direction's step leaks into
+    // a small one's (divided by its small eigenvalue).
     if (off <= 1e-24 * diag || off == 0) break;
     for (int p = 0; p < 2; ++p) {
       for (int q = p + 1; q < 3; ++q) {
