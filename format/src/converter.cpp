@@ -14,6 +14,8 @@
 // are any.
 #include "psq/converter.h"
 
+#include "id_map.h"
+
 #include <algorithm>
 #include <array>
 #include <iterator>
@@ -106,70 +108,7 @@ struct Seg {
   uint32_t remaining = 0;   // triangles of the fan not yet emitted
 };
 
-// Input vertex id -> slot in the vertex pool: open addressing with linear
-// probing and backward-shift deletion, so that the waiting area costs no
-// allocation per vertex once warm.
-class IdMap {
- public:
-  IdMap() { rehash(1024); }
-  size_t size() const { return size_; }
-  // The slot of `id`, or kNone.
-  uint32_t find(uint32_t id) const {
-    for (size_t i = hash(id);; i = (i + 1) & mask_) {
-      if (cells_[i].key == kNone) return kNone;
-      if (cells_[i].key == id) return cells_[i].value;
-    }
-  }
-  void insert(uint32_t id, uint32_t value) {
-    if (2 * (size_ + 1) > cells_.size()) rehash(2 * cells_.size());
-    size_t i = hash(id);
-    while (cells_[i].key != kNone) i = (i + 1) & mask_;
-    cells_[i] = Cell{id, value};
-    ++size_;
-  }
-  void erase(uint32_t id) {
-    size_t i = hash(id);
-    while (cells_[i].key != id) {
-      if (cells_[i].key == kNone) return;
-      i = (i + 1) & mask_;
-    }
-    // Shift later members of the probe run back into the hole.
-    for (size_t j = (i + 1) & mask_; cells_[j].key != kNone; j = (j + 1) & mask_) {
-      size_t home = hash(cells_[j].key);
-      if (((j - home) & mask_) >= ((j - i) & mask_)) {
-        cells_[i] = cells_[j];
-        i = j;
-      }
-    }
-    cells_[i].key = kNone;
-    --size_;
-  }
-  template <class F>
-  void for_each(F f) const {
-    for (const Cell& c : cells_) {
-      if (c.key != kNone) f(c.key, c.value);
-    }
-  }
-
- private:
-  struct Cell {
-    uint32_t key;
-    uint32_t value;
-  };
-  size_t hash(uint32_t id) const { return (uint64_t{id} * 0x9E3779B97F4A7C15ull >> 20) & mask_; }
-  void rehash(size_t capacity) {
-    std::vector<Cell> old(capacity, Cell{kNone, 0});
-    old.swap(cells_);
-    mask_ = capacity - 1;
-    size_ = 0;
-    for (const Cell& c : old) {
-      if (c.key != kNone) insert(c.key, c.value);
-    }
-  }
-  std::vector<Cell> cells_;
-  size_t mask_ = 0;
-  size_t size_ = 0;
-};
+using detail::IdMap;
 
 // The input ids finalized so far, so that vertex() and triangle() reject an
 // id whose vertex has left the waiting area. Ids are grouped in pages of
@@ -354,6 +293,7 @@ struct SequenceConverter::Impl {
   uint64_t waiting = 0;
   uint64_t ready = 0;       // ready triangles not yet emitted
   uint64_t lookahead_cap = (uint64_t{128} << 20) / kLookaheadBytes;  // set_lookahead_budget()
+  uint64_t lookahead_min = kLookahead;                                // set_lookahead_minimum()
   bool finishing = false;   // no more input: start regions freely
 
   SequenceTriangle st;  // reused
@@ -466,6 +406,9 @@ SequenceConverter::SequenceConverter(SequenceSink* out) : impl_(std::make_unique
 SequenceConverter::~SequenceConverter() = default;
 
 void SequenceConverter::set_lookahead_budget(uint64_t bytes) { impl_->lookahead_cap = bytes / kLookaheadBytes; }
+void SequenceConverter::set_lookahead_minimum(uint64_t triangles) {
+  impl_->lookahead_min = std::max<uint64_t>(1, triangles);
+}
 const ConverterStats& SequenceConverter::stats() const { return impl_->stats; }
 
 // Every public call returns the first error again once there was one.
@@ -996,7 +939,7 @@ bool SequenceConverter::Impl::drain() {
   for (;;) {
     if (!finishing) {
       const uint64_t open_edges = edge_slots - free_edge_slots.size();
-      const uint64_t lookahead = std::max(kLookahead, std::min(lookahead_cap, kLookaheadPerEdge * open_edges));
+      const uint64_t lookahead = std::max(lookahead_min, std::min(lookahead_cap, kLookaheadPerEdge * open_edges));
       if (ready < lookahead) return true;
     }
     bool emitted = false;

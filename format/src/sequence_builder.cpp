@@ -12,6 +12,7 @@
 
 #include "psq/external_sort.h"
 #include "psq/io.h"
+#include "psq/memory_budget.h"
 
 namespace psq {
 namespace {
@@ -129,6 +130,28 @@ Status spool_input(MeshSource& source, const BuildOptions& options, Spooled* s) 
   return s->triangles.rewind();
 }
 
+// The builder's shares of its budget (psq/memory_budget.h), in two phases
+// on the sort path. Sorting: the external sorts' buffers and the rank array
+// (4 bytes per vertex), half each. Merging: the sorts' merge buffers keep
+// their half; the rank array's half goes to the spool files loaded in
+// memory (so that the merge reads property values without a pread each)
+// and to the converter's lookahead, a quarter each. The coherent path
+// needs only the converter's quarter.
+struct Shares {
+  uint64_t sort = 0, ranks = 0, spools = 0, lookahead = 0;
+};
+
+Shares builder_shares(uint64_t total) {
+  MemoryBudget budget(total);
+  Shares s;
+  s.sort = budget.draw(1, 2);
+  s.ranks = budget.draw(1, 2);
+  budget.give_back(s.ranks);
+  s.spools = budget.draw(1, 4);
+  s.lookahead = budget.draw(1, 4);
+  return s;
+}
+
 // Coherent path: triangles in file order, vertices in index order as the
 // triangles reach them; after each block of triangles, every vertex below
 // the smallest index of all later blocks is final.
@@ -164,8 +187,8 @@ Status feed_coherent(Spooled& s, SequenceConverter& conv) {
 }
 
 // Sort path.
-Status feed_sorted(Spooled& s, const BuildOptions& options, SequenceConverter& conv) {
-  if (s.nv * 4 > options.memory_budget / 2) {
+Status feed_sorted(Spooled& s, const BuildOptions& options, const Shares& shares, SequenceConverter& conv) {
+  if (s.nv * 4 > shares.ranks) {
     return Status(ErrorCode::kLimit, "the vertex rank array (4 bytes per vertex) does not fit --memory");
   }
   int axis = 0;
@@ -173,7 +196,7 @@ Status feed_sorted(Spooled& s, const BuildOptions& options, SequenceConverter& c
     if (s.hi[k] - s.lo[k] > s.hi[axis] - s.lo[axis]) axis = k;
   }
   ExternalSortOptions so;
-  so.memory_budget = options.memory_budget / 2;  // the rank array takes the rest
+  so.memory_budget = shares.sort;
   so.tmpdir = options.tmpdir;
   // 1. Vertices by their coordinate along the longest axis.
   ExternalSorter<VertexKey> vsort(so);
@@ -232,13 +255,12 @@ Status feed_sorted(Spooled& s, const BuildOptions& options, SequenceConverter& c
   }
   PSQ_RETURN_IF_ERROR(tsort.finish());
   // Property values are read at their records' offsets, in rank order. The
-  // ranks are done with: their share of the budget (a quarter, beside the
-  // sort's half and the converter's quarter) takes the spools that have
-  // values when they fit, so that the merge reads them from memory instead
+  // ranks are done with: the spools that have values are loaded into their
+  // share when they fit, so that the merge reads them from memory instead
   // of with a pread each (bench/HISTORY.md, "The sort path's merge without
   // random reads").
   std::vector<uint32_t>().swap(rank);
-  const uint64_t share = options.memory_budget / 4;
+  const uint64_t share = shares.spools;
   const uint64_t want = (vertex_values ? s.vertices.size() : 0) + (triangle_values ? s.triangles.size() : 0);
   if (want > 0 && want <= share) {
     bool loaded = false;
@@ -297,13 +319,12 @@ Status build_sequence(MeshSource& source, SequenceSink& sink, const BuildOptions
     std::fill(schema.bounds_min, schema.bounds_min + 3, 0.0);
     std::fill(schema.bounds_max, schema.bounds_max + 3, 0.0);
   }
-  // A quarter of the budget for the converter's lookahead (the external
-  // sort takes half, its rank array the rest).
-  conv.set_lookahead_budget(options.memory_budget / 4);
+  const Shares shares = builder_shares(options.memory_budget);
+  conv.set_lookahead_budget(shares.lookahead);
   PSQ_RETURN_IF_ERROR(conv.begin(schema));
-  // Coherent enough when the vertices the window keeps waiting fit a small
-  // share of the budget (a waiting vertex and its triangles take about
-  // 400 bytes) and are less than half of the mesh. A window of most of the
+  // Coherent enough when the vertices the window keeps waiting fit the
+  // converter's share (a waiting vertex and its triangles take about 400
+  // bytes) and are less than half of the mesh. A window of most of the
   // mesh means the file order is not spatially coherent: one pass would hold
   // the whole mesh, and its triangles would become ready in scattered places,
   // so that the grown regions are riddled with holes around the vertices
@@ -313,15 +334,15 @@ Status build_sequence(MeshSource& source, SequenceSink& sink, const BuildOptions
   // of triangles counts as incoherent: one pass would hold all of it, and
   // the sort costs little at that size. The rule on half of the mesh
   // applies only when the sort's rank array fits the budget (feed_sorted):
-  // otherwise the mesh takes the one pass.
-  uint64_t limit = std::max<uint64_t>(1024, options.memory_budget / 4 / 400);
-  const bool incoherent = 2 * s.window > s.nv && s.nv * 4 <= options.memory_budget / 2;
+  // otherwise the one pass runs as before.
+  uint64_t limit = std::max<uint64_t>(1024, shares.lookahead / 400);
+  const bool incoherent = 2 * s.window > s.nv && s.nv * 4 <= shares.ranks;
   bool sorted = options.force_sort || s.window > limit || incoherent;
   report->sorted = sorted;
   report->window = s.window;
   report->vertices = s.nv;
   report->triangles = s.nt;
-  PSQ_RETURN_IF_ERROR(sorted ? feed_sorted(s, options, conv) : feed_coherent(s, conv));
+  PSQ_RETURN_IF_ERROR(sorted ? feed_sorted(s, options, shares, conv) : feed_coherent(s, conv));
   PSQ_RETURN_IF_ERROR(conv.finish());
   report->converter = conv.stats();
   return Status();

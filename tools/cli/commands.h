@@ -9,6 +9,7 @@ int cmd_convert(int argc, char** argv);  // argv[0] is "convert"
 int cmd_dump(int argc, char** argv);     // argv[0] is "dump"
 int cmd_verify(int argc, char** argv);   // argv[0] is "verify"
 int cmd_distance(int argc, char** argv); // argv[0] is "distance"
+int cmd_simplify(int argc, char** argv); // argv[0] is "simplify"
 
 }  // namespace psq::cli
 

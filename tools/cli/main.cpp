@@ -22,6 +22,7 @@ const char kUsage[] =
     "  dump IN          print the processing sequence of a mesh as text\n"
     "  verify FILE      decode a .psq completely and check it\n"
     "  distance A B     surface distance between two meshes (Metro: max, mean, RMS)\n"
+    "  simplify IN OUT  simplify a mesh of any size out of core (--method clustering)\n"
     "\n"
     "Options:\n"
     "  -h, --help       show this help (psq help COMMAND or psq COMMAND --help\n"
@@ -42,6 +43,7 @@ const Command kCommands[] = {
     {"convert", psq::cli::cmd_convert},
     {"dump", psq::cli::cmd_dump},
     {"verify", psq::cli::cmd_verify},
+    {"simplify", psq::cli::cmd_simplify},
     {"distance", psq::cli::cmd_distance},
 };
 

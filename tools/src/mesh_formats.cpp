@@ -58,8 +58,13 @@ MeshFormat detect_format(const uint8_t* data, size_t size, int64_t total_size) {
 }
 
 Status open_mesh(const std::string& path, const OpenOptions& options, OpenedMesh* out) {
-  out->stream = std::make_unique<InputStream>();
-  PSQ_RETURN_IF_ERROR(out->stream->open(path));
+  auto stream = std::make_unique<InputStream>();
+  PSQ_RETURN_IF_ERROR(stream->open(path));
+  return open_mesh(std::move(stream), options, out);
+}
+
+Status open_mesh(std::unique_ptr<InputStream> stream, const OpenOptions& options, OpenedMesh* out) {
+  out->stream = std::move(stream);
   // The first 4 KiB decide; comments at the top of an OBJ may be longer, in
   // which case looks_like_obj() sees only comment text and says no.
   size_t avail;

@@ -52,6 +52,7 @@
 #include <memory>
 
 #include "psq/indexed_mesh.h"
+#include "psq/mesh_stream.h"
 #include "psq/sequence.h"
 
 namespace psq {
@@ -70,11 +71,13 @@ struct ConverterStats {
   uint64_t max_waiting_vertices = 0;
 };
 
-class SequenceConverter {
+// The converter is the StreamingMeshSink (psq/mesh_stream.h) through
+// which a filter's output becomes a processing sequence.
+class SequenceConverter final : public StreamingMeshSink {
  public:
   // `out` must outlive the converter.
   explicit SequenceConverter(SequenceSink* out);
-  ~SequenceConverter();
+  ~SequenceConverter() override;
   SequenceConverter(const SequenceConverter&) = delete;
   SequenceConverter& operator=(const SequenceConverter&) = delete;
 
@@ -84,24 +87,30 @@ class SequenceConverter {
   // 65536 they take at most `bytes` (about 200 bytes each; default 128
   // MiB). Call before the first triangle.
   void set_lookahead_budget(uint64_t bytes);
+  // Lowers (or raises) that minimum of 65536 ready triangles (at least 1),
+  // for a pipeline whose memory matters more than the last percent of its
+  // compression: a filter's output (psq simplify keeps 4096; on a
+  // simplified foam of 200k triangles, 1.1% more bytes for two thirds of
+  // the converter's memory). Call before the first triangle.
+  void set_lookahead_minimum(uint64_t triangles);
   // Passes the schema on to the sink. Errors: the sink's.
-  Status begin(const MeshSchema& schema);
+  Status begin(const MeshSchema& schema) override;
   // The data of input vertex `id` (any 32-bit number but 4294967295, given
   // once). It may come before or after triangles that use it, but before its
   // finalize(). Errors: kBadIndex (given twice, or after its finalization,
   // also long after: finalized ids are remembered, see Memory above).
-  Status vertex(uint32_t id, const double position[3], const PropertyValues& values);
+  Status vertex(uint32_t id, const double position[3], const PropertyValues& values) override;
   // A triangle over input vertex ids not yet finalized. Degenerate
   // triangles are dropped and counted. Errors: kBadIndex (a finalized
   // vertex, however long ago), kLimit (more than 2^30 triangles waiting).
-  Status triangle(const uint32_t id[3], const PropertyValues& values);
+  Status triangle(const uint32_t id[3], const PropertyValues& values) override;
   // No triangle given from now on uses vertex `id`. Errors: kBadIndex (the
   // vertex was never given, or finalized twice), and the sink's errors.
-  Status finalize(uint32_t id);
+  Status finalize(uint32_t id) override;
   // Everything was given; emits the rest and calls the sink's finish().
   // Vertices not finalized yet are finalized here. Errors: kBadIndex (a
   // vertex that triangles use was never given), the sink's.
-  Status finish();
+  Status finish() override;
 
   const ConverterStats& stats() const;
 

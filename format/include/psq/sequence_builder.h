@@ -37,7 +37,10 @@
 namespace psq {
 
 struct BuildOptions {
-  uint64_t memory_budget = uint64_t{512} << 20;  // bytes, for the external sorts and the converter's lookahead
+  // The builder's share of the pipeline's budget (psq/memory_budget.h), in
+  // bytes; it splits it between its external sorts, the rank array, the
+  // spools and the converter's lookahead (sequence_builder.cpp, Shares).
+  uint64_t memory_budget = uint64_t{512} << 20;
   std::string tmpdir;                            // spool and sort files; empty: $TMPDIR
   bool force_sort = false;                       // take the sort path even for coherent input
 };

@@ -51,6 +51,9 @@ struct OpenOptions {
 // Opens `path` ("-": standard input), detects its format by content and
 // reads its header. Errors: kIo, kUnknownFormat, and the reader's errors.
 Status open_mesh(const std::string& path, const OpenOptions& options, OpenedMesh* out);
+// The same for a stream already open (nothing of it consumed: the format
+// is detected from its first bytes); `out` takes it over.
+Status open_mesh(std::unique_ptr<InputStream> stream, const OpenOptions& options, OpenedMesh* out);
 
 struct WriteOptions {
   bool ascii = false;     // PLY: ascii instead of binary little-endian

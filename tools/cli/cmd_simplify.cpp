@@ -1,0 +1,543 @@
+// psq simplify: out-of-core simplification, processing sequence in,
+// processing sequence (or any mesh format) out (paper sections 3 and 5).
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <memory>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "cli_util.h"
+#include "commands.h"
+#include "progress.h"
+#include "psq/clustering.h"
+#include "psq/converter.h"
+#include "psq/draco.h"
+#include "psq/memory_budget.h"
+#include "psq/mesh_formats.h"
+#include "psq/mesh_stream.h"
+#include "psq/obj.h"
+#include "psq/psq_codec.h"
+#include "psq/sequence_builder.h"
+#include "psq/threaded_sink.h"
+
+namespace psq::cli {
+namespace {
+
+const char kHelp[] =
+    "Usage: psq simplify IN OUT [OPTIONS]\n"
+    "\n"
+    "Simplifies IN into OUT out of core: the mesh streams through memory as a\n"
+    "processing sequence (a .psq through its decoder, any other mesh through\n"
+    "the sequence builder, within --memory) and the simplified mesh streams\n"
+    "out, to .psq through the processing-sequence converter, or to PLY, OBJ or\n"
+    "Draco. Memory depends on the processing boundary, not on the mesh (except\n"
+    "--cells global, and Draco output, which is in-core). IN and OUT may be\n"
+    "'-'. The output is written to a temporary file and renamed on success.\n"
+    "\n"
+    "Methods (--method):\n"
+    "  clustering     vertex clustering on a uniform grid (Lindstrom's OoCS with\n"
+    "                 the processing-sequence extensions of Isenburg et al. 2003):\n"
+    "                 each cluster of a cell becomes the vertex minimizing its\n"
+    "                 quadric (plane quadrics, border quadrics along the mesh's\n"
+    "                 borders), clamped to the cell; triangles whose corners fall\n"
+    "                 into three cells remain\n"
+    "\n"
+    "Options:\n"
+    "  --method M          the method: clustering (the default and only one)\n"
+    "  --cells MODE        clustering: what a cluster is:\n"
+    "                        connected (default): a connected part of a cell's\n"
+    "                          vertices (layers through a cell stay apart)\n"
+    "                        active: a cell while the processing boundary is in it\n"
+    "                        global: a cell for the whole run (the original OoCS;\n"
+    "                          memory grows with the output)\n"
+    "  --grid N            N cells along the longest side of the bounding box\n"
+    "                      (default 256; a fraction makes cells of the longest\n"
+    "                      side / N)\n"
+    "  --cell SIZE         cells of edge SIZE instead\n"
+    "  --triangles N       aim at N output triangles: a trial pass picks the grid\n"
+    "                      (two passes over IN; a pipe is spooled to --tmpdir); the\n"
+    "                      count reached is reported\n"
+    "  --border-weight W   weight of the border quadrics (default 1; 0: none)\n"
+    "  --memory SIZE       memory budget (default 256M): half for the sequence\n"
+    "                      builder (non-.psq input), a quarter for the filter,\n"
+    "                      a 32nd for the output converter's lookahead\n"
+    "  --to FORMAT         output format: psq, ply, obj or drc (needed when OUT\n"
+    "                      is '-'; else from OUT's extension)\n"
+    "  --bits N            quantize positions to N bits: .psq 1..31, .drc 1..30\n"
+    "                      (default: a quantized .psq input's bits, else 16);\n"
+    "                      .psq output uses the input's bounding box\n"
+    "  --lossless          .psq, .drc: keep the output positions bit-exact\n"
+    "  --profile P         .psq: compact, fast or auto (default: fast when the\n"
+    "                      input is a fast .psq or declares 131072 triangles or\n"
+    "                      more)\n"
+    "  --ascii             write ascii PLY instead of binary little-endian\n"
+    "  --tmpdir DIR        directory for temporary files (default $TMPDIR)\n"
+    "  --threads N         1 runs on one thread; 2 reads the input on a second\n"
+    "                      thread; 3 (the default on two or more cores) also\n"
+    "                      encodes .psq output on a third (the output is the\n"
+    "                      same)\n"
+    "  -f, --force         overwrite OUT if it exists\n"
+    "  -q, --quiet         print no notes, no progress line and no summary\n"
+    "  --json              print a JSON summary on standard output (not with OUT\n"
+    "                      '-'): counts in and out, the output's non-manifold\n"
+    "                      vertices and edges, the filter's peak memory, time\n"
+    "  -h, --help          show this help\n";
+
+// The output converter keeps at least this many ready triangles waiting
+// (psq/converter.h, set_lookahead_minimum()): the converter's default of
+// 65536 and 32 per open edge made it the largest structure of a run (most
+// of the 65 MB peak of a 50M-triangle foam simplified to 10%); this, with
+// a 32nd of --memory as its cap, costs about 1% of the output's bytes.
+constexpr uint64_t kOutputLookahead = 4096;
+
+// As psq convert's --profile auto.
+constexpr int64_t kAutoFastTriangles = 131072;
+constexpr int64_t kAutoFastVertices = 65536;
+
+// Counts the input's triangles for the progress line, on the thread that
+// reads the input.
+class InputProgress : public SequenceSink {
+ public:
+  InputProgress(SequenceSink* out, Progress* progress) : out_(out), progress_(progress) {}
+  Status begin(const MeshSchema& s) override { return out_->begin(s); }
+  Status vertex(const SequenceVertex& v) override { return out_->vertex(v); }
+  Status triangle(const SequenceTriangle& t) override {
+    progress_->triangle();
+    return out_->triangle(t);
+  }
+  Status finalize(uint32_t i) override { return out_->finalize(i); }
+  Status finish() override { return out_->finish(); }
+
+ private:
+  SequenceSink* out_;
+  Progress* progress_;
+};
+
+// Drops a sequence: the converter in front of it only counts the output's
+// non-manifold elements (--json with a mesh format).
+class NullSequenceSink : public SequenceSink {
+ public:
+  Status begin(const MeshSchema&) override { return Status(); }
+  Status vertex(const SequenceVertex&) override { return Status(); }
+  Status triangle(const SequenceTriangle&) override { return Status(); }
+  Status finalize(uint32_t) override { return Status(); }
+  Status finish() override { return Status(); }
+};
+
+// The bounding box of a sequence's vertices (a lossless .psq declares none).
+class BoxSink : public SequenceSink {
+ public:
+  Status begin(const MeshSchema&) override { return Status(); }
+  Status vertex(const SequenceVertex& v) override {
+    for (int a = 0; a < 3; ++a) {
+      lo[a] = any ? std::min(lo[a], v.position[a]) : v.position[a];
+      hi[a] = any ? std::max(hi[a], v.position[a]) : v.position[a];
+    }
+    any = true;
+    return Status();
+  }
+  Status triangle(const SequenceTriangle&) override { return Status(); }
+  Status finalize(uint32_t) override { return Status(); }
+  Status finish() override { return Status(); }
+  bool any = false;
+  double lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
+};
+
+// The input, opened once per pass. Standard input that must be read more
+// than once (a trial pass, or a lossless .psq whose bounding box takes a
+// pass of its own) is spooled to an unlinked temporary file first.
+class Input {
+ public:
+  ~Input() {
+    if (spool_fd_ >= 0) ::close(spool_fd_);
+  }
+  // `passes`: the caller knows it reads the input more than once.
+  Status prepare(const std::string& path, bool passes, const std::string& tmpdir) {
+    path_ = path;
+    if (path != "-") return Status();
+    pending_ = std::make_unique<InputStream>();
+    PSQ_RETURN_IF_ERROR(pending_->open(path));
+    size_t avail = 0;
+    PSQ_RETURN_IF_ERROR(pending_->fill(4096, &avail));
+    // A lossless .psq (header flags, spec 4.2: bit 0 of the u16 at offset
+    // 10) has no bounding box: the grid needs a pass to measure it.
+    const uint8_t* p = pending_->cursor();
+    if (avail >= 12 && is_psq(p, avail) && (p[10] & 1)) passes = true;
+    if (!passes) return Status();
+    PSQ_RETURN_IF_ERROR(detail::create_unlinked_temp(tmpdir, "psq-simplify", &spool_fd_));
+    for (;;) {
+      PSQ_RETURN_IF_ERROR(pending_->fill(1 << 20, &avail));
+      if (avail == 0) break;
+      PSQ_RETURN_IF_ERROR(detail::write_all(spool_fd_, pending_->cursor(), avail, "temporary file"));
+      pending_->advance(avail);
+    }
+    pending_.reset();
+    return Status();
+  }
+  Status open(const OpenOptions& options, OpenedMesh* mesh) {
+    if (spool_fd_ >= 0) {
+      if (::lseek(spool_fd_, 0, SEEK_SET) != 0) return Status(ErrorCode::kIo, "cannot rewind the spooled input");
+      const int fd = ::dup(spool_fd_);
+      if (fd < 0) return Status(ErrorCode::kIo, "cannot reopen the spooled input");
+      auto stream = std::make_unique<InputStream>();
+      Status s = stream->open_fd(fd, true, "-");
+      if (!s.ok()) {
+        ::close(fd);
+        return s;
+      }
+      return open_mesh(std::move(stream), options, mesh);
+    }
+    if (pending_) return open_mesh(std::move(pending_), options, mesh);
+    return open_mesh(path_, options, mesh);
+  }
+
+ private:
+  std::string path_;
+  std::unique_ptr<InputStream> pending_;  // standard input for its one pass
+  int spool_fd_ = -1;
+};
+
+// The processing sequence of the input into `filter`: a .psq through its
+// decoder, any other mesh through the sequence builder. With two threads
+// the filter and everything behind it run on a second thread.
+Status feed(OpenedMesh& mesh, SequenceSink& filter, const BuildOptions& build, Progress& progress, int threads,
+            BuildReport* report) {
+  std::unique_ptr<ThreadedSequenceSink> threaded;
+  SequenceSink* next = &filter;
+  if (threads > 1) {
+    threaded = std::make_unique<ThreadedSequenceSink>(&filter);
+    next = threaded.get();
+  }
+  if (mesh.decoder) {
+    InputProgress counted(next, &progress);
+    return mesh.decoder->pump(counted);
+  }
+  ProgressSource source(mesh.source.get(), &progress);
+  return build_sequence(source, *next, build, report);
+}
+
+// Errors of a pipeline: a place in the input, or a filter's complaint about
+// the sequence, is about IN; a write failure about OUT.
+int report_simplify_error(const std::string& in, const std::string& out, const Status& s) {
+  const bool about_out = s.line() == Status::kNoPlace && s.offset() == Status::kNoPlace && s.code() == ErrorCode::kIo;
+  return report_error(about_out ? out : in, s);
+}
+
+bool parse_uint(const std::string& text, uint64_t max, uint64_t* v) {
+  if (text.empty()) return false;
+  char* end = nullptr;
+  errno = 0;
+  const unsigned long long x = std::strtoull(text.c_str(), &end, 10);
+  if (*end != 0 || errno != 0 || text[0] == '-' || x > max) return false;
+  *v = x;
+  return true;
+}
+
+bool parse_double(const std::string& text, double* v) {
+  if (text.empty()) return false;
+  char* end = nullptr;
+  const double x = std::strtod(text.c_str(), &end);
+  if (*end != 0 || !std::isfinite(x)) return false;
+  *v = x;
+  return true;
+}
+
+}  // namespace
+
+int cmd_simplify(int argc, char** argv) {
+  const auto start = std::chrono::steady_clock::now();
+  Args args(argc, argv, 1);
+  if (args.flag("--help", "-h")) {
+    std::fputs(kHelp, stdout);
+    return kExitOk;
+  }
+  const bool force = args.flag("--force", "-f");
+  const bool quiet = args.flag("--quiet", "-q");
+  const bool json = args.flag("--json");
+  const bool ascii = args.flag("--ascii");
+  const bool lossless = args.flag("--lossless");
+  const std::string method = args.option("--method", "clustering");
+  const std::string cells_text = args.option("--cells", "connected");
+  const std::string grid_text = args.option("--grid");
+  const std::string cell_text = args.option("--cell");
+  const std::string target_text = args.option("--triangles");
+  const std::string border_text = args.option("--border-weight", "1");
+  const std::string memory = args.option("--memory", "256M");
+  const std::string to = args.option("--to");
+  const std::string bits_text = args.option("--bits");
+  const std::string profile = args.option("--profile", "auto");
+  const std::string tmpdir = args.option("--tmpdir");
+  const std::string threads_text = args.option("--threads", std::thread::hardware_concurrency() >= 2 ? "3" : "1");
+  const std::vector<std::string> files = args.positionals();
+  if (!args.error().empty()) return usage_error("simplify", args.error());
+  if (files.size() != 2) return usage_error("simplify", "simplify takes IN and OUT");
+  const std::string& in = files[0];
+  const std::string& out = files[1];
+
+  if (method != "clustering") return usage_error("simplify", "unknown --method '" + method + "' (clustering)");
+  ClusteringOptions options;
+  if (!parse_cell_mode(cells_text, &options.cells))
+    return usage_error("simplify", "bad --cells '" + cells_text + "' (connected, active or global)");
+  if (!grid_text.empty() + !cell_text.empty() + !target_text.empty() > 1)
+    return usage_error("simplify", "give one of --grid, --cell and --triangles");
+  uint64_t target = 0;
+  if (!grid_text.empty()) {
+    if (!parse_double(grid_text, &options.grid) || !(options.grid >= 1) || !(options.grid < ClusterGrid::kMaxDim))
+      return usage_error("simplify", "bad --grid '" + grid_text + "' (1 to " + std::to_string(ClusterGrid::kMaxDim - 1) + ")");
+  } else if (!cell_text.empty()) {
+    if (!parse_double(cell_text, &options.cell_size) || !(options.cell_size > 0))
+      return usage_error("simplify", "bad --cell '" + cell_text + "' (a positive number)");
+    options.grid = 0;
+  } else if (!target_text.empty()) {
+    if (!parse_uint(target_text, uint64_t{1} << 40, &target) || target < 1)
+      return usage_error("simplify", "bad --triangles '" + target_text + "' (a positive count)");
+    options.grid = first_grid_for_triangles(target);
+  }
+  if (!parse_double(border_text, &options.border_weight) || options.border_weight < 0)
+    return usage_error("simplify", "bad --border-weight '" + border_text + "' (a number >= 0)");
+  uint64_t memory_bytes = 0;
+  if (!parse_size(memory, &memory_bytes)) return usage_error("simplify", "bad --memory '" + memory + "' (e.g. 256M, 2G)");
+  if (threads_text != "1" && threads_text != "2" && threads_text != "3")
+    return usage_error("simplify", "bad --threads '" + threads_text + "' (1, 2 or 3)");
+  const int threads = threads_text[0] - '0';
+  if (profile != "compact" && profile != "fast" && profile != "auto")
+    return usage_error("simplify", "bad --profile '" + profile + "' (compact, fast or auto)");
+  uint64_t bits = 0;
+  if (!bits_text.empty() && (!parse_uint(bits_text, 31, &bits) || bits < 1))
+    return usage_error("simplify", "bad --bits '" + bits_text + "' (1..31)");
+
+  const MeshFormat out_format = to.empty() ? format_from_extension(out) : format_from_name(to);
+  if (out_format == MeshFormat::kUnknown) {
+    if (!to.empty()) return usage_error("simplify", "unknown output format '" + to + "' (psq, ply, obj or drc)");
+    return usage_error("simplify", "cannot tell the output format from '" + out + "': use --to psq|ply|obj|drc");
+  }
+  if (out_format == MeshFormat::kDraco && !lossless && bits > 30)
+    return usage_error("simplify", "bad --bits " + bits_text + " for Draco (1..30)");
+  if (same_file(in, out)) return usage_error("simplify", "IN and OUT are the same file");
+  if (out == "-" && json) return usage_error("simplify", "--json needs OUT to be a file (stdout carries the mesh)");
+  if (out == "-" && ::isatty(STDOUT_FILENO) && !(out_format == MeshFormat::kObj || ascii))
+    return usage_error("simplify", "refusing to write binary data to a terminal");
+
+  // One budget, split here among the stages (psq/memory_budget.h).
+  MemoryBudget budget(memory_bytes);
+  BuildOptions build;
+  build.tmpdir = tmpdir;
+  build.memory_budget = budget.draw(1, 2);
+  options.memory_budget = budget.draw(1, 4);
+  const uint64_t lookahead_share = budget.draw(1, 32);
+  const uint64_t draco_share = budget.draw_rest();
+  OpenOptions open_options;
+  open_options.spool_dir = tmpdir;
+  open_options.memory_budget = build.memory_budget;
+
+  Input input;
+  Status s = input.prepare(in, target > 0, tmpdir);
+  if (!s.ok()) return report_error(in, s);
+  OutputFile output;
+  s = output.open(out, force);
+  if (!s.ok()) return report_error(out, s);
+
+  std::vector<std::string> notes;
+  int passes = 0;
+  OpenedMesh mesh;
+  s = input.open(open_options, &mesh);
+  if (!s.ok()) return report_error(in, s);
+  // A lossless .psq declares no bounding box: a first pass measures it.
+  if (mesh.decoder && !mesh.decoder->schema().has_bounds) {
+    BoxSink box;
+    ++passes;
+    s = mesh.decoder->pump(box);
+    if (!s.ok()) return report_error(in, s);
+    options.has_bounds = true;
+    std::copy(box.lo, box.lo + 3, options.bounds_min);
+    std::copy(box.hi, box.hi + 3, options.bounds_max);
+    mesh = OpenedMesh();
+    s = input.open(open_options, &mesh);
+    if (!s.ok()) return report_error(in, s);
+  }
+  // --triangles: trial passes count the output of a grid (T grows about
+  // as the grid squared: one trial, a second only when the first was far
+  // off, then the final grid interpolated in log-log).
+  if (target > 0) {
+    double trial_grid[2] = {options.grid, 0};
+    uint64_t trial_triangles[2] = {0, 0};
+    for (int t = 0; t < 2; ++t) {
+      ClusteringOptions trial = options;
+      trial.grid = trial_grid[t];
+      CountingMeshSink count;
+      ClusteringFilter filter(&count, trial);
+      Progress none(nullptr, false);
+      BuildReport report;
+      ++passes;
+      s = feed(mesh, filter, build, none, threads, &report);
+      if (!s.ok()) return report_simplify_error(in, out, s);
+      trial_triangles[t] = count.triangles;
+      mesh = OpenedMesh();
+      s = input.open(open_options, &mesh);
+      if (!s.ok()) return report_error(in, s);
+      const double off = std::fabs(static_cast<double>(count.triangles) - static_cast<double>(target)) / static_cast<double>(target);
+      if (off <= 0.02) {
+        options.grid = trial_grid[t];
+        break;
+      }
+      if (t == 0) {
+        options.grid = corrected_grid_for_triangles(target, trial_grid[0], trial_triangles[0]);
+        // Close enough for the square law to hold: no second trial.
+        const double ratio = options.grid / trial_grid[0];
+        if (ratio > 0.8 && ratio < 1.25) break;
+        trial_grid[1] = options.grid;
+      } else if (trial_triangles[0] > 0 && trial_triangles[1] > 0 && trial_triangles[0] != trial_triangles[1]) {
+        // Interpolated in log-log through both trials.
+        const double slope = std::log(static_cast<double>(trial_triangles[1]) / trial_triangles[0]) /
+                             std::log(trial_grid[1] / trial_grid[0]);
+        options.grid = slope > 0.5 ? trial_grid[1] * std::pow(static_cast<double>(target) / trial_triangles[1], 1 / slope)
+                                   : corrected_grid_for_triangles(target, trial_grid[1], trial_triangles[1]);
+        options.grid = std::min<double>(ClusterGrid::kMaxDim - 1, std::max(1.0, options.grid));
+      } else {
+        options.grid = corrected_grid_for_triangles(target, trial_grid[1], trial_triangles[1]);
+      }
+    }
+  }
+
+  // The output.
+  const bool psq_input_quantized = mesh.decoder && !mesh.decoder->header().lossless;
+  const int out_bits = bits ? static_cast<int>(bits) : psq_input_quantized ? mesh.decoder->header().bits : 16;
+  if (out_format == MeshFormat::kDraco && !lossless && out_bits > 30)
+    return usage_error("simplify", "the input's " + std::to_string(out_bits) + " bits are too many for Draco: give --bits (1..30)");
+  EncodeOptions encode_options;
+  encode_options.bits = out_bits;
+  encode_options.lossless = lossless;
+  if (profile == "fast") encode_options.fast = true;
+  if (profile == "auto") {
+    const MeshSchema& sc = mesh.source->schema();
+    encode_options.fast = mesh.decoder ? mesh.decoder->header().fast ||
+                                             mesh.decoder->schema().triangle_count >= kAutoFastTriangles
+                                       : sc.triangle_count >= kAutoFastTriangles ||
+                                             (sc.triangle_count == MeshSchema::kUnknown && sc.vertex_count >= kAutoFastVertices);
+  }
+  FileWriter file_writer(&output);
+  std::unique_ptr<PsqEncoder> encoder;
+  std::unique_ptr<ThreadedSequenceSink> threaded_encoder;
+  std::unique_ptr<MeshSink> writer;
+  std::unique_ptr<DenseMeshSink> dense;
+  NullSequenceSink null_sink;
+  std::unique_ptr<SequenceConverter> converter;
+  std::unique_ptr<TeeMeshSink> tee;
+  StreamingMeshSink* sink = nullptr;
+  if (out_format == MeshFormat::kPsq) {
+    encoder = std::make_unique<PsqEncoder>(&file_writer, encode_options);
+    SequenceSink* encoding = encoder.get();
+    if (threads > 2) {
+      threaded_encoder = std::make_unique<ThreadedSequenceSink>(encoder.get());
+      encoding = threaded_encoder.get();
+    }
+    converter = std::make_unique<SequenceConverter>(encoding);
+    converter->set_lookahead_budget(lookahead_share);
+    converter->set_lookahead_minimum(kOutputLookahead);
+    sink = converter.get();
+  } else {
+    WriteOptions write_options;
+    write_options.ascii = ascii;
+    write_options.spool_dir = tmpdir;
+    write_options.draco_bits = out_bits;
+    write_options.lossless = lossless;
+    write_options.memory_budget = draco_share;
+    writer = make_mesh_writer(out_format, &output, write_options);
+    dense = std::make_unique<DenseMeshSink>(writer.get());
+    sink = dense.get();
+    if (json) {
+      // The converter counts the output's non-manifold vertices and edges.
+      converter = std::make_unique<SequenceConverter>(&null_sink);
+      converter->set_lookahead_budget(lookahead_share);
+      converter->set_lookahead_minimum(kOutputLookahead);
+      tee = std::make_unique<TeeMeshSink>(dense.get(), converter.get());
+      sink = tee.get();
+    }
+  }
+  ClusteringFilter filter(sink, options);
+  Progress progress(mesh.stream.get(), !quiet);
+  BuildReport report;
+  ++passes;
+  s = feed(mesh, filter, build, progress, threads, &report);
+  if (!s.ok()) {
+    threaded_encoder.reset();  // stops the encoder's thread before the output goes
+    output.discard();
+    return report_simplify_error(in, out, s);
+  }
+  s = output.commit();
+  if (!s.ok()) return report_error(out, s);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+
+  const ClusteringStats& st = filter.stats();
+  for (const std::string& n : mesh.source->report().notes) notes.push_back(n);
+  for (const Property& p : mesh.source->schema().vertex_properties)
+    if (p.is_list) notes.push_back("vertex property '" + p.name + "' dropped: lists do not merge");
+  for (const Property& p : mesh.source->schema().face_properties)
+    if (p.is_list) notes.push_back("face property '" + p.name + "' dropped: lists do not merge");
+  if (out_format == MeshFormat::kObj)
+    for (const std::string& d : static_cast<ObjWriter*>(writer.get())->dropped())
+      notes.push_back("property '" + d + "' dropped: OBJ cannot hold it");
+  if (out_format == MeshFormat::kDraco) {
+    for (const std::string& d : static_cast<DracoWriter*>(writer.get())->dropped())
+      notes.push_back("property '" + d + "' dropped: Draco output keeps scalar vertex properties only");
+    for (const std::string& n : static_cast<DracoWriter*>(writer.get())->notes()) notes.push_back(n);
+  }
+  if (st.triangles_in > 0 && st.triangles_out == 0)
+    notes.push_back("no triangle has its corners in three cells: the output is empty (use a finer grid)");
+  if (target > 0)
+    notes.push_back("--triangles " + std::to_string(target) + ": " + json_number(options.grid) +
+                    " cells along the longest side, " + std::to_string(st.triangles_out) + " triangles");
+  if (!quiet)
+    for (const std::string& n : notes) note(in, n);
+  {
+    char summary[256];
+    std::snprintf(summary, sizeof summary, "%llu -> %llu triangles, %llu vertices, grid %u x %u x %u (%s cells)",
+                  static_cast<unsigned long long>(st.triangles_in), static_cast<unsigned long long>(st.triangles_out),
+                  static_cast<unsigned long long>(st.vertices_out), st.grid.dims[0], st.grid.dims[1], st.grid.dims[2],
+                  cell_mode_name(options.cells));
+    progress.finish(in, out, summary);
+  }
+  if (json) {
+    const ConverterStats* cs = converter ? &converter->stats() : nullptr;
+    auto num = [](uint64_t v) { return std::to_string(v); };
+    std::string o = "{\"input\": \"" + json_escape(in) + "\", \"output\": \"" + json_escape(out) +
+                    "\", \"input_format\": \"" + format_name(mesh.format) + "\", \"output_format\": \"" +
+                    format_name(out_format) + "\", \"method\": \"clustering\", \"cells\": \"" +
+                    cell_mode_name(options.cells) + "\", \"grid_longest\": " +
+                    (options.grid > 0 ? json_number(options.grid) : std::string("null")) + ", \"grid\": [" + num(st.grid.dims[0]) + ", " +
+                    num(st.grid.dims[1]) + ", " + num(st.grid.dims[2]) + "], \"cell_size\": " +
+                    json_number(st.grid.cell) + ", \"border_weight\": " + json_number(options.border_weight) +
+                    ", \"target_triangles\": " + (target ? num(target) : std::string("null")) +
+                    ", \"passes\": " + std::to_string(passes) + ", \"vertices_in\": " + num(st.vertices_in) +
+                    ", \"triangles_in\": " + num(st.triangles_in) + ", \"vertices\": " + num(st.vertices_out) +
+                    ", \"triangles\": " + num(st.triangles_out) +
+                    ", \"nonmanifold_vertices\": " + num(cs ? cs->nonmanifold_vertices : 0) +
+                    ", \"nonmanifold_edges\": " + num(cs ? cs->nonmanifold_edges : 0) +
+                    ", \"misoriented_edges\": " + num(cs ? cs->misoriented_edges : 0) +
+                    ", \"border_edges\": " + num(cs ? cs->border_edges : 0) + ", \"clusters\": " + num(st.clusters) +
+                    ", \"duplicates\": " + num(st.duplicates) + ", \"max_clusters\": " + num(st.max_clusters) +
+                    ", \"max_waiting_triangles\": " + num(st.max_waiting) +
+                    ", \"converter_max_waiting_triangles\": " + num(cs ? cs->max_waiting_triangles : 0) +
+                    ", \"filter_peak_bytes\": " + num(st.peak_bytes) + ", \"bytes_in\": " + num(mesh.stream->offset()) +
+                    ", \"bytes_out\": " + num(output.size()) + ", \"seconds\": " + json_number(seconds) +
+                    ", \"triangles_per_second\": " +
+                    json_number(seconds > 0 ? static_cast<double>(st.triangles_in) / seconds : 0.0) +
+                    ", \"threads\": " + std::to_string(threads);
+    if (out_format == MeshFormat::kPsq)
+      o += ", \"lossless\": " + std::string(lossless ? "true" : "false") + ", \"bits\": " +
+           std::to_string(lossless ? 0 : out_bits) + ", \"profile\": \"" + (encode_options.fast ? "fast" : "compact") + "\"";
+    o += ", \"notes\": [";
+    for (size_t i = 0; i < notes.size(); ++i) o += (i ? ", \"" : "\"") + json_escape(notes[i]) + "\"";
+    o += "]}\n";
+    std::fputs(o.c_str(), stdout);
+  }
+  return kExitOk;
+}
+
+}  // namespace psq::cli
