@@ -13,7 +13,7 @@
 set -euo pipefail
 cd "$(dirname "$0")"
 
-PACKAGES=(cmake g++ make libzstd-dev libdraco-dev libgtest-dev libgmock-dev libbenchmark-dev libmeshoptimizer-dev python3 valgrind)
+PACKAGES=(cmake g++ make libzstd-dev libdraco-dev libgtest-dev libgmock-dev libbenchmark-dev libmeshoptimizer-dev python3 valgrind gnuplot-nox)
 JOBS=$(nproc 2>/dev/null || echo 2)
 
 install_deps() {
