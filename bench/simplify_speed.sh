@@ -4,6 +4,7 @@
 # of the input triangles: wall and CPU time, peak RSS (/usr/bin/time), input
 # triangles per second, and the filter's own peak from --json. The grid for
 # each ratio comes from a --triangles run (its trial passes are not timed).
+# --memory is the default 256M, and 8G for --cells global.
 # The meshes are generated in $TMPDIR and deleted afterwards.
 #
 #   bench/simplify_speed.sh [BUILD_DIR] [SIZES] [CELL_MODES] [THREADS]
@@ -28,9 +29,12 @@ for n in $sizes; do
     grid=$("$build/psq" simplify -q -f --json --triangles "$target" "$tmp/big.psq" "$tmp/out.psq" |
            grep -o '"grid_longest": [0-9.e+]*' | grep -o '[0-9.e+]*$')
     for cells in $modes; do
+      # The global mode keeps every occupied cell: give it room.
+      mem=256M
+      [ "$cells" = global ] && mem=8G
       for t in $threads; do
         /usr/bin/time -f "%e %U %S %M" -o "$tmp/time" "$build/psq" simplify -q -f --json --threads "$t" \
-          --cells "$cells" --grid "$grid" "$tmp/big.psq" "$tmp/out.psq" > "$tmp/out.json"
+          --memory "$mem" --cells "$cells" --grid "$grid" "$tmp/big.psq" "$tmp/out.psq" > "$tmp/out.json"
         read -r wall user sys kb < "$tmp/time"
         out=$(grep -o '"triangles": [0-9]*' "$tmp/out.json" | grep -o '[0-9]*$')
         peak=$(grep -o '"filter_peak_bytes": [0-9]*' "$tmp/out.json" | grep -o '[0-9]*$')

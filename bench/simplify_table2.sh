@@ -31,7 +31,9 @@ for spec in "$@"; do
   "$build/psq" convert -q -f "$mesh" "$tmp/in.psq"
   for g in ${grids//,/ }; do
     for cells in global active connected; do
-      "$build/psq" simplify -q -f --threads 1 --grid "$g" --cells "$cells" --json "$tmp/in.psq" "$tmp/out.psq" > "$tmp/$cells.json"
+      # --memory: room for the global mode, whose cells all stay in memory.
+      "$build/psq" simplify -q -f --threads 1 --memory 4G --grid "$g" --cells "$cells" --json "$tmp/in.psq" \
+        "$tmp/out.psq" > "$tmp/$cells.json"
     done
     /usr/bin/python3 - "$tmp" "$(basename "$mesh" .ply)" "$g" <<'PY'
 import json, sys

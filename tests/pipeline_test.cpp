@@ -15,6 +15,7 @@
 #include "psq/sequence_builder.h"
 #include "psq/sequence_check.h"
 #include "psq/sequence_mesh.h"
+#include "psq/threaded_mesh_sink.h"
 #include "test_util.h"
 
 namespace psq {
@@ -181,6 +182,68 @@ TEST(StreamingMeshSink, ConverterAndDenseSinkGiveTheSameMesh) {
     EXPECT_EQ(got.positions.size(), sphere.positions.size());
     EXPECT_EQ(position_triangles(got), position_triangles(sphere));
   }
+}
+
+// A sink that fails at its n-th triangle.
+class FailingSink : public CountingMeshSink {
+ public:
+  explicit FailingSink(uint64_t n) : n_(n) {}
+  Status triangle(const uint32_t* id, const PropertyValues& v) override {
+    if (triangles == n_) return Status(ErrorCode::kIo, "disk full");
+    return CountingMeshSink::triangle(id, v);
+  }
+
+ private:
+  uint64_t n_;
+};
+
+TEST(ThreadedMeshSink, PassesEveryEventInOrder) {
+  Mesh sphere = test::make_sphere(30, 40);
+  sphere.schema.vertex_properties = {{"q", ScalarType::kFloat64}};
+  sphere.schema.face_properties = {{"f", ScalarType::kInt32}};
+  test::MemorySink direct, threaded;
+  for (test::MemorySink* out : {&direct, &threaded}) {
+    DenseMeshSink dense(out);
+    std::unique_ptr<ThreadedMeshSink> thread;
+    StreamingMeshSink* sink = &dense;
+    if (out == &threaded) {
+      thread = std::make_unique<ThreadedMeshSink>(&dense);
+      sink = thread.get();
+    }
+    ASSERT_TRUE(sink->begin(sphere.schema).ok());
+    for (uint32_t i = 0; i < sphere.positions.size(); ++i)
+      ASSERT_TRUE(sink->vertex(7 * i + 1, sphere.positions[i].data(), {0.5 * i}).ok());
+    for (size_t t = 0; t < sphere.triangles.size(); ++t) {
+      const auto& tr = sphere.triangles[t];
+      const uint32_t id[3] = {7 * tr[0] + 1, 7 * tr[1] + 1, 7 * tr[2] + 1};
+      ASSERT_TRUE(sink->triangle(id, {static_cast<double>(t)}).ok());
+    }
+    for (uint32_t i = 0; i < sphere.positions.size(); ++i) ASSERT_TRUE(sink->finalize(7 * i + 1).ok());
+    ASSERT_TRUE(sink->finish().ok());
+  }
+  EXPECT_EQ(threaded.mesh.positions, direct.mesh.positions);
+  EXPECT_EQ(threaded.mesh.vertex_values, direct.mesh.vertex_values);
+  EXPECT_EQ(threaded.mesh.triangles, direct.mesh.triangles);
+  EXPECT_EQ(threaded.mesh.face_values, direct.mesh.face_values);
+  EXPECT_TRUE(threaded.finished);
+}
+
+TEST(ThreadedMeshSink, TheWrappedSinksErrorComesBack) {
+  FailingSink failing(100);
+  Status s;
+  {
+    ThreadedMeshSink thread(&failing);
+    ASSERT_TRUE(thread.begin(MeshSchema()).ok());
+    const double p[3] = {0, 0, 0};
+    for (uint32_t i = 0; i < 3 && s.ok(); ++i) s = thread.vertex(i, p, {});
+    for (int t = 0; t < 100000 && s.ok(); ++t) {
+      const uint32_t id[3] = {0, 1, 2};
+      s = thread.triangle(id, {});
+    }
+    if (s.ok()) s = thread.finish();
+  }
+  EXPECT_EQ(s.code(), ErrorCode::kIo);
+  EXPECT_EQ(failing.triangles, 100u);
 }
 
 TEST(StreamingMeshSink, TeeAndCountingSinks) {

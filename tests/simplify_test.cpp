@@ -981,9 +981,20 @@ TEST(CliSimplify, PipesLosslessInputAndTheSameBytes) {
   ASSERT_EQ(test::run_psq("simplify --threads 1 " + dir.file("s.psq") + " " + dir.file("one.psq") + " --grid 12", &out,
                           &err),
             0);
+  ASSERT_EQ(test::run_psq("simplify --threads 2 " + dir.file("s.psq") + " " + dir.file("two.psq") + " --grid 12", &out,
+                          &err),
+            0);
+  ASSERT_EQ(test::run_psq("simplify --threads 3 " + dir.file("s.psq") + " " + dir.file("three.ply") + " --grid 12", &out,
+                          &err),
+            0);
+  ASSERT_EQ(test::run_psq("simplify --threads 1 " + dir.file("s.psq") + " " + dir.file("one.ply") + " --grid 12", &out,
+                          &err),
+            0);
+  EXPECT_EQ(test::read_file(dir.file("three.ply")), test::read_file(dir.file("one.ply")));
   ASSERT_EQ(shell(psq + " simplify " + dir.file("s.psq") + " - --grid 12 --to psq >" + dir.file("stdout.psq")), 0);
   const std::string direct = test::read_file(dir.file("direct.psq"));
   EXPECT_EQ(direct, test::read_file(dir.file("one.psq")));
+  EXPECT_EQ(direct, test::read_file(dir.file("two.psq")));
   EXPECT_EQ(direct, test::read_file(dir.file("stdout.psq")));
   Mesh piped, back;
   ASSERT_TRUE(test::load_mesh(dir.file("piped.ply"), &piped).ok());
