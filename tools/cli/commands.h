@@ -8,6 +8,8 @@ int cmd_info(int argc, char** argv);     // argv[0] is "info"
 int cmd_convert(int argc, char** argv);  // argv[0] is "convert"
 int cmd_dump(int argc, char** argv);     // argv[0] is "dump"
 int cmd_verify(int argc, char** argv);   // argv[0] is "verify"
+int cmd_smooth(int argc, char** argv);   // argv[0] is "smooth"
+int cmd_qem(int argc, char** argv);      // argv[0] is "qem" (to become psq simplify --method qem)
 
 }  // namespace psq::cli
 

@@ -21,6 +21,7 @@ const char kUsage[] =
     "  convert IN OUT   convert between PLY, OBJ and .psq, streaming\n"
     "  dump IN          print the processing sequence of a mesh as text\n"
     "  verify FILE      decode a .psq completely and check it\n"
+    "  smooth IN OUT    smooth a mesh of any size (Taubin), streaming\n"
     "\n"
     "Options:\n"
     "  -h, --help       show this help (psq help COMMAND or psq COMMAND --help\n"
@@ -40,6 +41,8 @@ const Command kCommands[] = {
     {"convert", psq::cli::cmd_convert},
     {"dump", psq::cli::cmd_dump},
     {"verify", psq::cli::cmd_verify},
+    {"smooth", psq::cli::cmd_smooth},
+    {"qem", psq::cli::cmd_qem},
 };
 
 const Command* find_command(const std::string& name) {

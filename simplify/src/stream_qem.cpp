@@ -1,0 +1,455 @@
+// Stream decimation on a processing sequence: Wu and Kobbelt, "A Stream
+// Algorithm for the Decimation of Massive Meshes" (Graphics Interface 2003),
+// as adapted to processing sequences by Isenburg, Lindstrom, Gumhold and
+// Snoeyink, "Large Mesh Simplification using Processing Sequences" (IEEE
+// Visualization 2003), section 6; error quadrics of Garland and Heckbert,
+// "Surface Simplification Using Quadric Error Metrics" (SIGGRAPH 1997),
+// with their border planes.
+#include "psq/stream_qem.h"
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "qem_quadric.h"
+
+namespace psq {
+namespace {
+
+using detail::QemQuadric;
+
+// A border edge's plane weighs this many times its squared length, so that
+// moving a vertex off the border costs about as much as moving it off the
+// surface over the edge's neighbourhood (Garland and Heckbert, section 6.1).
+constexpr double kBorderWeight = 4.0;
+// Rounds of candidates in a row that yield no collapse before decimation
+// gives up for now (it resumes at the next fill).
+constexpr int kMaxFailedRounds = 16;
+constexpr int kMaxFailedRoundsFinal = 64;
+// Estimated bytes per buffer triangle: the buffer's own (about 56 per
+// triangle and 72 per vertex) plus a quadric and a score per vertex, at
+// about half a vertex per triangle, with room for vectors' growth.
+constexpr uint64_t kBytesPerTriangle = 160;
+
+void sub(const double a[3], const double b[3], double r[3]) {
+  r[0] = a[0] - b[0];
+  r[1] = a[1] - b[1];
+  r[2] = a[2] - b[2];
+}
+void cross(const double a[3], const double b[3], double r[3]) {
+  r[0] = a[1] * b[2] - a[2] * b[1];
+  r[1] = a[2] * b[0] - a[0] * b[2];
+  r[2] = a[0] * b[1] - a[1] * b[0];
+}
+double dot(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+struct Candidate {
+  double cost;
+  uint32_t h;
+  bool keep_start;
+  double x[3];  // the merged vertex, in normalized coordinates
+};
+
+}  // namespace
+
+uint32_t qem_buffer_triangles(uint64_t memory_budget) {
+  // A quarter of the budget goes to the converter's waiting area.
+  const uint64_t n = (memory_budget - memory_budget / 4) / kBytesPerTriangle;
+  return static_cast<uint32_t>(std::clamp<uint64_t>(n, 1024, uint64_t{1} << 28));
+}
+
+struct StreamQem::Impl {
+  explicit Impl(SequenceSink* out, const QemOptions& o) : buffer(out), opt(o) {}
+
+  TriangleBuffer buffer;
+  QemOptions opt;
+  QemReport report;
+  Status error;
+  bool begun = false, finished = false;
+
+  std::vector<QemQuadric> quadric;
+  std::vector<float> score;
+  // Normalized coordinates: (p - origin) * scale, the box diagonal 1 when
+  // the schema gives the box.
+  double origin[3] = {0, 0, 0};
+  double scale = 1;
+  bool bounds_known = false;
+  bool seen_vertex = false;
+  double lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
+  double ratio = 0;
+  bool count_target = false;
+  double max_cost = 0;
+  uint32_t capacity = 0, low = 0;
+  uint64_t rng = 0;
+
+  Status fail(Status s) {
+    if (error.ok()) error = s;
+    return error;
+  }
+
+  uint64_t random() {
+    uint64_t z = (rng += 0x9e3779b97f4a7c15ull);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+    return z ^ (z >> 31);
+  }
+
+  void normalized(uint32_t v, double x[3]) const {
+    const double* p = buffer.position(v);
+    for (int i = 0; i < 3; ++i) x[i] = (p[i] - origin[i]) * scale;
+  }
+  void world(const double x[3], double p[3]) const {
+    for (int i = 0; i < 3; ++i) p[i] = x[i] / scale + origin[i];
+  }
+  bool pinned(uint32_t v) const { return buffer.cut(v) || (opt.lock_border && buffer.border(v)); }
+
+  // The largest cost allowed, in normalized squared units; negative: none.
+  double cost_limit() const {
+    if (opt.max_error < 0) return -1;
+    double diag = 1;
+    if (!bounds_known) {
+      const double d[3] = {hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]};
+      diag = std::sqrt(dot(d, d)) * scale;
+    }
+    const double e = opt.max_error * diag;
+    return e * e;
+  }
+
+  Status begin(const MeshSchema& schema);
+  Status triangle(const SequenceTriangle& t);
+  void add_quadrics(uint32_t tri, uint8_t border_mask);
+  bool evaluate(uint32_t h, Candidate* c);
+  bool flips(uint32_t h, const double p[3]);
+  bool collapse_one(double limit);
+  void decimate(bool final);
+  Status write_until(uint32_t target);
+  Status finish();
+};
+
+Status StreamQem::Impl::begin(const MeshSchema& schema) {
+  if (opt.candidates < 1 || opt.candidates > 64) return Status(ErrorCode::kUsage, "candidates must be 1..64");
+  if (!(opt.ratio >= 0 && opt.ratio <= 1)) return Status(ErrorCode::kUsage, "ratio must be in (0, 1]");
+  if (!(opt.max_error < 0 || std::isfinite(opt.max_error)))
+    return Status(ErrorCode::kUsage, "max error must be a finite number");
+  if (opt.ratio == 0 && opt.target_triangles == 0 && opt.max_error < 0)
+    return Status(ErrorCode::kUsage, "no target: give a ratio, a triangle count or a largest error");
+  ratio = opt.ratio;
+  count_target = opt.ratio > 0;
+  if (opt.target_triangles > 0) {
+    const uint64_t in = schema.triangle_count >= 0 ? static_cast<uint64_t>(schema.triangle_count) : opt.input_triangles;
+    if (schema.triangle_count < 0 && opt.input_triangles == 0)
+      return Status(ErrorCode::kUsage, "a triangle count target needs the input's triangle count, which it does "
+                                       "not declare (give a ratio instead)");
+    const double r = in == 0 ? 1.0 : std::min(1.0, static_cast<double>(opt.target_triangles) / static_cast<double>(in));
+    ratio = std::max(ratio, r);
+    count_target = true;
+  }
+  if (schema.has_bounds) {
+    double d[3];
+    for (int i = 0; i < 3; ++i) {
+      origin[i] = 0.5 * (schema.bounds_min[i] + schema.bounds_max[i]);
+      d[i] = schema.bounds_max[i] - schema.bounds_min[i];
+    }
+    const double diag = std::sqrt(dot(d, d));
+    if (diag > 0 && std::isfinite(diag) && std::isfinite(origin[0] + origin[1] + origin[2])) {
+      scale = 1 / diag;
+      bounds_known = true;
+    } else {
+      origin[0] = origin[1] = origin[2] = 0;
+    }
+  }
+  capacity = opt.buffer_triangles ? opt.buffer_triangles : qem_buffer_triangles(opt.memory_budget);
+  capacity = std::max<uint32_t>(capacity, 16);
+  low = capacity - capacity / 8;
+  report.buffer_triangles = capacity;
+  rng = opt.seed ^ 0x5851f42d4c957f2dull;
+  buffer.set_seed(opt.seed);
+  buffer.set_lookahead_budget(opt.memory_budget / 4);
+  begun = true;
+  return buffer.begin(schema);
+}
+
+void StreamQem::Impl::add_quadrics(uint32_t tri, uint8_t border_mask) {
+  uint32_t v[3];
+  double p[3][3];
+  for (int k = 0; k < 3; ++k) {
+    v[k] = buffer.vertex_of(3 * tri + k);
+    normalized(v[k], p[k]);
+  }
+  double e1[3], e2[3], n[3];
+  sub(p[1], p[0], e1);
+  sub(p[2], p[0], e2);
+  cross(e1, e2, n);
+  const double len = std::sqrt(dot(n, n));
+  if (!(len > 0) || !std::isfinite(len)) return;  // no plane: a degenerate triangle
+  for (double& c : n) c /= len;
+  const double d = -dot(n, p[0]);
+  QemQuadric q;
+  q.add_plane(n, d, 0.5 * len);
+  for (int k = 0; k < 3; ++k) quadric[v[k]].add(q);
+  for (int k = 0; k < 3; ++k) {
+    if (!(border_mask & (1u << k))) continue;
+    double e[3], m[3];
+    sub(p[(k + 1) % 3], p[k], e);
+    cross(e, n, m);
+    const double ml = std::sqrt(dot(m, m));
+    if (!(ml > 0)) continue;
+    for (double& c : m) c /= ml;
+    QemQuadric b;
+    b.add_plane(m, -dot(m, p[k]), kBorderWeight * dot(e, e));
+    quadric[v[k]].add(b);
+    quadric[v[(k + 1) % 3]].add(b);
+  }
+}
+
+Status StreamQem::Impl::triangle(const SequenceTriangle& t) {
+  uint32_t tri;
+  PSQ_RETURN_IF_ERROR(buffer.triangle(t, &tri));
+  if (quadric.size() < buffer.vertex_capacity()) {
+    quadric.resize(buffer.vertex_capacity());
+    score.resize(buffer.vertex_capacity());
+  }
+  for (int k = 0; k < 3; ++k) {
+    if (!(t.new_mask & (1u << k))) continue;
+    const uint32_t v = buffer.vertex_of(3 * tri + k);
+    quadric[v] = QemQuadric();
+    score[v] = 0;
+  }
+  add_quadrics(tri, t.border_mask);
+  if (buffer.triangle_count() >= capacity) {
+    decimate(false);
+    if (buffer.triangle_count() >= capacity) return write_until(low);
+  }
+  return Status();
+}
+
+bool StreamQem::Impl::evaluate(uint32_t h, Candidate* c) {
+  const uint32_t a = buffer.vertex_of(h), b = buffer.vertex_of(TriangleBuffer::next(h));
+  const bool pa = pinned(a), pb = pinned(b);
+  if (pa && pb) return false;
+  QemQuadric q = quadric[a];
+  q.add(quadric[b]);
+  double xa[3], xb[3];
+  normalized(a, xa);
+  normalized(b, xb);
+  c->h = h;
+  if (pa || pb) {
+    c->keep_start = pa;
+    std::copy(pa ? xa : xb, (pa ? xa : xb) + 3, c->x);
+  } else {
+    double e[3];
+    sub(xb, xa, e);
+    const double len2 = dot(e, e);
+    bool placed = q.minimum(c->x);
+    if (placed) {
+      // A solution far from the edge comes from a nearly singular system.
+      double m[3];
+      for (int i = 0; i < 3; ++i) m[i] = c->x[i] - 0.5 * (xa[i] + xb[i]);
+      placed = dot(m, m) <= 4 * len2;
+    }
+    if (!placed) {
+      const double t = q.minimum_on_segment(xa, e);
+      for (int i = 0; i < 3; ++i) c->x[i] = xa[i] + t * e[i];
+    }
+    double da[3], db[3];
+    sub(c->x, xa, da);
+    sub(c->x, xb, db);
+    c->keep_start = dot(da, da) <= dot(db, db);
+  }
+  c->cost = q.error(c->x);
+  return true;
+}
+
+bool StreamQem::Impl::flips(uint32_t h, const double p[3]) {
+  const uint32_t a = buffer.vertex_of(h), b = buffer.vertex_of(TriangleBuffer::next(h));
+  for (uint32_t v : {a, b}) {
+    const uint32_t other = v == a ? b : a;
+    for (uint32_t c = buffer.first_corner(v); c != TriangleBuffer::kNone; c = buffer.next_corner(c)) {
+      const uint32_t v1 = buffer.vertex_of(TriangleBuffer::next(c)), v2 = buffer.vertex_of(TriangleBuffer::prev(c));
+      if (v1 == other || v2 == other) continue;  // goes with the edge
+      const double* p0 = buffer.position(v);
+      const double* p1 = buffer.position(v1);
+      const double* p2 = buffer.position(v2);
+      double e1[3], e2[3], n0[3], n1[3];
+      sub(p1, p0, e1);
+      sub(p2, p0, e2);
+      cross(e1, e2, n0);
+      sub(p1, p, e1);
+      sub(p2, p, e2);
+      cross(e1, e2, n1);
+      const double d = dot(n0, n1);
+      if (!(d > 0)) return true;
+      // Reject new normals more than about 78 degrees off the old.
+      if (d * d < 0.04 * dot(n0, n0) * dot(n1, n1)) return true;
+    }
+  }
+  return false;
+}
+
+bool StreamQem::Impl::collapse_one(double limit) {
+  const uint32_t n = buffer.free_vertex_count();
+  if (n == 0) return false;
+  Candidate cand[64];
+  int found = 0;
+  const int want = opt.candidates;
+  for (int tries = 0; tries < 4 * want && found < want; ++tries) {
+    const uint64_t r = random();
+    const uint32_t u = buffer.free_vertex(static_cast<uint32_t>((r & 0xffffffffu) % n));
+    uint32_t degree = 0;
+    for (uint32_t c = buffer.first_corner(u); c != TriangleBuffer::kNone; c = buffer.next_corner(c)) ++degree;
+    if (degree == 0) continue;
+    uint32_t pick = static_cast<uint32_t>((r >> 32) % (2 * degree));
+    uint32_t c = buffer.first_corner(u);
+    for (uint32_t i = 0; i < pick / 2; ++i) c = buffer.next_corner(c);
+    // The edge leaving u in this triangle, or the one arriving at it.
+    const uint32_t h = (pick & 1) ? TriangleBuffer::prev(c) : c;
+    const uint32_t other = (pick & 1) ? buffer.vertex_of(h) : buffer.vertex_of(TriangleBuffer::next(h));
+    if (buffer.locked(other)) continue;
+    Candidate k;
+    if (!evaluate(h, &k)) continue;
+    int at = found++;
+    while (at > 0 && cand[at - 1].cost > k.cost) {
+      cand[at] = cand[at - 1];
+      --at;
+    }
+    cand[at] = k;
+  }
+  for (int i = 0; i < found; ++i) {
+    const Candidate& k = cand[i];
+    if (limit >= 0 && k.cost > limit) return false;
+    if (!buffer.can_collapse(k.h)) continue;
+    double p[3];
+    world(k.x, p);
+    buffer.round_position(p);
+    if (flips(k.h, p)) continue;
+    const uint32_t a = buffer.vertex_of(k.h), b = buffer.vertex_of(TriangleBuffer::next(k.h));
+    QemQuadric q = quadric[a];
+    q.add(quadric[b]);
+    const bool keep_pinned = pinned(k.keep_start ? a : b);
+    const uint32_t keep = buffer.collapse(k.h, k.keep_start);
+    quadric[keep] = q;
+    if (!keep_pinned) buffer.set_position(keep, p);
+    score[keep] = static_cast<float>(k.cost);
+    max_cost = std::max(max_cost, k.cost);
+    return true;
+  }
+  return false;
+}
+
+void StreamQem::Impl::decimate(bool final) {
+  const double limit = cost_limit();
+  int failed = 0;
+  const int max_failed = final ? kMaxFailedRoundsFinal : kMaxFailedRounds;
+  for (;;) {
+    if (count_target) {
+      const TriangleBufferStats& st = buffer.stats();
+      const double total = static_cast<double>(st.triangles_written + buffer.triangle_count());
+      double goal = ratio * static_cast<double>(st.triangles_read);
+      // The band along the input boundary counts as it will be once
+      // simplified: the rest is not over-simplified to make room for it.
+      if (!final) goal += (1 - ratio) * buffer.input_band();
+      if (total <= goal) return;
+    }
+    if (collapse_one(limit)) {
+      failed = 0;
+    } else if (++failed >= max_failed) {
+      return;
+    }
+  }
+}
+
+Status StreamQem::Impl::write_until(uint32_t target) {
+  while (buffer.triangle_count() > target) {
+    const uint32_t t = buffer.pick_output(opt.candidates, score.data());
+    if (t == TriangleBuffer::kNone) break;
+    PSQ_RETURN_IF_ERROR(buffer.write(t));
+  }
+  return Status();
+}
+
+Status StreamQem::Impl::finish() {
+  PSQ_RETURN_IF_ERROR(buffer.end_input());
+  decimate(true);
+  if (count_target) {
+    report.target_triangles =
+        static_cast<uint64_t>(std::llround(ratio * static_cast<double>(buffer.stats().triangles_read)));
+  }
+  PSQ_RETURN_IF_ERROR(buffer.finish());
+  const TriangleBufferStats& st = buffer.stats();
+  report.input_vertices = st.vertices_read;
+  report.input_triangles = st.triangles_read;
+  report.output_vertices = st.vertices_written;
+  report.output_triangles = st.triangles_written;
+  report.collapses = st.collapses;
+  report.isolated_dropped = st.isolated_dropped;
+  report.max_buffer_triangles = st.max_triangles;
+  report.max_buffer_vertices = st.max_vertices;
+  report.converter = buffer.converter_stats();
+  double diag = 1;
+  if (!bounds_known) {
+    const double d[3] = {hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]};
+    diag = std::sqrt(dot(d, d)) * scale;
+  }
+  report.max_error = diag > 0 ? std::sqrt(max_cost) / diag : 0;
+  return Status();
+}
+
+StreamQem::StreamQem(SequenceSink* out, const QemOptions& options) : impl_(std::make_unique<Impl>(out, options)) {}
+StreamQem::~StreamQem() = default;
+
+void StreamQem::set_input_triangles(uint64_t count) { impl_->opt.input_triangles = count; }
+
+Status StreamQem::begin(const MeshSchema& schema) {
+  Impl& m = *impl_;
+  if (!m.error.ok()) return m.error;
+  if (m.begun) return m.fail(Status(ErrorCode::kUsage, "begin() called twice"));
+  return m.fail(m.begin(schema));
+}
+
+Status StreamQem::vertex(const SequenceVertex& v) {
+  Impl& m = *impl_;
+  if (!m.error.ok()) return m.error;
+  if (!m.begun || m.finished) return m.fail(Status(ErrorCode::kUsage, "vertex event outside begin()..finish()"));
+  for (int i = 0; i < 3; ++i) {
+    if (!std::isfinite(v.position[i]))
+      return m.fail(Status(ErrorCode::kBadValue, "vertex " + std::to_string(v.index) + ": position is not finite"));
+    if (!m.seen_vertex || v.position[i] < m.lo[i]) m.lo[i] = v.position[i];
+    if (!m.seen_vertex || v.position[i] > m.hi[i]) m.hi[i] = v.position[i];
+  }
+  if (!m.seen_vertex && !m.bounds_known) std::copy(v.position, v.position + 3, m.origin);
+  m.seen_vertex = true;
+  return m.fail(m.buffer.vertex(v));
+}
+
+Status StreamQem::triangle(const SequenceTriangle& t) {
+  Impl& m = *impl_;
+  if (!m.error.ok()) return m.error;
+  if (!m.begun || m.finished) return m.fail(Status(ErrorCode::kUsage, "triangle event outside begin()..finish()"));
+  return m.fail(m.triangle(t));
+}
+
+Status StreamQem::finalize(uint32_t index) {
+  Impl& m = *impl_;
+  if (!m.error.ok()) return m.error;
+  if (!m.begun || m.finished) return m.fail(Status(ErrorCode::kUsage, "finalize event outside begin()..finish()"));
+  return m.fail(m.buffer.finalize(index));
+}
+
+Status StreamQem::finish() {
+  Impl& m = *impl_;
+  if (!m.error.ok()) return m.error;
+  if (!m.begun || m.finished) return m.fail(Status(ErrorCode::kUsage, "finish() outside begin()..finish()"));
+  m.finished = true;
+  return m.fail(m.finish());
+}
+
+const QemReport& StreamQem::report() const { return impl_->report; }
+
+Status simplify_qem(SequenceSource& in, SequenceSink& out, const QemOptions& options, QemReport* report) {
+  StreamQem qem(&out, options);
+  Status s = pump_sequence(in, qem);
+  if (report) *report = qem.report();
+  return s;
+}
+
+}  // namespace psq
