@@ -8,6 +8,7 @@
 #include "psq/stream_qem.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <vector>
 
@@ -29,7 +30,10 @@ constexpr int kMaxFailedRoundsFinal = 64;
 // Estimated bytes per buffer triangle: the buffer's own (about 56 per
 // triangle and 72 per vertex) plus a quadric and a score per vertex, at
 // about half a vertex per triangle, with room for vectors' growth.
-constexpr uint64_t kBytesPerTriangle = 160;
+constexpr uint64_t kBytesPerTriangle = 172;
+// A collapse may turn a triangle at most this far (the cosine) from its
+// normal when it was read.
+constexpr double kMinCosine = 0.25;
 
 void sub(const double a[3], const double b[3], double r[3]) {
   r[0] = a[0] - b[0];
@@ -69,6 +73,9 @@ struct StreamQem::Impl {
 
   std::vector<QemQuadric> quadric;
   std::vector<float> score;
+  // Per triangle: its unit normal when it was read. A collapse may turn a
+  // triangle only so far from it, so that turns do not add up to a flip.
+  std::vector<std::array<float, 3>> reference;
   // Normalized coordinates: (p - origin) * scale, the box diagonal 1 when
   // the schema gives the box.
   double origin[3] = {0, 0, 0};
@@ -181,8 +188,12 @@ void StreamQem::Impl::add_quadrics(uint32_t tri, uint8_t border_mask) {
   sub(p[2], p[0], e2);
   cross(e1, e2, n);
   const double len = std::sqrt(dot(n, n));
-  if (!(len > 0) || !std::isfinite(len)) return;  // no plane: a degenerate triangle
+  if (!(len > 0) || !std::isfinite(len)) {  // no plane: a degenerate triangle
+    reference[tri] = {0, 0, 0};
+    return;
+  }
   for (double& c : n) c /= len;
+  reference[tri] = {static_cast<float>(n[0]), static_cast<float>(n[1]), static_cast<float>(n[2])};
   const double d = -dot(n, p[0]);
   QemQuadric q;
   q.add_plane(n, d, 0.5 * len);
@@ -209,6 +220,7 @@ Status StreamQem::Impl::triangle(const SequenceTriangle& t) {
     quadric.resize(buffer.vertex_capacity());
     score.resize(buffer.vertex_capacity());
   }
+  if (reference.size() < buffer.triangle_capacity()) reference.resize(buffer.triangle_capacity());
   for (int k = 0; k < 3; ++k) {
     if (!(t.new_mask & (1u << k))) continue;
     const uint32_t v = buffer.vertex_of(3 * tri + k);
@@ -233,9 +245,20 @@ bool StreamQem::Impl::evaluate(uint32_t h, Candidate* c) {
   normalized(a, xa);
   normalized(b, xb);
   c->h = h;
-  if (pa || pb) {
-    c->keep_start = pa;
-    std::copy(pa ? xa : xb, (pa ? xa : xb) + 3, c->x);
+  // Border vertices stay on the border: a border edge collapses onto
+  // itself, and an interior vertex merges into a border neighbour, so that
+  // the border only shrinks.
+  const bool ba = buffer.border(a), bb = buffer.border(b);
+  if (pa || pb || ba != bb) {
+    c->keep_start = pa || (!pb && ba);
+    std::copy(c->keep_start ? xa : xb, (c->keep_start ? xa : xb) + 3, c->x);
+  } else if (ba) {
+    if (buffer.opposite(h) != TriangleBuffer::kBorder) return false;  // a pinch: can_collapse refuses it
+    double e[3];
+    sub(xb, xa, e);
+    const double t = q.minimum_on_segment(xa, e);
+    for (int i = 0; i < 3; ++i) c->x[i] = xa[i] + t * e[i];
+    c->keep_start = t <= 0.5;
   } else {
     double e[3];
     sub(xb, xa, e);
@@ -279,8 +302,9 @@ bool StreamQem::Impl::flips(uint32_t h, const double p[3]) {
       cross(e1, e2, n1);
       const double d = dot(n0, n1);
       if (!(d > 0)) return true;
-      // Reject new normals more than about 78 degrees off the old.
-      if (d * d < 0.04 * dot(n0, n0) * dot(n1, n1)) return true;
+      const std::array<float, 3>& r = reference[c / 3];
+      const double dr = n1[0] * r[0] + n1[1] * r[1] + n1[2] * r[2];
+      if (!(dr > 0) || dr * dr < kMinCosine * kMinCosine * dot(n1, n1)) return true;
     }
   }
   return false;

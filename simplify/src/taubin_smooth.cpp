@@ -101,16 +101,20 @@ void TaubinSmoother::Impl::advance(uint32_t v) {
     // closed one: each neighbour follows one corner of v.
     double sum[3] = {0, 0, 0};
     int n = 0;
-    for (uint32_t c = buffer.first_corner(v); c != TriangleBuffer::kNone; c = buffer.next_corner(c)) {
+    bool blocked = false;
+    for (uint32_t c = buffer.first_corner(v); c != TriangleBuffer::kNone && !blocked; c = buffer.next_corner(c)) {
       const uint32_t u = buffer.vertex_of(TriangleBuffer::next(c));
-      if (!fixed(u) && level[u] < s) return;
+      if (!fixed(u) && level[u] < s) {
+        blocked = true;
+        break;
+      }
       const double* p = position_after(u, s);
       sum[0] += p[0];
       sum[1] += p[1];
       sum[2] += p[2];
       ++n;
     }
-    if (n == 0) return;
+    if (blocked || n == 0) break;
     const double f = s % 2 == 0 ? opt.lambda : opt.mu;
     const double* p = buffer.position(v);
     double q[3];
