@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <vector>
 
 #include "qem_quadric.h"
@@ -27,6 +28,9 @@ constexpr double kBorderWeight = 4.0;
 // gives up for now (it resumes at the next fill).
 constexpr int kMaxFailedRounds = 16;
 constexpr int kMaxFailedRoundsFinal = 64;
+// Decimation runs every this many triangles read, while what it works on
+// is still in the processor's caches.
+constexpr uint32_t kDecimationStep = 2048;
 // Estimated bytes per buffer triangle: the buffer's own (about 56 per
 // triangle and 72 per vertex) plus a quadric and a score per vertex, at
 // about half a vertex per triangle, with room for vectors' growth.
@@ -65,17 +69,38 @@ uint32_t qem_buffer_triangles(uint64_t memory_budget) {
 struct StreamQem::Impl {
   explicit Impl(SequenceSink* out, const QemOptions& o) : buffer(out), opt(o) {}
 
+  // Per buffer vertex: its quadric, and its cheapest edge to another
+  // unlocked vertex, kept up to date as the buffer changes, so that the
+  // multiple choice compares cached costs in a small array instead of
+  // visiting random parts of the buffer (Wu and Kobbelt's candidates are
+  // edges; here each sampled vertex offers its cheapest edge).
+  struct VertexData {
+    QemQuadric q;
+    double x[3] = {0, 0, 0};  // its position, normalized
+    float cost = kInfinity;  // of its cheapest edge; infinite: none
+    uint32_t target = TriangleBuffer::kNone;  // the other end of that edge
+    uint32_t slot = TriangleBuffer::kNone;    // its place in `set`
+  };
+  struct Entry {
+    uint32_t vertex;
+    float cost;
+  };
+  static constexpr float kInfinity = std::numeric_limits<float>::infinity();
+
   TriangleBuffer buffer;
   QemOptions opt;
   QemReport report;
   Status error;
   bool begun = false, finished = false;
 
-  std::vector<QemQuadric> quadric;
+  std::vector<VertexData> data;
+  // The error at each vertex's place (the output's add preference).
   std::vector<float> score;
   // Per triangle: its unit normal when it was read. A collapse may turn a
   // triangle only so far from it, so that turns do not add up to a flip.
   std::vector<std::array<float, 3>> reference;
+  // Unlocked vertices that have an edge to offer.
+  std::vector<Entry> set;
   // Normalized coordinates: (p - origin) * scale, the box diagonal 1 when
   // the schema gives the box.
   double origin[3] = {0, 0, 0};
@@ -87,6 +112,7 @@ struct StreamQem::Impl {
   bool count_target = false;
   double max_cost = 0;
   uint32_t capacity = 0, low = 0;
+  uint32_t since_decimation = 0;
   uint64_t rng = 0;
 
   Status fail(Status s) {
@@ -101,9 +127,10 @@ struct StreamQem::Impl {
     return z ^ (z >> 31);
   }
 
-  void normalized(uint32_t v, double x[3]) const {
+  void normalized(uint32_t v, double x[3]) const { std::copy(data[v].x, data[v].x + 3, x); }
+  void set_normalized(uint32_t v) {
     const double* p = buffer.position(v);
-    for (int i = 0; i < 3; ++i) x[i] = (p[i] - origin[i]) * scale;
+    for (int i = 0; i < 3; ++i) data[v].x[i] = (p[i] - origin[i]) * scale;
   }
   void world(const double x[3], double p[3]) const {
     for (int i = 0; i < 3; ++i) p[i] = x[i] / scale + origin[i];
@@ -122,11 +149,52 @@ struct StreamQem::Impl {
     return e * e;
   }
 
+  void set_cost(uint32_t v, float cost, uint32_t target) {
+    VertexData& d = data[v];
+    d.cost = cost;
+    d.target = target;
+    if (cost < kInfinity) {
+      if (d.slot == TriangleBuffer::kNone) {
+        d.slot = static_cast<uint32_t>(set.size());
+        set.push_back({v, cost});
+      } else {
+        set[d.slot].cost = cost;
+      }
+    } else if (d.slot != TriangleBuffer::kNone) {
+      leave_set(v);
+    }
+  }
+  void leave_set(uint32_t v) {
+    VertexData& d = data[v];
+    if (d.slot == TriangleBuffer::kNone) return;
+    const Entry last = set.back();
+    set[d.slot] = last;
+    data[last.vertex].slot = d.slot;
+    set.pop_back();
+    d.slot = TriangleBuffer::kNone;
+    d.cost = kInfinity;
+    d.target = TriangleBuffer::kNone;
+  }
+
+  template <class F>
+  void for_each_edge(uint32_t v, F&& f) {
+    // Each neighbour follows one corner of v, but for the one that only
+    // precedes a corner across a border edge.
+    for (uint32_t c = buffer.first_corner(v); c != TriangleBuffer::kNone; c = buffer.next_corner(c)) {
+      f(buffer.vertex_of(TriangleBuffer::next(c)), c);
+      const uint32_t p = TriangleBuffer::prev(c);
+      if (buffer.opposite(p) == TriangleBuffer::kBorder) f(buffer.vertex_of(p), p);
+    }
+  }
+
+  void refresh(uint32_t v, bool relax, uint32_t a = TriangleBuffer::kNone, uint32_t b = TriangleBuffer::kNone);
+  void locked_now(uint32_t v);
   Status begin(const MeshSchema& schema);
   Status triangle(const SequenceTriangle& t);
   void add_quadrics(uint32_t tri, uint8_t border_mask);
   bool evaluate(uint32_t h, Candidate* c);
   bool flips(uint32_t h, const double p[3]);
+  void refuse(uint32_t v);
   bool collapse_one(double limit);
   void decimate(bool final);
   Status write_until(uint32_t target);
@@ -197,7 +265,7 @@ void StreamQem::Impl::add_quadrics(uint32_t tri, uint8_t border_mask) {
   const double d = -dot(n, p[0]);
   QemQuadric q;
   q.add_plane(n, d, 0.5 * len);
-  for (int k = 0; k < 3; ++k) quadric[v[k]].add(q);
+  for (int k = 0; k < 3; ++k) data[v[k]].q.add(q);
   for (int k = 0; k < 3; ++k) {
     if (!(border_mask & (1u << k))) continue;
     double e[3], m[3];
@@ -208,39 +276,84 @@ void StreamQem::Impl::add_quadrics(uint32_t tri, uint8_t border_mask) {
     for (double& c : m) c /= ml;
     QemQuadric b;
     b.add_plane(m, -dot(m, p[k]), kBorderWeight * dot(e, e));
-    quadric[v[k]].add(b);
-    quadric[v[(k + 1) % 3]].add(b);
+    data[v[k]].q.add(b);
+    data[v[(k + 1) % 3]].q.add(b);
   }
 }
 
 Status StreamQem::Impl::triangle(const SequenceTriangle& t) {
   uint32_t tri;
   PSQ_RETURN_IF_ERROR(buffer.triangle(t, &tri));
-  if (quadric.size() < buffer.vertex_capacity()) {
-    quadric.resize(buffer.vertex_capacity());
+  if (data.size() < buffer.vertex_capacity()) {
+    data.resize(buffer.vertex_capacity());
     score.resize(buffer.vertex_capacity());
   }
   if (reference.size() < buffer.triangle_capacity()) reference.resize(buffer.triangle_capacity());
   for (int k = 0; k < 3; ++k) {
     if (!(t.new_mask & (1u << k))) continue;
     const uint32_t v = buffer.vertex_of(3 * tri + k);
-    quadric[v] = QemQuadric();
+    data[v] = VertexData();
+    set_normalized(v);
     score[v] = 0;
   }
   add_quadrics(tri, t.border_mask);
-  if (buffer.triangle_count() >= capacity) {
+  // Vertices the input finalized are complete: their edges to unlocked
+  // neighbours become candidates.
+  for (int k = 0; k < 3; ++k) {
+    const uint32_t v = buffer.vertex_of(3 * tri + k);
+    if ((t.final_mask & (1u << k)) && !buffer.locked(v)) refresh(v, true);
+  }
+  if (++since_decimation >= kDecimationStep || buffer.triangle_count() >= capacity) {
+    since_decimation = 0;
     decimate(false);
     if (buffer.triangle_count() >= capacity) return write_until(low);
   }
   return Status();
 }
 
+// Recomputes v's cheapest edge. With `relax`, each neighbour learns its
+// edge to v too (v is new to them, or v moved and merged `a` and `b`): the
+// cost is the same from both ends.
+void StreamQem::Impl::refresh(uint32_t v, bool relax, uint32_t a, uint32_t b) {
+  float best = kInfinity;
+  uint32_t best_target = TriangleBuffer::kNone;
+  for_each_edge(v, [&](uint32_t u, uint32_t h) {
+    if (buffer.locked(u)) return;
+    Candidate c;
+    if (!evaluate(h, &c)) return;
+    const float cost = static_cast<float>(c.cost);
+    if (cost < best) {
+      best = cost;
+      best_target = u;
+    }
+    if (!relax) return;
+    // The neighbour's cheapest edge was to an end of the collapse, or to
+    // v itself: that edge is this one now. Its other edges may be cheaper;
+    // they are offered by their other ends too, and u's own cost is
+    // recomputed when it is chosen or a neighbour changes.
+    VertexData& du = data[u];
+    if (cost < du.cost || (du.target != TriangleBuffer::kNone && (du.target == a || du.target == b || du.target == v)))
+      set_cost(u, cost, v);
+  });
+  set_cost(v, best, best_target);
+}
+
+// v was just written: it is no candidate any more, nor anyone's target.
+void StreamQem::Impl::locked_now(uint32_t v) {
+  leave_set(v);
+  for (uint32_t c = buffer.first_corner(v); c != TriangleBuffer::kNone; c = buffer.next_corner(c)) {
+    for (uint32_t u : {buffer.vertex_of(TriangleBuffer::next(c)), buffer.vertex_of(TriangleBuffer::prev(c))}) {
+      if (!buffer.locked(u) && data[u].target == v) refresh(u, false);
+    }
+  }
+}
+
 bool StreamQem::Impl::evaluate(uint32_t h, Candidate* c) {
   const uint32_t a = buffer.vertex_of(h), b = buffer.vertex_of(TriangleBuffer::next(h));
   const bool pa = pinned(a), pb = pinned(b);
   if (pa && pb) return false;
-  QemQuadric q = quadric[a];
-  q.add(quadric[b]);
+  QemQuadric q = data[a].q;
+  q.add(data[b].q);
   double xa[3], xb[3];
   normalized(a, xa);
   normalized(b, xb);
@@ -310,54 +423,75 @@ bool StreamQem::Impl::flips(uint32_t h, const double p[3]) {
   return false;
 }
 
-bool StreamQem::Impl::collapse_one(double limit) {
-  const uint32_t n = buffer.free_vertex_count();
-  if (n == 0) return false;
-  Candidate cand[64];
-  int found = 0;
-  const int want = opt.candidates;
-  for (int tries = 0; tries < 4 * want && found < want; ++tries) {
-    const uint64_t r = random();
-    const uint32_t u = buffer.free_vertex(static_cast<uint32_t>((r & 0xffffffffu) % n));
-    uint32_t degree = 0;
-    for (uint32_t c = buffer.first_corner(u); c != TriangleBuffer::kNone; c = buffer.next_corner(c)) ++degree;
-    if (degree == 0) continue;
-    uint32_t pick = static_cast<uint32_t>((r >> 32) % (2 * degree));
-    uint32_t c = buffer.first_corner(u);
-    for (uint32_t i = 0; i < pick / 2; ++i) c = buffer.next_corner(c);
-    // The edge leaving u in this triangle, or the one arriving at it.
-    const uint32_t h = (pick & 1) ? TriangleBuffer::prev(c) : c;
-    const uint32_t other = (pick & 1) ? buffer.vertex_of(h) : buffer.vertex_of(TriangleBuffer::next(h));
-    if (buffer.locked(other)) continue;
-    Candidate k;
-    if (!evaluate(h, &k)) continue;
-    int at = found++;
-    while (at > 0 && cand[at - 1].cost > k.cost) {
-      cand[at] = cand[at - 1];
-      --at;
-    }
-    cand[at] = k;
-  }
-  for (int i = 0; i < found; ++i) {
-    const Candidate& k = cand[i];
-    if (limit >= 0 && k.cost > limit) return false;
-    if (!buffer.can_collapse(k.h)) continue;
+// v's cheapest edge was refused (topology or a flip): offer its cheapest
+// edge that passes, if any.
+void StreamQem::Impl::refuse(uint32_t v) {
+  Candidate options[64];
+  int n = 0;
+  for_each_edge(v, [&](uint32_t u, uint32_t h) {
+    if (n == 64 || buffer.locked(u)) return;
+    Candidate c;
+    if (evaluate(h, &c)) options[n++] = c;
+  });
+  std::sort(options, options + n, [](const Candidate& x, const Candidate& y) { return x.cost < y.cost; });
+  for (int i = 0; i < n; ++i) {
+    const Candidate& c = options[i];
+    if (!buffer.can_collapse(c.h)) continue;
     double p[3];
-    world(k.x, p);
+    world(c.x, p);
     buffer.round_position(p);
-    if (flips(k.h, p)) continue;
-    const uint32_t a = buffer.vertex_of(k.h), b = buffer.vertex_of(TriangleBuffer::next(k.h));
-    QemQuadric q = quadric[a];
-    q.add(quadric[b]);
-    const bool keep_pinned = pinned(k.keep_start ? a : b);
-    const uint32_t keep = buffer.collapse(k.h, k.keep_start);
-    quadric[keep] = q;
-    if (!keep_pinned) buffer.set_position(keep, p);
-    score[keep] = static_cast<float>(k.cost);
-    max_cost = std::max(max_cost, k.cost);
-    return true;
+    if (flips(c.h, p)) continue;
+    const uint32_t a = buffer.vertex_of(c.h), b = buffer.vertex_of(TriangleBuffer::next(c.h));
+    set_cost(v, static_cast<float>(c.cost), a == v ? b : a);
+    return;
   }
-  return false;
+  set_cost(v, kInfinity, TriangleBuffer::kNone);
+}
+
+bool StreamQem::Impl::collapse_one(double limit) {
+  if (set.empty()) return false;
+  // Multiple choice: the cheapest of a few random candidates.
+  uint32_t pick = static_cast<uint32_t>(random() % set.size());
+  for (int i = 1; i < opt.candidates; ++i) {
+    const uint32_t j = static_cast<uint32_t>(random() % set.size());
+    if (set[j].cost < set[pick].cost) pick = j;
+  }
+  const uint32_t v = set[pick].vertex;
+  const uint32_t target = data[v].target;
+  if (limit >= 0 && set[pick].cost > limit) return false;
+  uint32_t h = TriangleBuffer::kNone;
+  for_each_edge(v, [&](uint32_t u, uint32_t e) {
+    if (u == target && h == TriangleBuffer::kNone) h = e;
+  });
+  Candidate k;
+  if (h == TriangleBuffer::kNone || buffer.locked(target) || !evaluate(h, &k)) {
+    refresh(v, false);
+    return false;
+  }
+  double p[3];
+  world(k.x, p);
+  buffer.round_position(p);
+  if (!buffer.can_collapse(h) || flips(h, p)) {
+    refuse(v);
+    return false;
+  }
+  const uint32_t a = buffer.vertex_of(h), b = buffer.vertex_of(TriangleBuffer::next(h));
+  QemQuadric q = data[a].q;
+  q.add(data[b].q);
+  const bool keep_pinned = pinned(k.keep_start ? a : b);
+  const uint32_t gone = k.keep_start ? b : a;
+  leave_set(gone);
+  const uint32_t keep = buffer.collapse(h, k.keep_start);
+  data[keep].q = q;
+  if (!keep_pinned) {
+    buffer.set_position(keep, p);
+    set_normalized(keep);
+  }
+  score[keep] = static_cast<float>(k.cost);
+  max_cost = std::max(max_cost, k.cost);
+  // The kept vertex moved and its quadric grew: its edges cost anew.
+  refresh(keep, true, a, b);
+  return true;
 }
 
 void StreamQem::Impl::decimate(bool final) {
@@ -386,7 +520,19 @@ Status StreamQem::Impl::write_until(uint32_t target) {
   while (buffer.triangle_count() > target) {
     const uint32_t t = buffer.pick_output(opt.candidates, score.data());
     if (t == TriangleBuffer::kNone) break;
+    uint32_t fresh[3];
+    int n = 0;
+    for (int k = 0; k < 3; ++k) {
+      const uint32_t v = buffer.vertex_of(3 * t + k);
+      if (!buffer.written(v)) {
+        leave_set(v);
+        fresh[n++] = v;
+      }
+    }
     PSQ_RETURN_IF_ERROR(buffer.write(t));
+    // Those still in the buffer are locked now.
+    for (int i = 0; i < n; ++i)
+      if (buffer.first_corner(fresh[i]) != TriangleBuffer::kNone && buffer.written(fresh[i])) locked_now(fresh[i]);
   }
   return Status();
 }
