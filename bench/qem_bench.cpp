@@ -553,9 +553,43 @@ int meshopt_speed(int argc, char** argv) {
   return 0;
 }
 
+// Smallest angle of each triangle, in degrees.
+std::vector<double> min_angles(const Mesh& m) {
+  std::vector<double> out;
+  for (size_t t = 0; t < m.triangles(); ++t) {
+    const Vec p[3] = {m.pos(m.indices[3 * t]), m.pos(m.indices[3 * t + 1]), m.pos(m.indices[3 * t + 2])};
+    double least = 180;
+    for (int k = 0; k < 3; ++k) {
+      const Vec u = sub(p[(k + 1) % 3], p[k]), w = sub(p[(k + 2) % 3], p[k]);
+      const double d = std::sqrt(dot(u, u) * dot(w, w));
+      const double c = d > 0 ? std::clamp(dot(u, w) / d, -1.0, 1.0) : 1.0;
+      least = std::min(least, std::acos(c) * 180 / M_PI);
+    }
+    out.push_back(least);
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+int shape(int argc, char** argv) {
+  for (int i = 0; i < argc; ++i) {
+    Mesh m;
+    if (!load(argv[i], &m)) return 1;
+    const std::vector<double> a = min_angles(m);
+    auto pct = [&](double q) { return a.empty() ? 0.0 : a[static_cast<size_t>(q * (a.size() - 1))]; };
+    size_t below = 0;
+    while (below < a.size() && a[below] < 1) ++below;
+    std::printf("%s: %zu triangles, smallest angle at percentiles 1, 5, 25, 50: %.2f %.2f %.2f %.2f degrees; %zu "
+                "below 1 degree\n",
+                argv[i], m.triangles(), pct(0.01), pct(0.05), pct(0.25), pct(0.5), below);
+  }
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
+  if (argc >= 2 && std::strcmp(argv[1], "shape") == 0) return shape(argc - 2, argv + 2);
   if (argc >= 2 && std::strcmp(argv[1], "quality") == 0) return quality(argc - 2, argv + 2);
   if (argc >= 2 && std::strcmp(argv[1], "meshopt") == 0) return meshopt_speed(argc - 2, argv + 2);
   std::fprintf(stderr, "usage: psq_bench_qem quality [OPTIONS] MESH... | meshopt [--ratio R] MESH\n");

@@ -162,14 +162,14 @@ void TriangleBuffer::free_erase(uint32_t v) {
 }
 
 void TriangleBuffer::add_corner(uint32_t v, uint32_t c) {
-  next_corner_[c] = head_[v];
+  corners_[c].next = head_[v];
   head_[v] = c;
 }
 
 void TriangleBuffer::remove_corner(uint32_t v, uint32_t c) {
   uint32_t* link = &head_[v];
-  while (*link != c) link = &next_corner_[*link];
-  *link = next_corner_[c];
+  while (*link != c) link = &corners_[*link].next;
+  *link = corners_[c].next;
 }
 
 void TriangleBuffer::set_out_count(uint32_t t, uint8_t count) {
@@ -192,7 +192,7 @@ void TriangleBuffer::set_out_count(uint32_t t, uint8_t count) {
 
 void TriangleBuffer::kill_triangle(uint32_t t) {
   set_out_count(t, 0);
-  for (uint32_t k = 0; k < 3; ++k) remove_corner(corner_vertex_[3 * t + k], 3 * t + k);
+  for (uint32_t k = 0; k < 3; ++k) remove_corner(corners_[3 * t + k].vertex, 3 * t + k);
   if (open_count_[t] > 0) --band_;
   alive_flag_[t] = 0;
   --alive_;
@@ -203,7 +203,7 @@ void TriangleBuffer::kill_triangle(uint32_t t) {
 void TriangleBuffer::mark_input_final(uint32_t v) {
   vflags_[v] |= kInputFinal;
   --open_vertices_;
-  for (uint32_t c = head_[v]; c != kNone; c = next_corner_[c]) {
+  for (uint32_t c = head_[v]; c != kNone; c = corners_[c].next) {
     if (--open_count_[c / 3] == 0) --band_;
   }
   if (!written(v)) free_insert(v);
@@ -257,8 +257,8 @@ Status TriangleBuffer::triangle(const SequenceTriangle& t, uint32_t* id) {
     if (e == kWrittenEdge) continue;
     const uint32_t o = e - 1;
     // The open edge must run the other way between the same vertices.
-    if (vert[k] == kNone || vert[(k + 1) % 3] == kNone || corner_vertex_[o] != vert[(k + 1) % 3] ||
-        corner_vertex_[next(o)] != vert[k])
+    if (vert[k] == kNone || vert[(k + 1) % 3] == kNone || corners_[o].vertex != vert[(k + 1) % 3] ||
+        corners_[next(o)].vertex != vert[k])
       return bad_sequence(number, "leaving edge slot " + std::to_string(t.eslot[k]) + " names another edge");
   }
   for (int k = 0; k < 3; ++k) {
@@ -286,9 +286,7 @@ Status TriangleBuffer::triangle(const SequenceTriangle& t, uint32_t* id) {
     free_triangles_.pop_back();
   } else {
     tri = static_cast<uint32_t>(alive_flag_.size());
-    corner_vertex_.resize(corner_vertex_.size() + 3);
-    opposite_.resize(opposite_.size() + 3);
-    next_corner_.resize(next_corner_.size() + 3);
+    corners_.resize(corners_.size() + 3);
     alive_flag_.push_back(0);
     out_count_.push_back(0);
     open_count_.push_back(0);
@@ -304,14 +302,14 @@ Status TriangleBuffer::triangle(const SequenceTriangle& t, uint32_t* id) {
   uint8_t written_edges = 0;
   for (uint32_t k = 0; k < 3; ++k) {
     const uint32_t c = 3 * tri + k;
-    corner_vertex_[c] = vert[k];
+    corners_[c].vertex = vert[k];
     add_corner(vert[k], c);
   }
   for (uint32_t k = 0; k < 3; ++k) {
     const uint32_t c = 3 * tri + k;
     const uint32_t bit = 1u << k;
     if (t.border_mask & bit) {
-      opposite_[c] = kBorder;
+      corners_[c].opposite = kBorder;
       vflags_[vert[k]] |= kBorderVertex;
       vflags_[vert[(k + 1) % 3]] |= kBorderVertex;
       // A border made by a non-manifold cut: its other side is elsewhere in
@@ -325,14 +323,14 @@ Status TriangleBuffer::triangle(const SequenceTriangle& t, uint32_t* id) {
       eslot_[t.eslot[k]] = 0;
       --open_edges_;
       if (e == kWrittenEdge) {
-        opposite_[c] = kWritten;
+        corners_[c].opposite = kWritten;
         ++written_edges;
       } else {
-        opposite_[c] = e - 1;
-        opposite_[e - 1] = c;
+        corners_[c].opposite = e - 1;
+        corners_[e - 1].opposite = c;
       }
     } else {
-      opposite_[c] = kOpen | t.eslot[k];
+      corners_[c].opposite = kOpen | t.eslot[k];
       eslot_[t.eslot[k]] = c + 1;
       ++open_edges_;
     }
@@ -377,7 +375,7 @@ Status TriangleBuffer::retire_if_done(uint32_t v) {
 Status TriangleBuffer::write(uint32_t t) {
   uint32_t ids[3];
   for (uint32_t k = 0; k < 3; ++k) {
-    const uint32_t v = corner_vertex_[3 * t + k];
+    const uint32_t v = corners_[3 * t + k].vertex;
     if (!written(v)) {
       if (free_pos_[v] != kNone) free_erase(v);
       vflags_[v] |= kHasOutput;
@@ -391,15 +389,15 @@ Status TriangleBuffer::write(uint32_t t) {
   if (out_count_[t] == 0) ++stats_.starts_written;
   ++stats_.triangles_written;
   for (uint32_t k = 0; k < 3; ++k) {
-    const uint32_t o = opposite_[3 * t + k];
+    const uint32_t o = corners_[3 * t + k].opposite;
     if (o < kOpen) {
-      opposite_[o] = kWritten;
+      corners_[o].opposite = kWritten;
       set_out_count(o / 3, static_cast<uint8_t>(out_count_[o / 3] + 1));
     } else if (o < kWritten) {
       eslot_[o & ~kOpen] = kWrittenEdge;
     }
   }
-  const uint32_t v0 = corner_vertex_[3 * t], v1 = corner_vertex_[3 * t + 1], v2 = corner_vertex_[3 * t + 2];
+  const uint32_t v0 = corners_[3 * t].vertex, v1 = corners_[3 * t + 1].vertex, v2 = corners_[3 * t + 2].vertex;
   kill_triangle(t);
   PSQ_RETURN_IF_ERROR(retire_if_done(v0));
   PSQ_RETURN_IF_ERROR(retire_if_done(v1));
@@ -417,8 +415,8 @@ uint32_t TriangleBuffer::pick_output(int candidates, const float* score) {
     for (int i = 0; i < n; ++i) {
       const uint32_t t = ones[ones.size() == 1 ? 0 : random() % ones.size()];
       uint32_t c = 3 * t;
-      while (opposite_[c] != kWritten) ++c;
-      const uint32_t free_vertex = corner_vertex_[prev(c)];
+      while (corners_[c].opposite != kWritten) ++c;
+      const uint32_t free_vertex = corners_[prev(c)].vertex;
       if (written(free_vertex)) return t;  // a join
       const float s = score ? score[free_vertex] : 0.0f;
       if (best == kNone || s > best_score) {
@@ -443,9 +441,9 @@ Status TriangleBuffer::finish() {
 }
 
 bool TriangleBuffer::can_collapse(uint32_t h) {
-  const uint32_t a = corner_vertex_[h], b = corner_vertex_[next(h)];
+  const uint32_t a = corners_[h].vertex, b = corners_[next(h)].vertex;
   if (locked(a) || locked(b)) return false;
-  const uint32_t o = opposite_[h];
+  const uint32_t o = corners_[h].opposite;
   const bool interior = o < kOpen;
   if (!interior && o != kBorder) return false;
   // Both ends on a border, joined through the interior: the collapse would
@@ -459,15 +457,15 @@ bool TriangleBuffer::can_collapse(uint32_t h) {
   }
   epoch_ += 2;
   uint32_t fan_a = 0, fan_b = 0;
-  for (uint32_t c = head_[a]; c != kNone; c = next_corner_[c]) {
-    mark_[corner_vertex_[next(c)]] = epoch_;
-    mark_[corner_vertex_[prev(c)]] = epoch_;
+  for (uint32_t c = head_[a]; c != kNone; c = corners_[c].next) {
+    mark_[corners_[next(c)].vertex] = epoch_;
+    mark_[corners_[prev(c)].vertex] = epoch_;
     ++fan_a;
   }
   uint32_t common = 0;
-  for (uint32_t c = head_[b]; c != kNone; c = next_corner_[c]) {
+  for (uint32_t c = head_[b]; c != kNone; c = corners_[c].next) {
     ++fan_b;
-    for (uint32_t u : {corner_vertex_[next(c)], corner_vertex_[prev(c)]}) {
+    for (uint32_t u : {corners_[next(c)].vertex, corners_[prev(c)].vertex}) {
       if (u != a && mark_[u] == epoch_) {
         mark_[u] = epoch_ + 1;
         ++common;
@@ -481,33 +479,33 @@ bool TriangleBuffer::can_collapse(uint32_t h) {
   // Each vertex across the edge keeps a triangle.
   for (uint32_t c : {prev(h), interior ? prev(o) : kNone}) {
     if (c == kNone) continue;
-    const uint32_t first = head_[corner_vertex_[c]];
-    if (next_corner_[first] == kNone) return false;
+    const uint32_t first = head_[corners_[c].vertex];
+    if (corners_[first].next == kNone) return false;
   }
   return true;
 }
 
 uint32_t TriangleBuffer::collapse(uint32_t h, bool keep_start) {
-  const uint32_t a = corner_vertex_[h], b = corner_vertex_[next(h)];
+  const uint32_t a = corners_[h].vertex, b = corners_[next(h)].vertex;
   const uint32_t keep = keep_start ? a : b, gone = keep_start ? b : a;
-  const uint32_t o = opposite_[h];
+  const uint32_t o = corners_[h].opposite;
   for (uint32_t e : {h, o < kOpen ? o : kNone}) {
     if (e == kNone) continue;
     // The triangle's two other edges become one: the triangles across them
     // face each other (a border on one side makes the other a border).
-    const uint32_t x = opposite_[next(e)], y = opposite_[prev(e)];
-    if (x < kOpen) opposite_[x] = y;
-    if (y < kOpen) opposite_[y] = x;
+    const uint32_t x = corners_[next(e)].opposite, y = corners_[prev(e)].opposite;
+    if (x < kOpen) corners_[x].opposite = y;
+    if (y < kOpen) corners_[y].opposite = x;
     kill_triangle(e / 3);
   }
   // The corners of the gone vertex now belong to the kept one.
   uint32_t tail = kNone;
-  for (uint32_t c = head_[gone]; c != kNone; c = next_corner_[c]) {
-    corner_vertex_[c] = keep;
+  for (uint32_t c = head_[gone]; c != kNone; c = corners_[c].next) {
+    corners_[c].vertex = keep;
     tail = c;
   }
   if (tail != kNone) {
-    next_corner_[tail] = head_[keep];
+    corners_[tail].next = head_[keep];
     head_[keep] = head_[gone];
   }
   vflags_[keep] |= vflags_[gone] & (kBorderVertex | kCut);

@@ -58,24 +58,26 @@ struct QemQuadric {
     return weight > 0 ? e / weight : e;
   }
 
-  // The x minimizing Q: solves Ax = -b when A is well conditioned (its
-  // determinant not small against the cube of its largest diagonal entry);
-  // false otherwise (a flat or straight neighbourhood, where the minimum is
-  // a line or a plane).
-  bool minimum(double x[3]) const {
-    const double c00 = a11 * a22 - a12 * a12;
-    const double c01 = a02 * a12 - a01 * a22;
-    const double c02 = a01 * a12 - a02 * a11;
-    const double det = a00 * c00 + a01 * c01 + a02 * c02;
-    const double scale = std::fmax(a00, std::fmax(a11, a22));
-    if (!(scale > 0) || !(std::fabs(det) > 1e-7 * scale * scale * scale)) return false;
-    const double c11 = a00 * a22 - a02 * a02;
-    const double c12 = a01 * a02 - a00 * a12;
-    const double c22 = a00 * a11 - a01 * a01;
-    const double inv = -1.0 / det;
-    x[0] = inv * (c00 * b0 + c01 * b1 + c02 * b2);
-    x[1] = inv * (c01 * b0 + c11 * b1 + c12 * b2);
-    x[2] = inv * (c02 * b0 + c12 * b1 + c22 * b2);
+  // The x minimizing Q(x) + lambda |x - m|^2: solves (A + lambda I) x =
+  // lambda m - b. The small pull towards m fixes the directions in which Q
+  // hardly changes (a flat or straight neighbourhood), where the plain
+  // minimum would be anywhere along a line or a plane; elsewhere it moves x
+  // little. False when the system is singular all the same.
+  bool minimum(double lambda, const double m[3], double x[3]) const {
+    const double d00 = a00 + lambda, d11 = a11 + lambda, d22 = a22 + lambda;
+    const double r0 = lambda * m[0] - b0, r1 = lambda * m[1] - b1, r2 = lambda * m[2] - b2;
+    const double c00 = d11 * d22 - a12 * a12;
+    const double c01 = a02 * a12 - a01 * d22;
+    const double c02 = a01 * a12 - a02 * d11;
+    const double det = d00 * c00 + a01 * c01 + a02 * c02;
+    if (!(std::fabs(det) > 0)) return false;
+    const double c11 = d00 * d22 - a02 * a02;
+    const double c12 = a01 * a02 - d00 * a12;
+    const double c22 = d00 * d11 - a01 * a01;
+    const double inv = 1.0 / det;
+    x[0] = inv * (c00 * r0 + c01 * r1 + c02 * r2);
+    x[1] = inv * (c01 * r0 + c11 * r1 + c12 * r2);
+    x[2] = inv * (c02 * r0 + c12 * r1 + c22 * r2);
     return std::isfinite(x[0]) && std::isfinite(x[1]) && std::isfinite(x[2]);
   }
 

@@ -38,6 +38,19 @@ constexpr uint64_t kBytesPerTriangle = 172;
 // A collapse may turn a triangle at most this far (the cosine) from its
 // normal when it was read.
 constexpr double kMinCosine = 0.25;
+// Below this shape() a triangle is a sliver (its smallest angle under
+// about 1.8 degrees): no collapse may make one.
+constexpr double kSliver = 1e-3;
+// Below this shape() a triangle is degenerate (smallest angle under about
+// 0.002 degrees, as quantization leaves where close vertices met): its
+// normal means nothing.
+constexpr double kDegenerate = 1e-9;
+// The pull of a merged vertex towards its edge's midpoint, relative to the
+// quadric's trace (its total plane weight).
+constexpr double kPull = 1e-3;
+// How many band's worth of triangles behind the input boundary are left to
+// be simplified gradually.
+constexpr double kFreshBands = 1;
 
 void sub(const double a[3], const double b[3], double r[3]) {
   r[0] = a[0] - b[0];
@@ -50,6 +63,16 @@ void cross(const double a[3], const double b[3], double r[3]) {
   r[2] = a[0] * b[1] - a[1] * b[0];
 }
 double dot(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+// How far from a sliver the triangle of edges e1 and e2 (from one corner)
+// and normal n = e1 x e2 is: the squared sine of its smallest angle, about
+// (|n| / longest edge^2)^2; 0.75 for an equilateral triangle.
+double shape(const double n[3], const double e1[3], const double e2[3]) {
+  double e3[3];
+  sub(e2, e1, e3);
+  const double l = std::max({dot(e1, e1), dot(e2, e2), dot(e3, e3)});
+  return l > 0 ? dot(n, n) / (l * l) : 0;
+}
 
 struct Candidate {
   double cost;
@@ -128,10 +151,10 @@ struct StreamQem::Impl {
   }
 
   void normalized(uint32_t v, double x[3]) const { std::copy(data[v].x, data[v].x + 3, x); }
-  void set_normalized(uint32_t v) {
-    const double* p = buffer.position(v);
-    for (int i = 0; i < 3; ++i) data[v].x[i] = (p[i] - origin[i]) * scale;
+  void to_normalized(const double p[3], double x[3]) const {
+    for (int i = 0; i < 3; ++i) x[i] = (p[i] - origin[i]) * scale;
   }
+  void set_normalized(uint32_t v) { to_normalized(buffer.position(v), data[v].x); }
   void world(const double x[3], double p[3]) const {
     for (int i = 0; i < 3; ++i) p[i] = x[i] / scale + origin[i];
   }
@@ -193,7 +216,11 @@ struct StreamQem::Impl {
   Status triangle(const SequenceTriangle& t);
   void add_quadrics(uint32_t tri, uint8_t border_mask);
   bool evaluate(uint32_t h, Candidate* c);
+  int end_options(uint32_t h, Candidate out[2]);
+  bool allowed(const Candidate& c, bool topology_checked);
+  void apply(const Candidate& c);
   bool flips(uint32_t h, const double p[3]);
+  void fan_normal(uint32_t a, uint32_t b, double n[3]);
   void refuse(uint32_t v);
   bool collapse_one(double limit);
   void decimate(bool final);
@@ -260,8 +287,10 @@ void StreamQem::Impl::add_quadrics(uint32_t tri, uint8_t border_mask) {
     reference[tri] = {0, 0, 0};
     return;
   }
+  const bool degenerate = shape(n, e1, e2) < kDegenerate;
   for (double& c : n) c /= len;
-  reference[tri] = {static_cast<float>(n[0]), static_cast<float>(n[1]), static_cast<float>(n[2])};
+  reference[tri] = {0, 0, 0};
+  if (!degenerate) reference[tri] = {static_cast<float>(n[0]), static_cast<float>(n[1]), static_cast<float>(n[2])};
   const double d = -dot(n, p[0]);
   QemQuadric q;
   q.add_plane(n, d, 0.5 * len);
@@ -376,12 +405,14 @@ bool StreamQem::Impl::evaluate(uint32_t h, Candidate* c) {
     double e[3];
     sub(xb, xa, e);
     const double len2 = dot(e, e);
-    bool placed = q.minimum(c->x);
+    double m[3];
+    for (int i = 0; i < 3; ++i) m[i] = 0.5 * (xa[i] + xb[i]);
+    bool placed = q.minimum(kPull * (q.a00 + q.a11 + q.a22), m, c->x);
     if (placed) {
       // A solution far from the edge comes from a nearly singular system.
-      double m[3];
-      for (int i = 0; i < 3; ++i) m[i] = c->x[i] - 0.5 * (xa[i] + xb[i]);
-      placed = dot(m, m) <= 4 * len2;
+      double d[3];
+      sub(c->x, m, d);
+      placed = dot(d, d) <= 4 * len2;
     }
     if (!placed) {
       const double t = q.minimum_on_segment(xa, e);
@@ -396,26 +427,67 @@ bool StreamQem::Impl::evaluate(uint32_t h, Candidate* c) {
   return true;
 }
 
-bool StreamQem::Impl::flips(uint32_t h, const double p[3]) {
+// The collapses of edge h onto one of its ends (half-edge collapses), as
+// the fallback when the best place flips a triangle; those allowed by the
+// border rules of evaluate().
+int StreamQem::Impl::end_options(uint32_t h, Candidate out[2]) {
   const uint32_t a = buffer.vertex_of(h), b = buffer.vertex_of(TriangleBuffer::next(h));
+  const bool pa = pinned(a), pb = pinned(b), ba = buffer.border(a), bb = buffer.border(b);
+  if (pa || pb || ba != bb) return 0;  // evaluate() gave the only place
+  if (ba && buffer.opposite(h) != TriangleBuffer::kBorder) return 0;  // a pinch
+  QemQuadric q = data[a].q;
+  q.add(data[b].q);
+  int n = 0;
+  for (const bool keep_start : {true, false}) {
+    Candidate& c = out[n++];
+    c.h = h;
+    c.keep_start = keep_start;
+    std::copy(data[keep_start ? a : b].x, data[keep_start ? a : b].x + 3, c.x);
+    c.cost = q.error(c.x);
+  }
+  if (out[1].cost < out[0].cost) std::swap(out[0], out[1]);
+  return n;
+}
+
+// Whether moving the ends of edge h to x (normalized) flips, degenerates or
+// turns too far a triangle that stays, or makes a sliver of it. A
+// triangle's orientation is judged against its own normal, or, for a
+// degenerate one, whose normal means nothing, against the normal of the
+// whole neighbourhood.
+bool StreamQem::Impl::flips(uint32_t h, const double x[3]) {
+  const uint32_t a = buffer.vertex_of(h), b = buffer.vertex_of(TriangleBuffer::next(h));
+  double around[3] = {0, 0, 0};
+  bool around_known = false;
   for (uint32_t v : {a, b}) {
     const uint32_t other = v == a ? b : a;
     for (uint32_t c = buffer.first_corner(v); c != TriangleBuffer::kNone; c = buffer.next_corner(c)) {
       const uint32_t v1 = buffer.vertex_of(TriangleBuffer::next(c)), v2 = buffer.vertex_of(TriangleBuffer::prev(c));
       if (v1 == other || v2 == other) continue;  // goes with the edge
-      const double* p0 = buffer.position(v);
-      const double* p1 = buffer.position(v1);
-      const double* p2 = buffer.position(v2);
+      const double* p0 = data[v].x;
+      const double* p1 = data[v1].x;
+      const double* p2 = data[v2].x;
       double e1[3], e2[3], n0[3], n1[3];
       sub(p1, p0, e1);
       sub(p2, p0, e2);
       cross(e1, e2, n0);
-      sub(p1, p, e1);
-      sub(p2, p, e2);
+      const double q0 = shape(n0, e1, e2);
+      sub(p1, x, e1);
+      sub(p2, x, e2);
       cross(e1, e2, n1);
-      const double d = dot(n0, n1);
-      if (!(d > 0)) return true;
+      const double q1 = shape(n1, e1, e2);
+      if (q1 < kSliver && q0 >= kSliver) return true;
+      if (q0 >= kDegenerate) {
+        if (!(dot(n0, n1) > 0)) return true;
+      } else {
+        if (!around_known) {
+          fan_normal(a, b, around);
+          around_known = true;
+        }
+        // A degenerate triangle that stays degenerate is no worse.
+        if (dot(n1, n1) > 0 && !(dot(around, n1) > 0)) return true;
+      }
       const std::array<float, 3>& r = reference[c / 3];
+      if (r[0] == 0 && r[1] == 0 && r[2] == 0) continue;  // read as a sliver
       const double dr = n1[0] * r[0] + n1[1] * r[1] + n1[2] * r[2];
       if (!(dr > 0) || dr * dr < kMinCosine * kMinCosine * dot(n1, n1)) return true;
     }
@@ -423,29 +495,75 @@ bool StreamQem::Impl::flips(uint32_t h, const double p[3]) {
   return false;
 }
 
-// v's cheapest edge was refused (topology or a flip): offer its cheapest
-// edge that passes, if any.
+// The sum of the normals of the triangles around edge (a, b), weighted by
+// their areas.
+void StreamQem::Impl::fan_normal(uint32_t a, uint32_t b, double n[3]) {
+  for (uint32_t v : {a, b}) {
+    for (uint32_t c = buffer.first_corner(v); c != TriangleBuffer::kNone; c = buffer.next_corner(c)) {
+      const uint32_t v1 = buffer.vertex_of(TriangleBuffer::next(c)), v2 = buffer.vertex_of(TriangleBuffer::prev(c));
+      if (v == b && (v1 == a || v2 == a)) continue;  // counted from a
+      double e1[3], e2[3], m[3];
+      sub(data[v1].x, data[v].x, e1);
+      sub(data[v2].x, data[v].x, e2);
+      cross(e1, e2, m);
+      for (int i = 0; i < 3; ++i) n[i] += m[i];
+    }
+  }
+}
+
+// Whether collapse c keeps the topology (unless already checked) and
+// flips, degenerates or turns too far no triangle.
+bool StreamQem::Impl::allowed(const Candidate& c, bool topology_checked) {
+  if (!topology_checked && !buffer.can_collapse(c.h)) return false;
+  double p[3], x[3];
+  world(c.x, p);
+  buffer.round_position(p);
+  to_normalized(p, x);
+  return !flips(c.h, x);
+}
+
+// v's cheapest edge was refused: offer its cheapest collapse that passes,
+// ends of edges included, if any.
 void StreamQem::Impl::refuse(uint32_t v) {
-  Candidate options[64];
+  Candidate options[96];
   int n = 0;
   for_each_edge(v, [&](uint32_t u, uint32_t h) {
-    if (n == 64 || buffer.locked(u)) return;
-    Candidate c;
-    if (evaluate(h, &c)) options[n++] = c;
+    if (n > 93 || buffer.locked(u)) return;
+    if (evaluate(h, &options[n])) ++n;
+    n += end_options(h, options + n);
   });
   std::sort(options, options + n, [](const Candidate& x, const Candidate& y) { return x.cost < y.cost; });
   for (int i = 0; i < n; ++i) {
     const Candidate& c = options[i];
-    if (!buffer.can_collapse(c.h)) continue;
-    double p[3];
-    world(c.x, p);
-    buffer.round_position(p);
-    if (flips(c.h, p)) continue;
+    if (!allowed(c, false)) continue;
     const uint32_t a = buffer.vertex_of(c.h), b = buffer.vertex_of(TriangleBuffer::next(c.h));
     set_cost(v, static_cast<float>(c.cost), a == v ? b : a);
     return;
   }
   set_cost(v, kInfinity, TriangleBuffer::kNone);
+}
+
+void StreamQem::Impl::apply(const Candidate& k) {
+  const uint32_t h = k.h;
+  const uint32_t a = buffer.vertex_of(h), b = buffer.vertex_of(TriangleBuffer::next(h));
+  double p[3];
+  world(k.x, p);
+  buffer.round_position(p);
+  QemQuadric q = data[a].q;
+  q.add(data[b].q);
+  const bool keep_pinned = pinned(k.keep_start ? a : b);
+  const uint32_t gone = k.keep_start ? b : a;
+  leave_set(gone);
+  const uint32_t keep = buffer.collapse(h, k.keep_start);
+  data[keep].q = q;
+  if (!keep_pinned) {
+    buffer.set_position(keep, p);
+    set_normalized(keep);
+  }
+  score[keep] = static_cast<float>(k.cost);
+  max_cost = std::max(max_cost, k.cost);
+  // The kept vertex moved and its quadric grew: its edges cost anew.
+  refresh(keep, true, a, b);
 }
 
 bool StreamQem::Impl::collapse_one(double limit) {
@@ -468,29 +586,17 @@ bool StreamQem::Impl::collapse_one(double limit) {
     refresh(v, false);
     return false;
   }
-  double p[3];
-  world(k.x, p);
-  buffer.round_position(p);
-  if (!buffer.can_collapse(h) || flips(h, p)) {
+  if (!buffer.can_collapse(h)) {
     refuse(v);
     return false;
   }
-  const uint32_t a = buffer.vertex_of(h), b = buffer.vertex_of(TriangleBuffer::next(h));
-  QemQuadric q = data[a].q;
-  q.add(data[b].q);
-  const bool keep_pinned = pinned(k.keep_start ? a : b);
-  const uint32_t gone = k.keep_start ? b : a;
-  leave_set(gone);
-  const uint32_t keep = buffer.collapse(h, k.keep_start);
-  data[keep].q = q;
-  if (!keep_pinned) {
-    buffer.set_position(keep, p);
-    set_normalized(keep);
+  if (!allowed(k, true)) {
+    // The best place flips a triangle: v offers its best allowed collapse
+    // instead (the end of an edge, perhaps), at its own cost.
+    refuse(v);
+    return false;
   }
-  score[keep] = static_cast<float>(k.cost);
-  max_cost = std::max(max_cost, k.cost);
-  // The kept vertex moved and its quadric grew: its edges cost anew.
-  refresh(keep, true, a, b);
+  apply(k);
   return true;
 }
 
@@ -503,9 +609,15 @@ void StreamQem::Impl::decimate(bool final) {
       const TriangleBufferStats& st = buffer.stats();
       const double total = static_cast<double>(st.triangles_written + buffer.triangle_count());
       double goal = ratio * static_cast<double>(st.triangles_read);
-      // The band along the input boundary counts as it will be once
-      // simplified: the rest is not over-simplified to make room for it.
-      if (!final) goal += (1 - ratio) * buffer.input_band();
+      // The triangles read last count as they will be once simplified
+      // (the band along the input boundary, which nothing may change yet,
+      // and a few times as many behind it): the rest is not over-simplified
+      // to make room for them, and what was just read is simplified
+      // gradually, not squeezed into slivers against the band.
+      if (!final) {
+        const double band = static_cast<double>(buffer.input_band());
+        goal += (1 - ratio) * std::max(band, std::min(kFreshBands * band, 0.5 * capacity));
+      }
       if (total <= goal) return;
     }
     if (collapse_one(limit)) {

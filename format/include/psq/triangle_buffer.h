@@ -136,14 +136,14 @@ class TriangleBuffer {
   uint32_t vertex_count() const { return vertices_; }
   uint32_t vertex_capacity() const { return static_cast<uint32_t>(head_.size()); }
   bool alive(uint32_t t) const { return alive_flag_[t] != 0; }
-  uint32_t vertex_of(uint32_t c) const { return corner_vertex_[c]; }
+  uint32_t vertex_of(uint32_t c) const { return corners_[c].vertex; }
   // The corner across the edge of corner c, or kBorder, kWritten, or a
   // value in [kOpen, kWritten).
-  uint32_t opposite(uint32_t c) const { return opposite_[c]; }
+  uint32_t opposite(uint32_t c) const { return corners_[c].opposite; }
   // The corners of vertex v: first_corner(v), then next_corner(c) until
   // kNone.
   uint32_t first_corner(uint32_t v) const { return head_[v]; }
-  uint32_t next_corner(uint32_t c) const { return next_corner_[c]; }
+  uint32_t next_corner(uint32_t c) const { return corners_[c].next; }
   const double* position(uint32_t v) const { return position_[v].p; }
   // Sets v's position, rounded to float when the schema's positions are
   // float (so that what the client computes with is what is written).
@@ -206,7 +206,12 @@ class TriangleBuffer {
   MeshSchema schema_;
   bool has_vertex_values_ = false, has_face_values_ = false, float_positions_ = true;
   // Triangles (struct of arrays, indexed by corner or triangle).
-  std::vector<uint32_t> corner_vertex_, opposite_, next_corner_;
+  // Per corner: its vertex, the corner across its edge (or why none) and
+  // the next corner of its vertex, together for the walks around vertices.
+  struct Corner {
+    uint32_t vertex, opposite, next;
+  };
+  std::vector<Corner> corners_;
   std::vector<uint8_t> alive_flag_, out_count_, open_count_;
   std::vector<uint32_t> out_pos_;
   std::vector<PropertyValues> face_values_;
