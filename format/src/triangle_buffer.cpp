@@ -74,8 +74,8 @@ void TriangleBuffer::round_position(double p[3]) const {
 }
 
 void TriangleBuffer::set_position(uint32_t v, const double p[3]) {
-  for (int i = 0; i < 3; ++i) position_[v].p[i] = p[i];
-  round_position(position_[v].p);
+  for (int i = 0; i < 3; ++i) verts_[v].p[i] = p[i];
+  round_position(verts_[v].p);
 }
 
 const PropertyValues& TriangleBuffer::vertex_values(uint32_t v) const {
@@ -114,21 +114,16 @@ uint32_t TriangleBuffer::new_vertex(const SequenceVertex& sv) {
     v = free_vertices_.back();
     free_vertices_.pop_back();
   } else {
-    v = static_cast<uint32_t>(head_.size());
-    position_.emplace_back();
-    head_.push_back(kNone);
-    out_id_.push_back(kNone);
-    dense_.push_back(kNone);
-    free_pos_.push_back(kNone);
-    vflags_.push_back(0);
+    v = static_cast<uint32_t>(verts_.size());
+    verts_.emplace_back();
     if (has_vertex_values_) vertex_values_.emplace_back();
   }
-  for (int i = 0; i < 3; ++i) position_[v].p[i] = sv.position[i];
-  head_[v] = kNone;
-  out_id_[v] = kNone;
-  dense_[v] = sv.index;
-  free_pos_[v] = kNone;
-  vflags_[v] = sv.reappears != kNoVertex ? kCut : 0;
+  for (int i = 0; i < 3; ++i) verts_[v].p[i] = sv.position[i];
+  verts_[v].head = kNone;
+  verts_[v].out_id = kNone;
+  verts_[v].dense = sv.index;
+  verts_[v].free_pos = kNone;
+  verts_[v].flags = sv.reappears != kNoVertex ? kCut : 0;
   if (has_vertex_values_) vertex_values_[v] = sv.values;
   ++vertices_;
   ++open_vertices_;
@@ -138,36 +133,36 @@ uint32_t TriangleBuffer::new_vertex(const SequenceVertex& sv) {
 }
 
 void TriangleBuffer::free_vertex_record(uint32_t v) {
-  if (free_pos_[v] != kNone) free_erase(v);
-  dense_[v] = kNone;
-  vflags_[v] = 0;
-  head_[v] = kNone;
+  if (verts_[v].free_pos != kNone) free_erase(v);
+  verts_[v].dense = kNone;
+  verts_[v].flags = 0;
+  verts_[v].head = kNone;
   if (has_vertex_values_) PropertyValues().swap(vertex_values_[v]);
   free_vertices_.push_back(v);
   --vertices_;
 }
 
 void TriangleBuffer::free_insert(uint32_t v) {
-  free_pos_[v] = static_cast<uint32_t>(free_.size());
+  verts_[v].free_pos = static_cast<uint32_t>(free_.size());
   free_.push_back(v);
 }
 
 void TriangleBuffer::free_erase(uint32_t v) {
-  const uint32_t at = free_pos_[v];
+  const uint32_t at = verts_[v].free_pos;
   const uint32_t last = free_.back();
   free_[at] = last;
-  free_pos_[last] = at;
+  verts_[last].free_pos = at;
   free_.pop_back();
-  free_pos_[v] = kNone;
+  verts_[v].free_pos = kNone;
 }
 
 void TriangleBuffer::add_corner(uint32_t v, uint32_t c) {
-  corners_[c].next = head_[v];
-  head_[v] = c;
+  corners_[c].next = verts_[v].head;
+  verts_[v].head = c;
 }
 
 void TriangleBuffer::remove_corner(uint32_t v, uint32_t c) {
-  uint32_t* link = &head_[v];
+  uint32_t* link = &verts_[v].head;
   while (*link != c) link = &corners_[*link].next;
   *link = corners_[c].next;
 }
@@ -201,9 +196,9 @@ void TriangleBuffer::kill_triangle(uint32_t t) {
 }
 
 void TriangleBuffer::mark_input_final(uint32_t v) {
-  vflags_[v] |= kInputFinal;
+  verts_[v].flags |= kInputFinal;
   --open_vertices_;
-  for (uint32_t c = head_[v]; c != kNone; c = corners_[c].next) {
+  for (uint32_t c = verts_[v].head; c != kNone; c = corners_[c].next) {
     if (--open_count_[c / 3] == 0) --band_;
   }
   if (!written(v)) free_insert(v);
@@ -243,7 +238,7 @@ Status TriangleBuffer::triangle(const SequenceTriangle& t, uint32_t* id) {
     } else {
       const uint32_t e = vslot_[t.vslot[k]];
       const uint32_t v = e - 1;
-      if (e == 0 || v >= dense_.size() || dense_[v] != t.v[k] || !input_open(v))
+      if (e == 0 || v >= verts_.size() || verts_[v].dense != t.v[k] || !input_open(v))
         return bad_sequence(number, "vertex " + std::to_string(t.v[k]) + " is not active in slot " +
                                         std::to_string(t.vslot[k]));
       vert[k] = v;
@@ -310,13 +305,13 @@ Status TriangleBuffer::triangle(const SequenceTriangle& t, uint32_t* id) {
     const uint32_t bit = 1u << k;
     if (t.border_mask & bit) {
       corners_[c].opposite = kBorder;
-      vflags_[vert[k]] |= kBorderVertex;
-      vflags_[vert[(k + 1) % 3]] |= kBorderVertex;
+      verts_[vert[k]].flags |= kBorderVertex;
+      verts_[vert[(k + 1) % 3]].flags |= kBorderVertex;
       // A border made by a non-manifold cut: its other side is elsewhere in
       // the sequence, at the same positions.
       if (t.nonmanifold_mask & bit) {
-        vflags_[vert[k]] |= kCut;
-        vflags_[vert[(k + 1) % 3]] |= kCut;
+        verts_[vert[k]].flags |= kCut;
+        verts_[vert[(k + 1) % 3]].flags |= kCut;
       }
     } else if (t.leaving_mask & bit) {
       const uint32_t e = eslot_[t.eslot[k]];
@@ -365,9 +360,9 @@ Status TriangleBuffer::end_input() {
 }
 
 Status TriangleBuffer::retire_if_done(uint32_t v) {
-  if (head_[v] != kNone || input_open(v)) return Status();
+  if (verts_[v].head != kNone || input_open(v)) return Status();
   Status s;
-  if (written(v)) s = converter_.finalize(out_id_[v]);
+  if (written(v)) s = converter_.finalize(verts_[v].out_id);
   free_vertex_record(v);
   return s;
 }
@@ -377,13 +372,13 @@ Status TriangleBuffer::write(uint32_t t) {
   for (uint32_t k = 0; k < 3; ++k) {
     const uint32_t v = corners_[3 * t + k].vertex;
     if (!written(v)) {
-      if (free_pos_[v] != kNone) free_erase(v);
-      vflags_[v] |= kHasOutput;
-      out_id_[v] = next_out_id_++;
+      if (verts_[v].free_pos != kNone) free_erase(v);
+      verts_[v].flags |= kHasOutput;
+      verts_[v].out_id = next_out_id_++;
       ++stats_.vertices_written;
-      PSQ_RETURN_IF_ERROR(converter_.vertex(out_id_[v], position_[v].p, vertex_values(v)));
+      PSQ_RETURN_IF_ERROR(converter_.vertex(verts_[v].out_id, verts_[v].p, vertex_values(v)));
     }
-    ids[k] = out_id_[v];
+    ids[k] = verts_[v].out_id;
   }
   PSQ_RETURN_IF_ERROR(converter_.triangle(ids, face_values(t)));
   if (out_count_[t] == 0) ++stats_.starts_written;
@@ -450,24 +445,23 @@ bool TriangleBuffer::can_collapse(uint32_t h) {
   // pinch the surface at one vertex (the dummy vertex closing the border
   // is a common neighbour that is not across the edge).
   if (interior && border(a) && border(b)) return false;
-  if (mark_.size() < head_.size()) mark_.resize(head_.size(), 0);
   if (epoch_ > 0xfffffff0u) {
-    std::fill(mark_.begin(), mark_.end(), 0);
+    for (Vertex& r : verts_) r.mark = 0;
     epoch_ = 0;
   }
   epoch_ += 2;
   uint32_t fan_a = 0, fan_b = 0;
-  for (uint32_t c = head_[a]; c != kNone; c = corners_[c].next) {
-    mark_[corners_[next(c)].vertex] = epoch_;
-    mark_[corners_[prev(c)].vertex] = epoch_;
+  for (uint32_t c = verts_[a].head; c != kNone; c = corners_[c].next) {
+    verts_[corners_[next(c)].vertex].mark = epoch_;
+    verts_[corners_[prev(c)].vertex].mark = epoch_;
     ++fan_a;
   }
   uint32_t common = 0;
-  for (uint32_t c = head_[b]; c != kNone; c = corners_[c].next) {
+  for (uint32_t c = verts_[b].head; c != kNone; c = corners_[c].next) {
     ++fan_b;
     for (uint32_t u : {corners_[next(c)].vertex, corners_[prev(c)].vertex}) {
-      if (u != a && mark_[u] == epoch_) {
-        mark_[u] = epoch_ + 1;
+      if (u != a && verts_[u].mark == epoch_) {
+        verts_[u].mark = epoch_ + 1;
         ++common;
       }
     }
@@ -479,7 +473,7 @@ bool TriangleBuffer::can_collapse(uint32_t h) {
   // Each vertex across the edge keeps a triangle.
   for (uint32_t c : {prev(h), interior ? prev(o) : kNone}) {
     if (c == kNone) continue;
-    const uint32_t first = head_[corners_[c].vertex];
+    const uint32_t first = verts_[corners_[c].vertex].head;
     if (corners_[first].next == kNone) return false;
   }
   return true;
@@ -500,16 +494,16 @@ uint32_t TriangleBuffer::collapse(uint32_t h, bool keep_start) {
   }
   // The corners of the gone vertex now belong to the kept one.
   uint32_t tail = kNone;
-  for (uint32_t c = head_[gone]; c != kNone; c = corners_[c].next) {
+  for (uint32_t c = verts_[gone].head; c != kNone; c = corners_[c].next) {
     corners_[c].vertex = keep;
     tail = c;
   }
   if (tail != kNone) {
-    corners_[tail].next = head_[keep];
-    head_[keep] = head_[gone];
+    corners_[tail].next = verts_[keep].head;
+    verts_[keep].head = verts_[gone].head;
   }
-  vflags_[keep] |= vflags_[gone] & (kBorderVertex | kCut);
-  head_[gone] = kNone;
+  verts_[keep].flags |= verts_[gone].flags & (kBorderVertex | kCut);
+  verts_[gone].head = kNone;
   free_vertex_record(gone);
   ++stats_.collapses;
   return keep;

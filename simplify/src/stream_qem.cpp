@@ -466,15 +466,17 @@ bool StreamQem::Impl::flips(uint32_t h, const double x[3]) {
       const double* p0 = data[v].x;
       const double* p1 = data[v1].x;
       const double* p2 = data[v2].x;
-      double e1[3], e2[3], n0[3], n1[3];
+      double e1[3], e2[3], f1[3], f2[3], n0[3], n1[3];
       sub(p1, p0, e1);
       sub(p2, p0, e2);
       cross(e1, e2, n0);
-      const double q0 = shape(n0, e1, e2);
-      sub(p1, x, e1);
-      sub(p2, x, e2);
-      cross(e1, e2, n1);
-      const double q1 = shape(n1, e1, e2);
+      sub(p1, x, f1);
+      sub(p2, x, f2);
+      cross(f1, f2, n1);
+      // The shapes only where they may matter: a new sliver, or an old
+      // normal that may mean nothing.
+      const double q1 = shape(n1, f1, f2);
+      const double q0 = q1 < kSliver || !(dot(n0, n1) > 0) ? shape(n0, e1, e2) : 1.0;
       if (q1 < kSliver && q0 >= kSliver) return true;
       if (q0 >= kDegenerate) {
         if (!(dot(n0, n1) > 0)) return true;
@@ -526,16 +528,29 @@ bool StreamQem::Impl::allowed(const Candidate& c, bool topology_checked) {
 // ends of edges included, if any.
 void StreamQem::Impl::refuse(uint32_t v) {
   Candidate options[96];
-  int n = 0;
+  int8_t edge_ok[32];  // per edge: -1 unknown, 0 refused, 1 topology allowed
+  uint8_t edge_of[96];
+  int n = 0, edges = 0;
   for_each_edge(v, [&](uint32_t u, uint32_t h) {
-    if (n > 93 || buffer.locked(u)) return;
+    if (edges == 32 || buffer.locked(u)) return;
+    const int first = n;
     if (evaluate(h, &options[n])) ++n;
     n += end_options(h, options + n);
+    for (int i = first; i < n; ++i) edge_of[i] = static_cast<uint8_t>(edges);
+    edge_ok[edges++] = -1;
   });
-  std::sort(options, options + n, [](const Candidate& x, const Candidate& y) { return x.cost < y.cost; });
+  // Cheapest first, by selection: usually the first few decide.
+  uint8_t order[96];
+  for (int i = 0; i < n; ++i) order[i] = static_cast<uint8_t>(i);
   for (int i = 0; i < n; ++i) {
-    const Candidate& c = options[i];
-    if (!allowed(c, false)) continue;
+    int best = i;
+    for (int j = i + 1; j < n; ++j)
+      if (options[order[j]].cost < options[order[best]].cost) best = j;
+    std::swap(order[i], order[best]);
+    const Candidate& c = options[order[i]];
+    int8_t& ok = edge_ok[edge_of[order[i]]];
+    if (ok < 0) ok = buffer.can_collapse(c.h) ? 1 : 0;
+    if (!ok || !allowed(c, true)) continue;
     const uint32_t a = buffer.vertex_of(c.h), b = buffer.vertex_of(TriangleBuffer::next(c.h));
     set_cost(v, static_cast<float>(c.cost), a == v ? b : a);
     return;

@@ -134,7 +134,7 @@ class TriangleBuffer {
   uint32_t triangle_count() const { return alive_; }
   uint32_t triangle_capacity() const { return static_cast<uint32_t>(alive_flag_.size()); }
   uint32_t vertex_count() const { return vertices_; }
-  uint32_t vertex_capacity() const { return static_cast<uint32_t>(head_.size()); }
+  uint32_t vertex_capacity() const { return static_cast<uint32_t>(verts_.size()); }
   bool alive(uint32_t t) const { return alive_flag_[t] != 0; }
   uint32_t vertex_of(uint32_t c) const { return corners_[c].vertex; }
   // The corner across the edge of corner c, or kBorder, kWritten, or a
@@ -142,9 +142,9 @@ class TriangleBuffer {
   uint32_t opposite(uint32_t c) const { return corners_[c].opposite; }
   // The corners of vertex v: first_corner(v), then next_corner(c) until
   // kNone.
-  uint32_t first_corner(uint32_t v) const { return head_[v]; }
+  uint32_t first_corner(uint32_t v) const { return verts_[v].head; }
   uint32_t next_corner(uint32_t c) const { return corners_[c].next; }
-  const double* position(uint32_t v) const { return position_[v].p; }
+  const double* position(uint32_t v) const { return verts_[v].p; }
   // Sets v's position, rounded to float when the schema's positions are
   // float (so that what the client computes with is what is written).
   void set_position(uint32_t v, const double p[3]);
@@ -153,13 +153,13 @@ class TriangleBuffer {
   const PropertyValues& vertex_values(uint32_t v) const;
   const PropertyValues& face_values(uint32_t t) const;
   // The input has not finalized v yet (it is on the input boundary).
-  bool input_open(uint32_t v) const { return (vflags_[v] & kInputFinal) == 0; }
+  bool input_open(uint32_t v) const { return (verts_[v].flags & kInputFinal) == 0; }
   // A triangle of v was written (v is on the output boundary).
-  bool written(uint32_t v) const { return (vflags_[v] & kHasOutput) != 0; }
-  bool locked(uint32_t v) const { return (vflags_[v] & (kInputFinal | kHasOutput)) != kInputFinal; }
-  bool cut(uint32_t v) const { return (vflags_[v] & kCut) != 0; }
+  bool written(uint32_t v) const { return (verts_[v].flags & kHasOutput) != 0; }
+  bool locked(uint32_t v) const { return (verts_[v].flags & (kInputFinal | kHasOutput)) != kInputFinal; }
+  bool cut(uint32_t v) const { return (verts_[v].flags & kCut) != 0; }
   // v has a border edge of the mesh (read, or made by a collapse).
-  bool border(uint32_t v) const { return (vflags_[v] & kBorderVertex) != 0; }
+  bool border(uint32_t v) const { return (verts_[v].flags & kBorderVertex) != 0; }
   // Unlocked vertices: free_vertex(i) for i < free_vertex_count().
   uint32_t free_vertex_count() const { return static_cast<uint32_t>(free_.size()); }
   uint32_t free_vertex(uint32_t i) const { return free_[i]; }
@@ -186,9 +186,6 @@ class TriangleBuffer {
 
  private:
   static constexpr uint8_t kInputFinal = 1, kHasOutput = 2, kCut = 4, kBorderVertex = 8;
-  struct Position {
-    double p[3];
-  };
 
   uint32_t new_vertex(const SequenceVertex& v);
   void free_vertex_record(uint32_t v);
@@ -224,9 +221,16 @@ class TriangleBuffer {
   std::vector<uint32_t> arrival_;
   size_t arrival_head_ = 0;
   // Vertices.
-  std::vector<Position> position_;
-  std::vector<uint32_t> head_, out_id_, dense_, free_pos_;
-  std::vector<uint8_t> vflags_;
+  // Per vertex, together for the walks around vertices: its position, first
+  // corner, output number, input number, place in the free set, mark of
+  // can_collapse(), and flags.
+  struct Vertex {
+    double p[3] = {0, 0, 0};
+    uint32_t head = kNone, out_id = kNone, dense = kNone, free_pos = kNone;
+    uint32_t mark = 0;
+    uint8_t flags = 0;
+  };
+  std::vector<Vertex> verts_;
   std::vector<PropertyValues> vertex_values_;
   std::vector<uint32_t> free_vertices_;
   std::vector<uint32_t> free_;
@@ -238,8 +242,7 @@ class TriangleBuffer {
   BoundaryData<uint32_t> vslot_;
   BoundaryData<uint32_t> eslot_;
   std::vector<SequenceVertex> pending_;  // introduced, not yet used
-  // Marks for can_collapse().
-  std::vector<uint32_t> mark_;
+  // The mark of can_collapse().
   uint32_t epoch_ = 0;
   uint64_t rng_ = 1;
   TriangleBufferStats stats_;
