@@ -518,15 +518,19 @@ int quality(int argc, char** argv) {
         db = distance(in, pb, nsamples, diag);
       }
       const Topology tout = topology(ps);
+      const Topology tmo = topology(mo);
       std::printf("%-24s %9zu %6.3f %8zu | %9.3g %9.3g | %9.3g %9.3g %5.2f %5.2f | %9.3g %9.3g %5.2f %5.2f | "
-                  "%llu/%llu/%lld/%llu/%llu -> %llu/%llu/%lld/%llu/%llu, %zu; psq %zu tris %.2fs, meshopt %.2fs\n",
+                  "%llu/%llu/%lld/%llu/%llu -> %llu/%llu/%lld/%llu/%llu, %zu; psq %zu tris %.2fs, meshopt %.2fs; "
+                  "meshopt %llu/%llu/%lld/%llu/%llu\n",
                   name.c_str(), in.triangles(), ratio, mo.triangles(), dm.rms, dm.hausdorff, dp.rms, dp.hausdorff,
                   dp.rms / dm.rms, dp.hausdorff / dm.hausdorff, db.rms, db.hausdorff, buffer ? db.rms / dm.rms : 0.0,
                   buffer ? db.hausdorff / dm.hausdorff : 0.0, (unsigned long long)tin.components,
                   (unsigned long long)tin.border, (long long)tin.handles, (unsigned long long)tin.nm_vertices,
                   (unsigned long long)tin.nm_edges, (unsigned long long)tout.components,
                   (unsigned long long)tout.border, (long long)tout.handles, (unsigned long long)tout.nm_vertices,
-                  (unsigned long long)tout.nm_edges, degenerate(ps), ps.triangles(), tp, tm);
+                  (unsigned long long)tout.nm_edges, degenerate(ps), ps.triangles(), tp, tm,
+                  (unsigned long long)tmo.components, (unsigned long long)tmo.border, (long long)tmo.handles,
+                  (unsigned long long)tmo.nm_vertices, (unsigned long long)tmo.nm_edges);
       std::fflush(stdout);
     }
   }
@@ -586,9 +590,168 @@ int shape(int argc, char** argv) {
   return 0;
 }
 
+// Per slab of the sweep (the axis along which the input sequence advances,
+// cut into slabs of equal input triangle counts): the output's triangle
+// density (output over input triangles) and RMS distance, against their
+// medians over the slabs.
+int slabs(int argc, char** argv) {
+  double ratio = 0.01;
+  uint32_t buffer = 0;
+  int count = 20;
+  size_t nsamples = 400000;
+  std::string file;
+  for (int i = 0; i < argc; ++i) {
+    std::string a = argv[i];
+    if (a == "--ratio" && i + 1 < argc) ratio = std::atof(argv[++i]);
+    else if (a == "--buffer" && i + 1 < argc) buffer = static_cast<uint32_t>(std::atol(argv[++i]));
+    else if (a == "--slabs" && i + 1 < argc) count = std::atoi(argv[++i]);
+    else if (a == "--samples" && i + 1 < argc) nsamples = static_cast<size_t>(std::atol(argv[++i]));
+    else file = a;
+  }
+  Mesh in;
+  if (!load(file, &in)) return 1;
+  Recorder seq;
+  {
+    ArraySource src(in);
+    psq::BuildReport br;
+    psq::Status s = psq::build_sequence(src, seq, psq::BuildOptions(), &br);
+    if (!s.ok()) return 1;
+  }
+  // The sweep axis: the coordinate that best follows the order in which
+  // the sequence introduces vertices.
+  int axis = 0;
+  {
+    double best = -1;
+    for (int a = 0; a < 3; ++a) {
+      double n = 0, si = 0, sc = 0, sii = 0, scc = 0, sic = 0;
+      for (const psq::SequenceEvent& e : seq.events) {
+        if (e.kind != psq::SequenceEvent::Kind::kVertex) continue;
+        const double i = n, c = e.vertex.position[a];
+        n += 1, si += i, sc += c, sii += i * i, scc += c * c, sic += i * c;
+      }
+      const double cov = sic / n - si / n * sc / n;
+      const double r = std::fabs(cov) / std::sqrt((sii / n - si / n * si / n) * (scc / n - sc / n * sc / n) + 1e-300);
+      if (r > best) {
+        best = r;
+        axis = a;
+      }
+    }
+  }
+  double seconds = 0;
+  psq::QemReport rep;
+  Mesh out = psq_run(seq, in.triangles(), static_cast<size_t>(ratio * in.triangles()), buffer, 8, 1, &seconds, &rep);
+  auto centroid = [&](const Mesh& m, size_t t) {
+    return (m.positions[3 * m.indices[3 * t] + axis] + m.positions[3 * m.indices[3 * t + 1] + axis] +
+            m.positions[3 * m.indices[3 * t + 2] + axis]) / 3.0;
+  };
+  std::vector<double> cs(in.triangles());
+  for (size_t t = 0; t < in.triangles(); ++t) cs[t] = centroid(in, t);
+  std::vector<double> sorted = cs;
+  std::sort(sorted.begin(), sorted.end());
+  std::vector<double> cut(count + 1);
+  for (int k = 0; k <= count; ++k) cut[k] = sorted[std::min(sorted.size() - 1, sorted.size() * k / count)];
+  cut[0] = -INFINITY;
+  cut[count] = INFINITY;
+  auto slab_of = [&](double c) {
+    int k = static_cast<int>(std::upper_bound(cut.begin(), cut.end(), c) - cut.begin()) - 1;
+    return std::clamp(k, 0, count - 1);
+  };
+  std::vector<double> tin(count, 0), tout(count, 0), sum(count, 0), n(count, 0);
+  for (size_t t = 0; t < in.triangles(); ++t) tin[slab_of(cs[t])] += 1;
+  for (size_t t = 0; t < out.triangles(); ++t) tout[slab_of(centroid(out, t))] += 1;
+  Vec lo, hi, lo2, hi2;
+  bounds(in, &lo, &hi);
+  bounds(out, &lo2, &hi2);
+  const Vec ext = sub(hi, lo);
+  const double diag = std::sqrt(dot(ext, ext));
+  for (int i = 0; i < 3; ++i) {
+    lo[i] = std::min(lo[i], lo2[i]);
+    hi[i] = std::max(hi[i], hi2[i]);
+  }
+  Grid gin(in, lo, hi), gout(out, lo, hi);
+  for (const Vec& p : samples(out, nsamples, 3)) {
+    const int k = slab_of(p[axis]);
+    sum[k] += gin.nearest_d2(p);
+    n[k] += 1;
+  }
+  for (const Vec& p : samples(in, nsamples, 4)) {
+    const int k = slab_of(p[axis]);
+    sum[k] += gout.nearest_d2(p);
+    n[k] += 1;
+  }
+  std::vector<double> density(count), rms(count);
+  for (int k = 0; k < count; ++k) {
+    density[k] = tout[k] / std::max(1.0, tin[k]);
+    rms[k] = std::sqrt(sum[k] / std::max(1.0, n[k])) / diag;
+  }
+  auto median = [](std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    return v[v.size() / 2];
+  };
+  const double md = median(density), mr = median(rms);
+  double worst_d = 0, worst_r = 0;
+  std::printf("%s: %zu -> %zu triangles (buffer %u, largest %llu), sweep axis %c, %d slabs\n", file.c_str(),
+              in.triangles(), out.triangles(), rep.buffer_triangles, (unsigned long long)rep.max_buffer_triangles,
+              "xyz"[axis], count);
+  for (int k = 0; k < count; ++k) {
+    std::printf("  slab %2d: density %.4f (%.2f of median), RMS %.3g (%.2f of median)\n", k, density[k],
+                density[k] / md, rms[k], rms[k] / mr);
+    worst_d = std::max({worst_d, density[k] / md, md / std::max(density[k], 1e-300)});
+    worst_r = std::max({worst_r, rms[k] / mr, mr / std::max(rms[k], 1e-300)});
+  }
+  std::printf("  worst slab: density %.2f, RMS %.2f times (or a fraction) of the median\n", worst_d, worst_r);
+  return 0;
+}
+
+// The symmetric distance between two meshes, relative to the first's
+// bounding box diagonal.
+int distance_of(int argc, char** argv) {
+  if (argc != 2) return 2;
+  Mesh a, b;
+  if (!load(argv[0], &a) || !load(argv[1], &b)) return 1;
+  Vec lo, hi;
+  bounds(a, &lo, &hi);
+  const Vec ext = sub(hi, lo);
+  const Distance d = distance(a, b, 200000, std::sqrt(dot(ext, ext)));
+  std::printf("%s -> %s (%zu -> %zu triangles): RMS %.4g, Hausdorff %.4g of the diagonal\n", argv[0], argv[1],
+              a.triangles(), b.triangles(), d.rms, d.hausdorff);
+  if (std::getenv("PSQ_BENCH_WORST")) {
+    Vec lo2, hi2;
+    bounds(b, &lo2, &hi2);
+    for (int i = 0; i < 3; ++i) {
+      lo[i] = std::min(lo[i], lo2[i]);
+      hi[i] = std::max(hi[i], hi2[i]);
+    }
+    Grid ga(a, lo, hi), gb(b, lo, hi);
+    double worst = 0;
+    Vec at{};
+    const char* side = "";
+    for (const Vec& p : samples(a, 200000, 1)) {
+      const double d2 = gb.nearest_d2(p);
+      if (d2 > worst) worst = d2, at = p, side = "input point far from output";
+    }
+    for (const Vec& p : samples(b, 200000, 2)) {
+      const double d2 = ga.nearest_d2(p);
+      if (d2 > worst) worst = d2, at = p, side = "output point far from input";
+    }
+    std::printf("  worst: %s at %.6g %.6g %.6g, distance %.4g\n", side, at[0], at[1], at[2], std::sqrt(worst));
+    std::vector<std::pair<double, uint32_t>> far;
+    for (uint32_t v = 0; v < b.vertices(); ++v) far.push_back({std::sqrt(ga.nearest_d2(b.pos(v))), v});
+    std::sort(far.rbegin(), far.rend());
+    for (size_t i = 0; i < 8 && i < far.size(); ++i) {
+      const Vec p = b.pos(far[i].second);
+      std::printf("  output vertex %u at %.6g %.6g %.6g: %.4g from the input\n", far[i].second, p[0], p[1], p[2],
+                  far[i].first);
+    }
+  }
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
+  if (argc >= 2 && std::strcmp(argv[1], "distance") == 0) return distance_of(argc - 2, argv + 2);
+  if (argc >= 2 && std::strcmp(argv[1], "slabs") == 0) return slabs(argc - 2, argv + 2);
   if (argc >= 2 && std::strcmp(argv[1], "shape") == 0) return shape(argc - 2, argv + 2);
   if (argc >= 2 && std::strcmp(argv[1], "quality") == 0) return quality(argc - 2, argv + 2);
   if (argc >= 2 && std::strcmp(argv[1], "meshopt") == 0) return meshopt_speed(argc - 2, argv + 2);

@@ -37,10 +37,10 @@ constexpr uint32_t kDecimationStep = 2048;
 constexpr uint64_t kBytesPerTriangle = 172;
 // A collapse may turn a triangle at most this far (the cosine) from its
 // normal when it was read.
-constexpr double kMinCosine = 0.25;
+constexpr double kMinCosine = 0.0;
 // Below this shape() a triangle is a sliver (its smallest angle under
-// about 1.8 degrees): no collapse may make one.
-constexpr double kSliver = 1e-3;
+// about 0.06 degrees): no collapse may make one of a sound triangle.
+constexpr double kSliver = 1e-6;
 // Below this shape() a triangle is degenerate (smallest angle under about
 // 0.002 degrees, as quantization leaves where close vertices met): its
 // normal means nothing.
@@ -51,6 +51,9 @@ constexpr double kPull = 1e-3;
 // How many band's worth of triangles behind the input boundary are left to
 // be simplified gradually.
 constexpr double kFreshBands = 1;
+// Up to this many candidate vertices, the cheapest of all collapses (a
+// small mesh, or the end of a small region).
+constexpr size_t kCompareAll = 512;
 
 void sub(const double a[3], const double b[3], double r[3]) {
   r[0] = a[0] - b[0];
@@ -422,6 +425,15 @@ bool StreamQem::Impl::evaluate(uint32_t h, Candidate* c) {
     sub(c->x, xa, da);
     sub(c->x, xb, db);
     c->keep_start = dot(da, da) <= dot(db, db);
+    // An end may do better than the (regularized) minimum.
+    c->cost = q.error(c->x);
+    const double ea = q.error(xa), eb = q.error(xb);
+    if (ea < c->cost || eb < c->cost) {
+      c->keep_start = ea <= eb;
+      std::copy(c->keep_start ? xa : xb, (c->keep_start ? xa : xb) + 3, c->x);
+      c->cost = std::min(ea, eb);
+    }
+    return true;
   }
   c->cost = q.error(c->x);
   return true;
@@ -583,11 +595,17 @@ void StreamQem::Impl::apply(const Candidate& k) {
 
 bool StreamQem::Impl::collapse_one(double limit) {
   if (set.empty()) return false;
-  // Multiple choice: the cheapest of a few random candidates.
+  // Multiple choice: the cheapest of a few random candidates; of all,
+  // when they are few enough to compare at the cost of the samples.
   uint32_t pick = static_cast<uint32_t>(random() % set.size());
-  for (int i = 1; i < opt.candidates; ++i) {
-    const uint32_t j = static_cast<uint32_t>(random() % set.size());
-    if (set[j].cost < set[pick].cost) pick = j;
+  if (set.size() <= kCompareAll) {
+    for (uint32_t j = 0; j < set.size(); ++j)
+      if (set[j].cost < set[pick].cost) pick = j;
+  } else {
+    for (int i = 1; i < opt.candidates; ++i) {
+      const uint32_t j = static_cast<uint32_t>(random() % set.size());
+      if (set[j].cost < set[pick].cost) pick = j;
+    }
   }
   const uint32_t v = set[pick].vertex;
   const uint32_t target = data[v].target;
@@ -606,10 +624,18 @@ bool StreamQem::Impl::collapse_one(double limit) {
     return false;
   }
   if (!allowed(k, true)) {
-    // The best place flips a triangle: v offers its best allowed collapse
-    // instead (the end of an edge, perhaps), at its own cost.
-    refuse(v);
-    return false;
+    // The best place flips a triangle: an end of the edge may not, at a
+    // cost no higher than the next vertex offers; else v offers its best
+    // allowed collapse instead, at its own cost.
+    Candidate ends[2];
+    const int n = end_options(h, ends);
+    int i = 0;
+    while (i < n && !(ends[i].cost <= 2 * set[pick].cost + 1e-30 && allowed(ends[i], true))) ++i;
+    if (i == n) {
+      refuse(v);
+      return false;
+    }
+    k = ends[i];
   }
   apply(k);
   return true;
