@@ -44,6 +44,21 @@ struct QemQuadric {
     weight += q.weight;
   }
 
+  // Adds q scaled by s (its weight too).
+  void add_scaled(const QemQuadric& q, double s) {
+    a00 += s * q.a00;
+    a01 += s * q.a01;
+    a02 += s * q.a02;
+    a11 += s * q.a11;
+    a12 += s * q.a12;
+    a22 += s * q.a22;
+    b0 += s * q.b0;
+    b1 += s * q.b1;
+    b2 += s * q.b2;
+    c += s * q.c;
+    weight += s * q.weight;
+  }
+
   double eval(const double x[3]) const {
     const double ax0 = a00 * x[0] + a01 * x[1] + a02 * x[2];
     const double ax1 = a01 * x[0] + a11 * x[1] + a12 * x[2];

@@ -213,6 +213,20 @@ struct StreamQem::Impl {
     }
   }
 
+  // The quadric that prices the collapse of edge (a, b): each end's mean
+  // squared distance to its planes, summed, so that a vertex of a small
+  // area (the tip of a thin feature) does not move far for free because
+  // its planes are outweighed by a large neighbour's.
+  QemQuadric collapse_quadric(uint32_t a, uint32_t b) const {
+    QemQuadric q;
+    const QemQuadric& qa = data[a].q;
+    const QemQuadric& qb = data[b].q;
+    q.add_scaled(qa, qa.weight > 0 ? 1 / qa.weight : 1);
+    q.add_scaled(qb, qb.weight > 0 ? 1 / qb.weight : 1);
+    q.weight = 1;
+    return q;
+  }
+
   void refresh(uint32_t v, bool relax, uint32_t a = TriangleBuffer::kNone, uint32_t b = TriangleBuffer::kNone);
   void locked_now(uint32_t v);
   Status begin(const MeshSchema& schema);
@@ -384,8 +398,7 @@ bool StreamQem::Impl::evaluate(uint32_t h, Candidate* c) {
   const uint32_t a = buffer.vertex_of(h), b = buffer.vertex_of(TriangleBuffer::next(h));
   const bool pa = pinned(a), pb = pinned(b);
   if (pa && pb) return false;
-  QemQuadric q = data[a].q;
-  q.add(data[b].q);
+  const QemQuadric q = collapse_quadric(a, b);
   double xa[3], xb[3];
   normalized(a, xa);
   normalized(b, xb);
@@ -447,8 +460,7 @@ int StreamQem::Impl::end_options(uint32_t h, Candidate out[2]) {
   const bool pa = pinned(a), pb = pinned(b), ba = buffer.border(a), bb = buffer.border(b);
   if (pa || pb || ba != bb) return 0;  // evaluate() gave the only place
   if (ba && buffer.opposite(h) != TriangleBuffer::kBorder) return 0;  // a pinch
-  QemQuadric q = data[a].q;
-  q.add(data[b].q);
+  const QemQuadric q = collapse_quadric(a, b);
   int n = 0;
   for (const bool keep_start : {true, false}) {
     Candidate& c = out[n++];
