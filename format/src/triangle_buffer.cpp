@@ -48,6 +48,19 @@ TriangleBuffer::~TriangleBuffer() = default;
 void TriangleBuffer::set_lookahead_budget(uint64_t bytes) { converter_.set_lookahead_budget(bytes); }
 void TriangleBuffer::set_seed(uint64_t seed) { rng_ = seed; }
 
+void TriangleBuffer::reserve(uint32_t triangles, uint32_t vertices) {
+  corners_.reserve(3 * static_cast<size_t>(triangles));
+  alive_flag_.reserve(triangles);
+  out_count_.reserve(triangles);
+  open_count_.reserve(triangles);
+  out_pos_.reserve(triangles);
+  free_triangles_.reserve(triangles);
+  arrival_.reserve(2 * static_cast<size_t>(triangles) + 1024);
+  verts_.reserve(vertices);
+  free_vertices_.reserve(vertices);
+  free_.reserve(vertices);
+}
+
 const ConverterStats& TriangleBuffer::converter_stats() const { return converter_.stats(); }
 
 uint64_t TriangleBuffer::random() {
@@ -332,7 +345,7 @@ Status TriangleBuffer::triangle(const SequenceTriangle& t, uint32_t* id) {
   }
   set_out_count(tri, written_edges);
   arrival_.push_back(tri);
-  if (arrival_.size() - arrival_head_ > 2 * static_cast<size_t>(alive_) + 1024) {
+  if (arrival_.size() > 2 * static_cast<size_t>(alive_) + 1024) {
     // Drop the entries of triangles that left, keeping the order.
     size_t w = 0;
     for (size_t i = arrival_head_; i < arrival_.size(); ++i)

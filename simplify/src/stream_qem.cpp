@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <vector>
 
@@ -31,13 +32,17 @@ constexpr int kMaxFailedRoundsFinal = 64;
 // Decimation runs every this many triangles read, while what it works on
 // is still in the processor's caches.
 constexpr uint32_t kDecimationStep = 2048;
-// Estimated bytes per buffer triangle: the buffer's own (about 56 per
-// triangle and 72 per vertex) plus a quadric and a score per vertex, at
-// about half a vertex per triangle, with room for vectors' growth.
-constexpr uint64_t kBytesPerTriangle = 172;
-// A collapse may turn a triangle at most this far (the cosine) from its
-// normal when it was read.
-constexpr double kMinCosine = 0.0;
+// The converter behind the buffer keeps at least 65536 triangles waiting
+// (about 200 bytes each) and gets a sixteenth of the budget beyond.
+constexpr uint64_t kConverterFloor = uint64_t{65536} * 200;
+// Vertices per triangle in the buffer (about one half on closed meshes;
+// room for more on meshes with borders).
+constexpr double kVerticesPerTriangle = 0.6;
+// Bytes per buffer triangle: the buffer's own, a reference normal per
+// triangle, and per vertex a VertexData, a score and a candidate entry.
+constexpr double kVertexQemBytes = 128 + 4 + 8;
+constexpr double kBytesPerTriangle =
+    TriangleBuffer::kTriangleBytes + 12 + kVerticesPerTriangle * (TriangleBuffer::kVertexBytes + kVertexQemBytes);
 // Below this shape() a triangle is a sliver (its smallest angle under
 // about 0.06 degrees): no collapse may make one of a sound triangle.
 constexpr double kSliver = 1e-6;
@@ -48,12 +53,6 @@ constexpr double kDegenerate = 1e-9;
 // The pull of a merged vertex towards its edge's midpoint, relative to the
 // quadric's trace (its total plane weight).
 constexpr double kPull = 1e-3;
-// How many band's worth of triangles behind the input boundary are left to
-// be simplified gradually.
-constexpr double kFreshBands = 1;
-// Up to this many candidate vertices, the cheapest of all collapses (a
-// small mesh, or the end of a small region).
-constexpr size_t kCompareAll = 512;
 
 void sub(const double a[3], const double b[3], double r[3]) {
   r[0] = a[0] - b[0];
@@ -84,12 +83,84 @@ struct Candidate {
   double x[3];  // the merged vertex, in normalized coordinates
 };
 
+// The candidate vertices by the cost of their cheapest edge: bands of a
+// quarter of an octave (a float's exponent and two leading bits of its
+// mantissa, in the order of the values), each an unordered array, and a
+// bitmap of the bands in use, so that the cheapest band is found in a few
+// steps and the multiple choice compares candidates of nearly the least
+// cost (Wu and Kobbelt's random candidates come from the whole buffer,
+// whose costs span many octaves).
+class CostBands {
+ public:
+  static constexpr uint32_t kNone = 0xffffffffu;
+  struct Entry {
+    uint32_t vertex;
+    float cost;
+  };
+
+  static uint16_t band_of(float cost) {
+    uint32_t bits;
+    std::memcpy(&bits, &cost, 4);
+    return static_cast<uint16_t>(bits >> 21);  // costs are not negative
+  }
+  bool empty() const { return size_ == 0; }
+  // Puts vertex v at `cost`; *band and *slot are where it is kept (slot
+  // kNone: not kept). Returns the vertex whose slot became *slot's old
+  // value when v left its band, or kNone.
+  uint32_t put(uint32_t v, float cost, uint16_t* band, uint32_t* slot) {
+    const uint16_t b = band_of(cost);
+    if (*slot != kNone && *band == b) {
+      bands_[b][*slot].cost = cost;
+      return kNone;
+    }
+    uint32_t moved = kNone;
+    uint32_t old_slot = *slot;
+    if (*slot != kNone) moved = remove(*band, *slot);
+    std::vector<Entry>& list = bands_[b];
+    if (list.empty()) used_[b >> 6] |= uint64_t{1} << (b & 63);
+    *band = b;
+    *slot = static_cast<uint32_t>(list.size());
+    list.push_back({v, cost});
+    ++size_;
+    last_moved_slot_ = old_slot;
+    return moved;
+  }
+  // Takes out the entry at (band, slot); returns the vertex moved into
+  // that slot, or kNone.
+  uint32_t remove(uint16_t band, uint32_t slot) {
+    std::vector<Entry>& list = bands_[band];
+    const Entry last = list.back();
+    list.pop_back();
+    uint32_t moved = kNone;
+    if (slot < list.size()) {
+      list[slot] = last;
+      moved = last.vertex;
+    }
+    if (list.empty()) used_[band >> 6] &= ~(uint64_t{1} << (band & 63));
+    --size_;
+    return moved;
+  }
+  uint32_t last_moved_slot() const { return last_moved_slot_; }
+  // The cheapest band in use (not empty()).
+  const std::vector<Entry>& cheapest() const {
+    for (int w = 0;; ++w)
+      if (used_[w]) return bands_[64 * w + __builtin_ctzll(used_[w])];
+  }
+
+ private:
+  std::vector<Entry> bands_[1024];
+  uint64_t used_[16] = {};
+  size_t size_ = 0;
+  uint32_t last_moved_slot_ = kNone;
+};
+
 }  // namespace
 
 uint32_t qem_buffer_triangles(uint64_t memory_budget) {
-  // A quarter of the budget goes to the converter's waiting area.
-  const uint64_t n = (memory_budget - memory_budget / 4) / kBytesPerTriangle;
-  return static_cast<uint32_t>(std::clamp<uint64_t>(n, 1024, uint64_t{1} << 28));
+  const double spare = static_cast<double>(memory_budget) - static_cast<double>(kConverterFloor) -
+                       static_cast<double>(memory_budget / 16) - (1 << 20);
+  const double n = spare / kBytesPerTriangle;
+  return static_cast<uint32_t>(std::clamp(n, 1024.0, static_cast<double>(uint64_t{1} << 28)));
 }
 
 struct StreamQem::Impl {
@@ -105,11 +176,8 @@ struct StreamQem::Impl {
     double x[3] = {0, 0, 0};  // its position, normalized
     float cost = kInfinity;  // of its cheapest edge; infinite: none
     uint32_t target = TriangleBuffer::kNone;  // the other end of that edge
-    uint32_t slot = TriangleBuffer::kNone;    // its place in `set`
-  };
-  struct Entry {
-    uint32_t vertex;
-    float cost;
+    uint32_t slot = TriangleBuffer::kNone;    // its place in its band of `set`
+    uint16_t band = 0;
   };
   static constexpr float kInfinity = std::numeric_limits<float>::infinity();
 
@@ -122,11 +190,10 @@ struct StreamQem::Impl {
   std::vector<VertexData> data;
   // The error at each vertex's place (the output's add preference).
   std::vector<float> score;
-  // Per triangle: its unit normal when it was read. A collapse may turn a
-  // triangle only so far from it, so that turns do not add up to a flip.
+  // Per triangle: its unit normal when it was read (zero if degenerate).
   std::vector<std::array<float, 3>> reference;
   // Unlocked vertices that have an edge to offer.
-  std::vector<Entry> set;
+  CostBands set;
   // Normalized coordinates: (p - origin) * scale, the box diagonal 1 when
   // the schema gives the box.
   double origin[3] = {0, 0, 0};
@@ -177,29 +244,23 @@ struct StreamQem::Impl {
 
   void set_cost(uint32_t v, float cost, uint32_t target) {
     VertexData& d = data[v];
+    if (!(cost < kInfinity)) {
+      leave_set(v);
+      return;
+    }
     d.cost = cost;
     d.target = target;
-    if (cost < kInfinity) {
-      if (d.slot == TriangleBuffer::kNone) {
-        d.slot = static_cast<uint32_t>(set.size());
-        set.push_back({v, cost});
-      } else {
-        set[d.slot].cost = cost;
-      }
-    } else if (d.slot != TriangleBuffer::kNone) {
-      leave_set(v);
-    }
+    const uint32_t moved = set.put(v, cost, &d.band, &d.slot);
+    if (moved != TriangleBuffer::kNone) data[moved].slot = set.last_moved_slot();
   }
   void leave_set(uint32_t v) {
     VertexData& d = data[v];
-    if (d.slot == TriangleBuffer::kNone) return;
-    const Entry last = set.back();
-    set[d.slot] = last;
-    data[last.vertex].slot = d.slot;
-    set.pop_back();
-    d.slot = TriangleBuffer::kNone;
     d.cost = kInfinity;
     d.target = TriangleBuffer::kNone;
+    if (d.slot == TriangleBuffer::kNone) return;
+    const uint32_t moved = set.remove(d.band, d.slot);
+    if (moved != TriangleBuffer::kNone) data[moved].slot = d.slot;
+    d.slot = TriangleBuffer::kNone;
   }
 
   template <class F>
@@ -283,7 +344,15 @@ Status StreamQem::Impl::begin(const MeshSchema& schema) {
   report.buffer_triangles = capacity;
   rng = opt.seed ^ 0x5851f42d4c957f2dull;
   buffer.set_seed(opt.seed);
-  buffer.set_lookahead_budget(opt.memory_budget / 4);
+  buffer.set_lookahead_budget(opt.memory_budget / 16);
+  // All the room at once: growth by doubling would copy, and take up to
+  // half as much again while it does.
+  const uint32_t room = std::min(capacity, qem_buffer_triangles(opt.memory_budget)) + 64;
+  const uint32_t vertices = static_cast<uint32_t>(kVerticesPerTriangle * room);
+  buffer.reserve(room, vertices);
+  data.reserve(vertices);
+  score.reserve(vertices);
+  reference.reserve(room);
   begun = true;
   return buffer.begin(schema);
 }
@@ -512,10 +581,11 @@ bool StreamQem::Impl::flips(uint32_t h, const double x[3]) {
         // A degenerate triangle that stays degenerate is no worse.
         if (dot(n1, n1) > 0 && !(dot(around, n1) > 0)) return true;
       }
+      // Nor may it turn past a right angle from its normal when it was
+      // read, so that turns do not add up to a flip.
       const std::array<float, 3>& r = reference[c / 3];
-      if (r[0] == 0 && r[1] == 0 && r[2] == 0) continue;  // read as a sliver
-      const double dr = n1[0] * r[0] + n1[1] * r[1] + n1[2] * r[2];
-      if (!(dr > 0) || dr * dr < kMinCosine * kMinCosine * dot(n1, n1)) return true;
+      if (r[0] == 0 && r[1] == 0 && r[2] == 0) continue;  // read degenerate
+      if (!(n1[0] * r[0] + n1[1] * r[1] + n1[2] * r[2] > 0)) return true;
     }
   }
   return false;
@@ -607,21 +677,22 @@ void StreamQem::Impl::apply(const Candidate& k) {
 
 bool StreamQem::Impl::collapse_one(double limit) {
   if (set.empty()) return false;
-  // Multiple choice: the cheapest of a few random candidates; of all,
-  // when they are few enough to compare at the cost of the samples.
-  uint32_t pick = static_cast<uint32_t>(random() % set.size());
-  if (set.size() <= kCompareAll) {
-    for (uint32_t j = 0; j < set.size(); ++j)
-      if (set[j].cost < set[pick].cost) pick = j;
+  // Multiple choice among the candidates of the cheapest band.
+  const std::vector<CostBands::Entry>& band = set.cheapest();
+  uint32_t pick = static_cast<uint32_t>(band.size() == 1 ? 0 : random() % band.size());
+  if (band.size() <= static_cast<size_t>(opt.candidates)) {
+    for (uint32_t j = 0; j < band.size(); ++j)
+      if (band[j].cost < band[pick].cost) pick = j;
   } else {
     for (int i = 1; i < opt.candidates; ++i) {
-      const uint32_t j = static_cast<uint32_t>(random() % set.size());
-      if (set[j].cost < set[pick].cost) pick = j;
+      const uint32_t j = static_cast<uint32_t>(random() % band.size());
+      if (band[j].cost < band[pick].cost) pick = j;
     }
   }
-  const uint32_t v = set[pick].vertex;
+  const float picked_cost = band[pick].cost;
+  const uint32_t v = band[pick].vertex;
   const uint32_t target = data[v].target;
-  if (limit >= 0 && set[pick].cost > limit) return false;
+  if (limit >= 0 && picked_cost > limit) return false;
   uint32_t h = TriangleBuffer::kNone;
   for_each_edge(v, [&](uint32_t u, uint32_t e) {
     if (u == target && h == TriangleBuffer::kNone) h = e;
@@ -642,7 +713,7 @@ bool StreamQem::Impl::collapse_one(double limit) {
     Candidate ends[2];
     const int n = end_options(h, ends);
     int i = 0;
-    while (i < n && !(ends[i].cost <= 2 * set[pick].cost + 1e-30 && allowed(ends[i], true))) ++i;
+    while (i < n && !(ends[i].cost <= 2 * picked_cost + 1e-30 && allowed(ends[i], true))) ++i;
     if (i == n) {
       refuse(v);
       return false;
@@ -662,15 +733,10 @@ void StreamQem::Impl::decimate(bool final) {
       const TriangleBufferStats& st = buffer.stats();
       const double total = static_cast<double>(st.triangles_written + buffer.triangle_count());
       double goal = ratio * static_cast<double>(st.triangles_read);
-      // The triangles read last count as they will be once simplified
-      // (the band along the input boundary, which nothing may change yet,
-      // and a few times as many behind it): the rest is not over-simplified
-      // to make room for them, and what was just read is simplified
-      // gradually, not squeezed into slivers against the band.
-      if (!final) {
-        const double band = static_cast<double>(buffer.input_band());
-        goal += (1 - ratio) * std::max(band, std::min(kFreshBands * band, 0.5 * capacity));
-      }
+      // The band along the input boundary, which nothing may change yet,
+      // counts as it will be once simplified: the rest is not
+      // over-simplified to make room for it.
+      if (!final) goal += (1 - ratio) * buffer.input_band();
       if (total <= goal) return;
     }
     if (collapse_one(limit)) {

@@ -166,6 +166,7 @@ int cmd_qem(int argc, char** argv) {
                   ", \"collapses\": " + std::to_string(r.collapses) + ", \"max_error\": " + json_number(r.max_error) +
                   ", \"buffer_triangles\": " + std::to_string(r.buffer_triangles) +
                   ", \"max_buffer_triangles\": " + std::to_string(r.max_buffer_triangles) +
+                  ", \"max_buffer_vertices\": " + std::to_string(r.max_buffer_vertices) +
                   ", \"max_waiting_triangles\": " + std::to_string(r.converter.max_waiting_triangles) +
                   ", \"bytes_out\": " + std::to_string(run.bytes_out()) + ", \"seconds\": " +
                   json_number(run.seconds()) + ", \"lossless\": " + (run.lossless() ? "true" : "false") +

@@ -97,6 +97,12 @@ class TriangleBuffer {
 
   // The converter's lookahead (SequenceConverter::set_lookahead_budget).
   void set_lookahead_budget(uint64_t bytes);
+  // Allocates room for this many triangles and vertices at once, so that
+  // the buffer does not grow by doubling (and copying) as it fills.
+  void reserve(uint32_t triangles, uint32_t vertices);
+  // Bytes the buffer takes per triangle and per vertex it holds (without
+  // property values).
+  static constexpr uint32_t kTriangleBytes = 59, kVertexBytes = 56;
   // Seeds the random choices of pick_output() (default 1).
   void set_seed(uint64_t seed);
 
