@@ -237,4 +237,29 @@ std::vector<std::array<uint32_t, 3>> canonical_triangles(const Mesh& mesh) {
   return out;
 }
 
+Mesh make_torus(int around, int across, double thickness) {
+  Mesh m;
+  const double pi = 3.14159265358979323846;
+  for (int i = 0; i < around; ++i) {
+    const double u = 2 * pi * i / around;
+    for (int j = 0; j < across; ++j) {
+      const double v = 2 * pi * j / across;
+      const double r = 1 + thickness * std::cos(v);
+      volatile float x = static_cast<float>(r * std::cos(u));
+      volatile float y = static_cast<float>(r * std::sin(u));
+      volatile float z = static_cast<float>(thickness * std::sin(v));
+      m.positions.push_back({x, y, z});
+    }
+  }
+  auto id = [&](int i, int j) { return static_cast<uint32_t>((i % around) * across + (j % across)); };
+  for (int i = 0; i < around; ++i) {
+    for (int j = 0; j < across; ++j) {
+      m.triangles.push_back({id(i, j), id(i + 1, j), id(i + 1, j + 1)});
+      m.triangles.push_back({id(i, j), id(i + 1, j + 1), id(i, j + 1)});
+    }
+  }
+  reset_values(&m);
+  return m;
+}
+
 }  // namespace psq::test

@@ -95,6 +95,10 @@ Status load_mesh(const std::string& path, Mesh* mesh);
 // order-independent comparisons that keep orientation.
 std::vector<std::array<uint32_t, 3>> canonical_triangles(const Mesh& mesh);
 
+// A closed genus-1 mesh: a torus (radii 1 and `thickness`) of `around` x
+// `across` quads split in triangles, float positions, counts set.
+Mesh make_torus(int around, int across, double thickness = 0.3);
+
 }  // namespace psq::test
 
 #endif  // PSQ_TESTS_TEST_UTIL_H_

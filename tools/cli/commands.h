@@ -10,6 +10,8 @@ int cmd_dump(int argc, char** argv);     // argv[0] is "dump"
 int cmd_verify(int argc, char** argv);   // argv[0] is "verify"
 int cmd_distance(int argc, char** argv); // argv[0] is "distance"
 int cmd_simplify(int argc, char** argv); // argv[0] is "simplify"
+int cmd_smooth(int argc, char** argv);   // argv[0] is "smooth"
+int cmd_qem(int argc, char** argv);      // argv[0] is "qem" (to become psq simplify --method qem)
 
 }  // namespace psq::cli
 

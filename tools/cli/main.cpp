@@ -23,6 +23,7 @@ const char kUsage[] =
     "  verify FILE      decode a .psq completely and check it\n"
     "  distance A B     surface distance between two meshes (Metro: max, mean, RMS)\n"
     "  simplify IN OUT  simplify a mesh of any size out of core (--method clustering)\n"
+    "  smooth IN OUT    smooth a mesh of any size (Taubin), streaming\n"
     "\n"
     "Options:\n"
     "  -h, --help       show this help (psq help COMMAND or psq COMMAND --help\n"
@@ -45,6 +46,8 @@ const Command kCommands[] = {
     {"verify", psq::cli::cmd_verify},
     {"simplify", psq::cli::cmd_simplify},
     {"distance", psq::cli::cmd_distance},
+    {"smooth", psq::cli::cmd_smooth},
+    {"qem", psq::cli::cmd_qem},
 };
 
 const Command* find_command(const std::string& name) {

@@ -1,0 +1,133 @@
+// psq/stream_qem.h: adaptive simplification by edge collapse in a fixed
+// triangle buffer (Wu and Kobbelt 2003 on processing sequences, paper
+// section 6).
+//
+// StreamQem is a sequence filter: a SequenceSink that reads a processing
+// sequence as it arrives (from the .psq decoder's pump(), the sequence
+// builder, any producer) and writes the simplified mesh, as a valid
+// processing sequence, to another SequenceSink (the .psq encoder, a mesh
+// writer), on the fly. Its memory is its triangle buffer
+// (psq/triangle_buffer.h) and the converter's waiting area behind it,
+// never the mesh:
+//
+// - READ: every input triangle enters the buffer and adds its plane, weighted
+//   by its area, to the error quadrics of its vertices (Garland and
+//   Heckbert); a border edge adds a plane through it, perpendicular to its
+//   triangle, so that borders and holes are simplified as they go instead
+//   of clogging the buffer.
+// - DECIMATE: when the buffer is full, edges are collapsed until the
+//   triangles written and held are as many as the target allows for what
+//   was read (the band along the input boundary, which nothing may change
+//   yet, counted as it will be once simplified). Each collapse is chosen
+//   by multiple choice: of `candidates` random edges with no vertex on either
+//   boundary, the one of least quadric error (Wu and Kobbelt). The merged
+//   vertex goes where the summed quadric is smallest (solving it, or, where
+//   that is ill-posed, on the edge); a vertex that must not move (a cut,
+//   or a border with lock_border) keeps its place and absorbs the other. A
+//   collapse is refused when it breaks the link condition, leaves a vertex
+//   without triangles, or flips or degenerates a triangle.
+// - WRITE: then triangles leave the buffer across the output boundary
+//   (TriangleBuffer::pick_output: end, fill, join, then the add whose free
+//   vertex carries the largest error) until it is 7/8 full.
+// At the end of the input, the rest is decimated to the target and written.
+//
+// Targets: a ratio of the input's triangles, a triangle count (which needs
+// the input's count: the schema's, or QemOptions::input_triangles), and/or
+// a largest error; decimation stops at the first reached. The output is
+// the same for the same input events and options (seeded choices).
+//
+// Vertex properties: a merged vertex keeps the values of the end it kept
+// (the one nearer its new place); triangles keep theirs.
+#ifndef PSQ_STREAM_QEM_H_
+#define PSQ_STREAM_QEM_H_
+
+#include <cstdint>
+#include <memory>
+
+#include "psq/converter.h"
+#include "psq/sequence.h"
+#include "psq/status.h"
+#include "psq/triangle_buffer.h"
+
+namespace psq {
+
+struct QemOptions {
+  // Keep this fraction of the input's triangles (0 < ratio <= 1); 0: none.
+  double ratio = 0;
+  // Keep this many triangles; 0: none. Needs the input's triangle count.
+  uint64_t target_triangles = 0;
+  // Collapse only while the error stays at most this distance, relative to
+  // the diagonal of the input's bounding box (the schema's bounds; else the
+  // box of the vertices read so far); negative: no limit.
+  double max_error = -1;
+  // The input's triangle count when its schema does not declare one (a
+  // count made by the caller), for target_triangles; 0: unknown.
+  uint64_t input_triangles = 0;
+  // Triangles in the buffer; 0: as many as memory_budget allows.
+  uint32_t buffer_triangles = 0;
+  // Bytes for the buffer and the converter's waiting area together.
+  uint64_t memory_budget = uint64_t{48} << 20;
+  // Random edges compared for each collapse (Wu and Kobbelt's multiple
+  // choice), 1..64.
+  int candidates = 8;
+  // Keep every border vertex where it is (tiles that must fit together).
+  bool lock_border = false;
+  uint64_t seed = 1;
+};
+
+struct QemReport {
+  uint64_t input_vertices = 0;     // used by triangles
+  uint64_t input_triangles = 0;
+  uint64_t output_vertices = 0;    // as given to the converter
+  uint64_t output_triangles = 0;
+  uint64_t target_triangles = 0;   // what the ratio or count asked for; 0 without
+  uint64_t collapses = 0;
+  uint64_t isolated_dropped = 0;   // input vertices used by no triangle
+  // Largest error of a collapse, relative to the box diagonal as max_error.
+  double max_error = 0;
+  uint32_t buffer_triangles = 0;   // the buffer's size
+  uint64_t max_buffer_triangles = 0;
+  uint64_t max_buffer_vertices = 0;
+  ConverterStats converter;
+};
+
+class StreamQem : public SequenceSink {
+ public:
+  // `out` must outlive the simplifier.
+  StreamQem(SequenceSink* out, const QemOptions& options);
+  ~StreamQem() override;
+  StreamQem(const StreamQem&) = delete;
+  StreamQem& operator=(const StreamQem&) = delete;
+
+  // Sets QemOptions::input_triangles; before begin().
+  void set_input_triangles(uint64_t count);
+
+  // Errors: kUsage for options out of range, no target, or a triangle count
+  // target without a known input count; the sink's.
+  Status begin(const MeshSchema& schema) override;
+  // Errors: those of TriangleBuffer (kUsage for a sequence without slots or
+  // masks, kBadSequence), the converter's and the sink's. Safe on untrusted
+  // sequences. Errors are sticky.
+  Status vertex(const SequenceVertex& v) override;
+  Status triangle(const SequenceTriangle& t) override;
+  Status finalize(uint32_t index) override;
+  Status finish() override;
+
+  // Complete after finish().
+  const QemReport& report() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// Reads all of `in` through a StreamQem into `out` (begin ... finish).
+// `report` may be null. Errors: the source's and StreamQem's.
+Status simplify_qem(SequenceSource& in, SequenceSink& out, const QemOptions& options, QemReport* report);
+
+// The buffer size StreamQem picks for a memory budget (bytes), in triangles.
+uint32_t qem_buffer_triangles(uint64_t memory_budget);
+
+}  // namespace psq
+
+#endif  // PSQ_STREAM_QEM_H_

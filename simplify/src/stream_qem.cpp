@@ -1,0 +1,856 @@
+// Stream decimation on a processing sequence: Wu and Kobbelt, "A Stream
+// Algorithm for the Decimation of Massive Meshes" (Graphics Interface 2003),
+// as adapted to processing sequences by Isenburg, Lindstrom, Gumhold and
+// Snoeyink, "Large Mesh Simplification using Processing Sequences" (IEEE
+// Visualization 2003), section 6; error quadrics of Garland and Heckbert,
+// "Surface Simplification Using Quadric Error Metrics" (SIGGRAPH 1997),
+// with their border planes.
+#include "psq/stream_qem.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <vector>
+
+#include "qem_quadric.h"
+
+namespace psq {
+namespace {
+
+using detail::QemQuadric;
+
+// A border edge's plane weighs this many times its squared length, so that
+// moving a vertex off the border costs about as much as moving it off the
+// surface over the edge's neighbourhood (Garland and Heckbert, section 6.1).
+constexpr double kBorderWeight = 4.0;
+// Rounds of candidates in a row that yield no collapse before decimation
+// gives up for now (it resumes at the next fill).
+constexpr int kMaxFailedRounds = 16;
+constexpr int kMaxFailedRoundsFinal = 64;
+// Decimation runs every this many triangles read, while what it works on
+// is still in the processor's caches.
+constexpr uint32_t kDecimationStep = 2048;
+// The converter behind the buffer keeps at least 65536 triangles waiting
+// (about 200 bytes each) and gets a sixteenth of the budget beyond.
+constexpr uint64_t kConverterFloor = uint64_t{65536} * 200;
+// Vertices per triangle in the buffer (about one half on closed meshes;
+// room for more on meshes with borders).
+constexpr double kVerticesPerTriangle = 0.6;
+// Bytes per buffer triangle: the buffer's own, a reference normal per
+// triangle, and per vertex a VertexData, a score and a candidate entry.
+constexpr double kVertexQemBytes = 128 + 4 + 8;
+constexpr double kBytesPerTriangle =
+    TriangleBuffer::kTriangleBytes + 12 + kVerticesPerTriangle * (TriangleBuffer::kVertexBytes + kVertexQemBytes);
+// Below this shape() a triangle is a sliver (its smallest angle under
+// about 0.06 degrees): no collapse may make one of a sound triangle.
+constexpr double kSliver = 1e-6;
+// Below this shape() a triangle is degenerate (smallest angle under about
+// 0.002 degrees, as quantization leaves where close vertices met): its
+// normal means nothing.
+constexpr double kDegenerate = 1e-9;
+// The pull of a merged vertex towards its edge's midpoint, relative to the
+// quadric's trace (its total plane weight).
+constexpr double kPull = 1e-3;
+
+void sub(const double a[3], const double b[3], double r[3]) {
+  r[0] = a[0] - b[0];
+  r[1] = a[1] - b[1];
+  r[2] = a[2] - b[2];
+}
+void cross(const double a[3], const double b[3], double r[3]) {
+  r[0] = a[1] * b[2] - a[2] * b[1];
+  r[1] = a[2] * b[0] - a[0] * b[2];
+  r[2] = a[0] * b[1] - a[1] * b[0];
+}
+double dot(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+// How far from a sliver the triangle of edges e1 and e2 (from one corner)
+// and normal n = e1 x e2 is: the squared sine of its smallest angle, about
+// (|n| / longest edge^2)^2; 0.75 for an equilateral triangle.
+double shape(const double n[3], const double e1[3], const double e2[3]) {
+  double e3[3];
+  sub(e2, e1, e3);
+  const double l = std::max({dot(e1, e1), dot(e2, e2), dot(e3, e3)});
+  return l > 0 ? dot(n, n) / (l * l) : 0;
+}
+
+struct Candidate {
+  double cost;
+  uint32_t h;
+  bool keep_start;
+  double x[3];  // the merged vertex, in normalized coordinates
+};
+
+// The candidate vertices by the cost of their cheapest edge: bands of a
+// quarter of an octave (a float's exponent and two leading bits of its
+// mantissa, in the order of the values), each an unordered array, and a
+// bitmap of the bands in use, so that the cheapest band is found in a few
+// steps and the multiple choice compares candidates of nearly the least
+// cost (Wu and Kobbelt's random candidates come from the whole buffer,
+// whose costs span many octaves).
+class CostBands {
+ public:
+  static constexpr uint32_t kNone = 0xffffffffu;
+  struct Entry {
+    uint32_t vertex;
+    float cost;
+  };
+
+  static uint16_t band_of(float cost) {
+    uint32_t bits;
+    std::memcpy(&bits, &cost, 4);
+    return static_cast<uint16_t>(bits >> 21);  // costs are not negative
+  }
+  bool empty() const { return size_ == 0; }
+  // Puts vertex v at `cost`; *band and *slot are where it is kept (slot
+  // kNone: not kept). Returns the vertex whose slot became *slot's old
+  // value when v left its band, or kNone.
+  uint32_t put(uint32_t v, float cost, uint16_t* band, uint32_t* slot) {
+    const uint16_t b = band_of(cost);
+    if (*slot != kNone && *band == b) {
+      bands_[b][*slot].cost = cost;
+      return kNone;
+    }
+    uint32_t moved = kNone;
+    uint32_t old_slot = *slot;
+    if (*slot != kNone) moved = remove(*band, *slot);
+    std::vector<Entry>& list = bands_[b];
+    if (list.empty()) used_[b >> 6] |= uint64_t{1} << (b & 63);
+    *band = b;
+    *slot = static_cast<uint32_t>(list.size());
+    list.push_back({v, cost});
+    ++size_;
+    last_moved_slot_ = old_slot;
+    return moved;
+  }
+  // Takes out the entry at (band, slot); returns the vertex moved into
+  // that slot, or kNone.
+  uint32_t remove(uint16_t band, uint32_t slot) {
+    std::vector<Entry>& list = bands_[band];
+    const Entry last = list.back();
+    list.pop_back();
+    uint32_t moved = kNone;
+    if (slot < list.size()) {
+      list[slot] = last;
+      moved = last.vertex;
+    }
+    if (list.empty()) used_[band >> 6] &= ~(uint64_t{1} << (band & 63));
+    --size_;
+    return moved;
+  }
+  uint32_t last_moved_slot() const { return last_moved_slot_; }
+  // The cheapest band in use (not empty()).
+  const std::vector<Entry>& cheapest() const {
+    for (int w = 0;; ++w)
+      if (used_[w]) return bands_[64 * w + __builtin_ctzll(used_[w])];
+  }
+
+ private:
+  std::vector<Entry> bands_[1024];
+  uint64_t used_[16] = {};
+  size_t size_ = 0;
+  uint32_t last_moved_slot_ = kNone;
+};
+
+}  // namespace
+
+uint32_t qem_buffer_triangles(uint64_t memory_budget) {
+  const double spare = static_cast<double>(memory_budget) - static_cast<double>(kConverterFloor) -
+                       static_cast<double>(memory_budget / 16) - (1 << 20);
+  const double n = spare / kBytesPerTriangle;
+  return static_cast<uint32_t>(std::clamp(n, 1024.0, static_cast<double>(uint64_t{1} << 28)));
+}
+
+struct StreamQem::Impl {
+  explicit Impl(SequenceSink* out, const QemOptions& o) : buffer(out), opt(o) {}
+
+  // Per buffer vertex: its quadric, and its cheapest edge to another
+  // unlocked vertex, kept up to date as the buffer changes, so that the
+  // multiple choice compares cached costs in a small array instead of
+  // visiting random parts of the buffer (Wu and Kobbelt's candidates are
+  // edges; here each sampled vertex offers its cheapest edge).
+  struct VertexData {
+    QemQuadric q;
+    double x[3] = {0, 0, 0};  // its position, normalized
+    float cost = kInfinity;  // of its cheapest edge; infinite: none
+    uint32_t target = TriangleBuffer::kNone;  // the other end of that edge
+    uint32_t slot = TriangleBuffer::kNone;    // its place in its band of `set`
+    uint16_t band = 0;
+  };
+  static constexpr float kInfinity = std::numeric_limits<float>::infinity();
+
+  TriangleBuffer buffer;
+  QemOptions opt;
+  QemReport report;
+  Status error;
+  bool begun = false, finished = false;
+
+  std::vector<VertexData> data;
+  // The error at each vertex's place (the output's add preference).
+  std::vector<float> score;
+  // Per triangle: its unit normal when it was read (zero if degenerate).
+  std::vector<std::array<float, 3>> reference;
+  // Unlocked vertices that have an edge to offer.
+  CostBands set;
+  // Normalized coordinates: (p - origin) * scale, the box diagonal 1 when
+  // the schema gives the box.
+  double origin[3] = {0, 0, 0};
+  double scale = 1;
+  bool bounds_known = false;
+  bool seen_vertex = false;
+  double lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
+  double ratio = 0;
+  bool count_target = false;
+  double max_cost = 0;
+  uint32_t capacity = 0, low = 0;
+  uint32_t since_decimation = 0;
+  uint64_t rng = 0;
+
+  Status fail(Status s) {
+    if (error.ok()) error = s;
+    return error;
+  }
+
+  uint64_t random() {
+    uint64_t z = (rng += 0x9e3779b97f4a7c15ull);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+    return z ^ (z >> 31);
+  }
+
+  void normalized(uint32_t v, double x[3]) const { std::copy(data[v].x, data[v].x + 3, x); }
+  void to_normalized(const double p[3], double x[3]) const {
+    for (int i = 0; i < 3; ++i) x[i] = (p[i] - origin[i]) * scale;
+  }
+  void set_normalized(uint32_t v) { to_normalized(buffer.position(v), data[v].x); }
+  void world(const double x[3], double p[3]) const {
+    for (int i = 0; i < 3; ++i) p[i] = x[i] / scale + origin[i];
+  }
+  bool pinned(uint32_t v) const { return buffer.cut(v) || (opt.lock_border && buffer.border(v)); }
+
+  // The largest cost allowed, in normalized squared units; negative: none.
+  double cost_limit() const {
+    if (opt.max_error < 0) return -1;
+    double diag = 1;
+    if (!bounds_known) {
+      const double d[3] = {hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]};
+      diag = std::sqrt(dot(d, d)) * scale;
+    }
+    const double e = opt.max_error * diag;
+    return e * e;
+  }
+
+  void set_cost(uint32_t v, float cost, uint32_t target) {
+    VertexData& d = data[v];
+    if (!(cost < kInfinity)) {
+      leave_set(v);
+      return;
+    }
+    d.cost = cost;
+    d.target = target;
+    const uint32_t moved = set.put(v, cost, &d.band, &d.slot);
+    if (moved != TriangleBuffer::kNone) data[moved].slot = set.last_moved_slot();
+  }
+  void leave_set(uint32_t v) {
+    VertexData& d = data[v];
+    d.cost = kInfinity;
+    d.target = TriangleBuffer::kNone;
+    if (d.slot == TriangleBuffer::kNone) return;
+    const uint32_t moved = set.remove(d.band, d.slot);
+    if (moved != TriangleBuffer::kNone) data[moved].slot = d.slot;
+    d.slot = TriangleBuffer::kNone;
+  }
+
+  template <class F>
+  void for_each_edge(uint32_t v, F&& f) {
+    // Each neighbour follows one corner of v, but for the one that only
+    // precedes a corner across a border edge.
+    for (uint32_t c = buffer.first_corner(v); c != TriangleBuffer::kNone; c = buffer.next_corner(c)) {
+      f(buffer.vertex_of(TriangleBuffer::next(c)), c);
+      const uint32_t p = TriangleBuffer::prev(c);
+      if (buffer.opposite(p) == TriangleBuffer::kBorder) f(buffer.vertex_of(p), p);
+    }
+  }
+
+  // The quadric that prices the collapse of edge (a, b): each end's mean
+  // squared distance to its planes, summed, so that a vertex of a small
+  // area (the tip of a thin feature) does not move far for free because
+  // its planes are outweighed by a large neighbour's.
+  QemQuadric collapse_quadric(uint32_t a, uint32_t b) const {
+    QemQuadric q;
+    const QemQuadric& qa = data[a].q;
+    const QemQuadric& qb = data[b].q;
+    q.add_scaled(qa, qa.weight > 0 ? 1 / qa.weight : 1);
+    q.add_scaled(qb, qb.weight > 0 ? 1 / qb.weight : 1);
+    q.weight = 1;
+    return q;
+  }
+
+  void refresh(uint32_t v, bool relax, uint32_t a = TriangleBuffer::kNone, uint32_t b = TriangleBuffer::kNone);
+  void locked_now(uint32_t v);
+  Status begin(const MeshSchema& schema);
+  Status triangle(const SequenceTriangle& t);
+  void add_quadrics(uint32_t tri, uint8_t border_mask);
+  bool evaluate(uint32_t h, Candidate* c);
+  int end_options(uint32_t h, Candidate out[2]);
+  bool allowed(const Candidate& c, bool topology_checked);
+  void apply(const Candidate& c);
+  bool flips(uint32_t h, const double p[3]);
+  void fan_normal(uint32_t a, uint32_t b, double n[3]);
+  void refuse(uint32_t v);
+  bool collapse_one(double limit);
+  void decimate(bool final);
+  Status write_until(uint32_t target);
+  Status finish();
+};
+
+Status StreamQem::Impl::begin(const MeshSchema& schema) {
+  if (opt.candidates < 1 || opt.candidates > 64) return Status(ErrorCode::kUsage, "candidates must be 1..64");
+  if (!(opt.ratio >= 0 && opt.ratio <= 1)) return Status(ErrorCode::kUsage, "ratio must be in (0, 1]");
+  if (!(opt.max_error < 0 || std::isfinite(opt.max_error)))
+    return Status(ErrorCode::kUsage, "max error must be a finite number");
+  if (opt.ratio == 0 && opt.target_triangles == 0 && opt.max_error < 0)
+    return Status(ErrorCode::kUsage, "no target: give a ratio, a triangle count or a largest error");
+  ratio = opt.ratio;
+  count_target = opt.ratio > 0;
+  if (opt.target_triangles > 0) {
+    const uint64_t in = schema.triangle_count >= 0 ? static_cast<uint64_t>(schema.triangle_count) : opt.input_triangles;
+    if (schema.triangle_count < 0 && opt.input_triangles == 0)
+      return Status(ErrorCode::kUsage, "a triangle count target needs the input's triangle count, which it does "
+                                       "not declare (give a ratio instead)");
+    const double r = in == 0 ? 1.0 : std::min(1.0, static_cast<double>(opt.target_triangles) / static_cast<double>(in));
+    ratio = std::max(ratio, r);
+    count_target = true;
+  }
+  if (schema.has_bounds) {
+    double d[3];
+    for (int i = 0; i < 3; ++i) {
+      origin[i] = 0.5 * (schema.bounds_min[i] + schema.bounds_max[i]);
+      d[i] = schema.bounds_max[i] - schema.bounds_min[i];
+    }
+    const double diag = std::sqrt(dot(d, d));
+    if (diag > 0 && std::isfinite(diag) && std::isfinite(origin[0] + origin[1] + origin[2])) {
+      scale = 1 / diag;
+      bounds_known = true;
+    } else {
+      origin[0] = origin[1] = origin[2] = 0;
+    }
+  }
+  capacity = opt.buffer_triangles ? opt.buffer_triangles : qem_buffer_triangles(opt.memory_budget);
+  capacity = std::max<uint32_t>(capacity, 16);
+  low = capacity - capacity / 8;
+  report.buffer_triangles = capacity;
+  rng = opt.seed ^ 0x5851f42d4c957f2dull;
+  buffer.set_seed(opt.seed);
+  buffer.set_lookahead_budget(opt.memory_budget / 16);
+  // All the room at once: growth by doubling would copy, and take up to
+  // half as much again while it does.
+  const uint32_t room = std::min(capacity, qem_buffer_triangles(opt.memory_budget)) + 64;
+  const uint32_t vertices = static_cast<uint32_t>(kVerticesPerTriangle * room);
+  buffer.reserve(room, vertices);
+  data.reserve(vertices);
+  score.reserve(vertices);
+  reference.reserve(room);
+  begun = true;
+  return buffer.begin(schema);
+}
+
+void StreamQem::Impl::add_quadrics(uint32_t tri, uint8_t border_mask) {
+  uint32_t v[3];
+  double p[3][3];
+  for (int k = 0; k < 3; ++k) {
+    v[k] = buffer.vertex_of(3 * tri + k);
+    normalized(v[k], p[k]);
+  }
+  double e1[3], e2[3], n[3];
+  sub(p[1], p[0], e1);
+  sub(p[2], p[0], e2);
+  cross(e1, e2, n);
+  const double len = std::sqrt(dot(n, n));
+  if (!(len > 0) || !std::isfinite(len)) {  // no plane: a degenerate triangle
+    reference[tri] = {0, 0, 0};
+    return;
+  }
+  const bool degenerate = shape(n, e1, e2) < kDegenerate;
+  for (double& c : n) c /= len;
+  reference[tri] = {0, 0, 0};
+  if (!degenerate) reference[tri] = {static_cast<float>(n[0]), static_cast<float>(n[1]), static_cast<float>(n[2])};
+  const double d = -dot(n, p[0]);
+  QemQuadric q;
+  q.add_plane(n, d, 0.5 * len);
+  for (int k = 0; k < 3; ++k) data[v[k]].q.add(q);
+  for (int k = 0; k < 3; ++k) {
+    if (!(border_mask & (1u << k))) continue;
+    double e[3], m[3];
+    sub(p[(k + 1) % 3], p[k], e);
+    cross(e, n, m);
+    const double ml = std::sqrt(dot(m, m));
+    if (!(ml > 0)) continue;
+    for (double& c : m) c /= ml;
+    QemQuadric b;
+    b.add_plane(m, -dot(m, p[k]), kBorderWeight * dot(e, e));
+    data[v[k]].q.add(b);
+    data[v[(k + 1) % 3]].q.add(b);
+  }
+}
+
+Status StreamQem::Impl::triangle(const SequenceTriangle& t) {
+  uint32_t tri;
+  PSQ_RETURN_IF_ERROR(buffer.triangle(t, &tri));
+  if (data.size() < buffer.vertex_capacity()) {
+    data.resize(buffer.vertex_capacity());
+    score.resize(buffer.vertex_capacity());
+  }
+  if (reference.size() < buffer.triangle_capacity()) reference.resize(buffer.triangle_capacity());
+  for (int k = 0; k < 3; ++k) {
+    if (!(t.new_mask & (1u << k))) continue;
+    const uint32_t v = buffer.vertex_of(3 * tri + k);
+    data[v] = VertexData();
+    set_normalized(v);
+    score[v] = 0;
+  }
+  add_quadrics(tri, t.border_mask);
+  // Vertices the input finalized are complete: their edges to unlocked
+  // neighbours become candidates.
+  for (int k = 0; k < 3; ++k) {
+    const uint32_t v = buffer.vertex_of(3 * tri + k);
+    if ((t.final_mask & (1u << k)) && !buffer.locked(v)) refresh(v, true);
+  }
+  if (++since_decimation >= kDecimationStep || buffer.triangle_count() >= capacity) {
+    since_decimation = 0;
+    decimate(false);
+    if (buffer.triangle_count() >= capacity) return write_until(low);
+  }
+  return Status();
+}
+
+// Recomputes v's cheapest edge. With `relax`, each neighbour learns its
+// edge to v too (v is new to them, or v moved and merged `a` and `b`): the
+// cost is the same from both ends.
+void StreamQem::Impl::refresh(uint32_t v, bool relax, uint32_t a, uint32_t b) {
+  float best = kInfinity;
+  uint32_t best_target = TriangleBuffer::kNone;
+  for_each_edge(v, [&](uint32_t u, uint32_t h) {
+    if (buffer.locked(u)) return;
+    Candidate c;
+    if (!evaluate(h, &c)) return;
+    const float cost = static_cast<float>(c.cost);
+    if (cost < best) {
+      best = cost;
+      best_target = u;
+    }
+    if (!relax) return;
+    // The neighbour's cheapest edge was to an end of the collapse, or to
+    // v itself: that edge is this one now. Its other edges may be cheaper;
+    // they are offered by their other ends too, and u's own cost is
+    // recomputed when it is chosen or a neighbour changes.
+    VertexData& du = data[u];
+    if (cost < du.cost || (du.target != TriangleBuffer::kNone && (du.target == a || du.target == b || du.target == v)))
+      set_cost(u, cost, v);
+  });
+  set_cost(v, best, best_target);
+}
+
+// v was just written: it is no candidate any more, nor anyone's target.
+void StreamQem::Impl::locked_now(uint32_t v) {
+  leave_set(v);
+  for (uint32_t c = buffer.first_corner(v); c != TriangleBuffer::kNone; c = buffer.next_corner(c)) {
+    for (uint32_t u : {buffer.vertex_of(TriangleBuffer::next(c)), buffer.vertex_of(TriangleBuffer::prev(c))}) {
+      if (!buffer.locked(u) && data[u].target == v) refresh(u, false);
+    }
+  }
+}
+
+bool StreamQem::Impl::evaluate(uint32_t h, Candidate* c) {
+  const uint32_t a = buffer.vertex_of(h), b = buffer.vertex_of(TriangleBuffer::next(h));
+  const bool pa = pinned(a), pb = pinned(b);
+  if (pa && pb) return false;
+  const QemQuadric q = collapse_quadric(a, b);
+  double xa[3], xb[3];
+  normalized(a, xa);
+  normalized(b, xb);
+  c->h = h;
+  // Border vertices stay on the border: a border edge collapses onto
+  // itself, and an interior vertex merges into a border neighbour, so that
+  // the border only shrinks.
+  const bool ba = buffer.border(a), bb = buffer.border(b);
+  if (pa || pb || ba != bb) {
+    c->keep_start = pa || (!pb && ba);
+    std::copy(c->keep_start ? xa : xb, (c->keep_start ? xa : xb) + 3, c->x);
+  } else if (ba) {
+    if (buffer.opposite(h) != TriangleBuffer::kBorder) return false;  // a pinch: can_collapse refuses it
+    double e[3];
+    sub(xb, xa, e);
+    const double t = q.minimum_on_segment(xa, e);
+    for (int i = 0; i < 3; ++i) c->x[i] = xa[i] + t * e[i];
+    c->keep_start = t <= 0.5;
+  } else {
+    double e[3];
+    sub(xb, xa, e);
+    const double len2 = dot(e, e);
+    double m[3];
+    for (int i = 0; i < 3; ++i) m[i] = 0.5 * (xa[i] + xb[i]);
+    bool placed = q.minimum(kPull * (q.a00 + q.a11 + q.a22), m, c->x);
+    if (placed) {
+      // A solution far from the edge comes from a nearly singular system.
+      double d[3];
+      sub(c->x, m, d);
+      placed = dot(d, d) <= 4 * len2;
+    }
+    if (!placed) {
+      const double t = q.minimum_on_segment(xa, e);
+      for (int i = 0; i < 3; ++i) c->x[i] = xa[i] + t * e[i];
+    }
+    double da[3], db[3];
+    sub(c->x, xa, da);
+    sub(c->x, xb, db);
+    c->keep_start = dot(da, da) <= dot(db, db);
+    // An end may do better than the (regularized) minimum.
+    c->cost = q.error(c->x);
+    const double ea = q.error(xa), eb = q.error(xb);
+    if (ea < c->cost || eb < c->cost) {
+      c->keep_start = ea <= eb;
+      std::copy(c->keep_start ? xa : xb, (c->keep_start ? xa : xb) + 3, c->x);
+      c->cost = std::min(ea, eb);
+    }
+    return true;
+  }
+  c->cost = q.error(c->x);
+  return true;
+}
+
+// The collapses of edge h onto one of its ends (half-edge collapses), as
+// the fallback when the best place flips a triangle; those allowed by the
+// border rules of evaluate().
+int StreamQem::Impl::end_options(uint32_t h, Candidate out[2]) {
+  const uint32_t a = buffer.vertex_of(h), b = buffer.vertex_of(TriangleBuffer::next(h));
+  const bool pa = pinned(a), pb = pinned(b), ba = buffer.border(a), bb = buffer.border(b);
+  if (pa || pb || ba != bb) return 0;  // evaluate() gave the only place
+  if (ba && buffer.opposite(h) != TriangleBuffer::kBorder) return 0;  // a pinch
+  const QemQuadric q = collapse_quadric(a, b);
+  int n = 0;
+  for (const bool keep_start : {true, false}) {
+    Candidate& c = out[n++];
+    c.h = h;
+    c.keep_start = keep_start;
+    std::copy(data[keep_start ? a : b].x, data[keep_start ? a : b].x + 3, c.x);
+    c.cost = q.error(c.x);
+  }
+  if (out[1].cost < out[0].cost) std::swap(out[0], out[1]);
+  return n;
+}
+
+// Whether moving the ends of edge h to x (normalized) flips, degenerates or
+// turns too far a triangle that stays, or makes a sliver of it. A
+// triangle's orientation is judged against its own normal, or, for a
+// degenerate one, whose normal means nothing, against the normal of the
+// whole neighbourhood.
+bool StreamQem::Impl::flips(uint32_t h, const double x[3]) {
+  const uint32_t a = buffer.vertex_of(h), b = buffer.vertex_of(TriangleBuffer::next(h));
+  double around[3] = {0, 0, 0};
+  bool around_known = false;
+  for (uint32_t v : {a, b}) {
+    const uint32_t other = v == a ? b : a;
+    for (uint32_t c = buffer.first_corner(v); c != TriangleBuffer::kNone; c = buffer.next_corner(c)) {
+      const uint32_t v1 = buffer.vertex_of(TriangleBuffer::next(c)), v2 = buffer.vertex_of(TriangleBuffer::prev(c));
+      if (v1 == other || v2 == other) continue;  // goes with the edge
+      const double* p0 = data[v].x;
+      const double* p1 = data[v1].x;
+      const double* p2 = data[v2].x;
+      double e1[3], e2[3], f1[3], f2[3], n0[3], n1[3];
+      sub(p1, p0, e1);
+      sub(p2, p0, e2);
+      cross(e1, e2, n0);
+      sub(p1, x, f1);
+      sub(p2, x, f2);
+      cross(f1, f2, n1);
+      // The shapes only where they may matter: a new sliver, or an old
+      // normal that may mean nothing.
+      const double q1 = shape(n1, f1, f2);
+      const double q0 = q1 < kSliver || !(dot(n0, n1) > 0) ? shape(n0, e1, e2) : 1.0;
+      if (q1 < kSliver && q0 >= kSliver) return true;
+      if (q0 >= kDegenerate) {
+        if (!(dot(n0, n1) > 0)) return true;
+      } else {
+        if (!around_known) {
+          fan_normal(a, b, around);
+          around_known = true;
+        }
+        // A degenerate triangle that stays degenerate is no worse.
+        if (dot(n1, n1) > 0 && !(dot(around, n1) > 0)) return true;
+      }
+      // Nor may it turn past a right angle from its normal when it was
+      // read, so that turns do not add up to a flip.
+      const std::array<float, 3>& r = reference[c / 3];
+      if (r[0] == 0 && r[1] == 0 && r[2] == 0) continue;  // read degenerate
+      if (!(n1[0] * r[0] + n1[1] * r[1] + n1[2] * r[2] > 0)) return true;
+    }
+  }
+  return false;
+}
+
+// The sum of the normals of the triangles around edge (a, b), weighted by
+// their areas.
+void StreamQem::Impl::fan_normal(uint32_t a, uint32_t b, double n[3]) {
+  for (uint32_t v : {a, b}) {
+    for (uint32_t c = buffer.first_corner(v); c != TriangleBuffer::kNone; c = buffer.next_corner(c)) {
+      const uint32_t v1 = buffer.vertex_of(TriangleBuffer::next(c)), v2 = buffer.vertex_of(TriangleBuffer::prev(c));
+      if (v == b && (v1 == a || v2 == a)) continue;  // counted from a
+      double e1[3], e2[3], m[3];
+      sub(data[v1].x, data[v].x, e1);
+      sub(data[v2].x, data[v].x, e2);
+      cross(e1, e2, m);
+      for (int i = 0; i < 3; ++i) n[i] += m[i];
+    }
+  }
+}
+
+// Whether collapse c keeps the topology (unless already checked) and
+// flips, degenerates or turns too far no triangle.
+bool StreamQem::Impl::allowed(const Candidate& c, bool topology_checked) {
+  if (!topology_checked && !buffer.can_collapse(c.h)) return false;
+  double p[3], x[3];
+  world(c.x, p);
+  buffer.round_position(p);
+  to_normalized(p, x);
+  return !flips(c.h, x);
+}
+
+// v's cheapest edge was refused: offer its cheapest collapse that passes,
+// ends of edges included, if any.
+void StreamQem::Impl::refuse(uint32_t v) {
+  Candidate options[96];
+  int8_t edge_ok[32];  // per edge: -1 unknown, 0 refused, 1 topology allowed
+  uint8_t edge_of[96];
+  int n = 0, edges = 0;
+  for_each_edge(v, [&](uint32_t u, uint32_t h) {
+    if (edges == 32 || buffer.locked(u)) return;
+    const int first = n;
+    if (evaluate(h, &options[n])) ++n;
+    n += end_options(h, options + n);
+    for (int i = first; i < n; ++i) edge_of[i] = static_cast<uint8_t>(edges);
+    edge_ok[edges++] = -1;
+  });
+  // Cheapest first, by selection: usually the first few decide.
+  uint8_t order[96];
+  for (int i = 0; i < n; ++i) order[i] = static_cast<uint8_t>(i);
+  for (int i = 0; i < n; ++i) {
+    int best = i;
+    for (int j = i + 1; j < n; ++j)
+      if (options[order[j]].cost < options[order[best]].cost) best = j;
+    std::swap(order[i], order[best]);
+    const Candidate& c = options[order[i]];
+    int8_t& ok = edge_ok[edge_of[order[i]]];
+    if (ok < 0) ok = buffer.can_collapse(c.h) ? 1 : 0;
+    if (!ok || !allowed(c, true)) continue;
+    const uint32_t a = buffer.vertex_of(c.h), b = buffer.vertex_of(TriangleBuffer::next(c.h));
+    set_cost(v, static_cast<float>(c.cost), a == v ? b : a);
+    return;
+  }
+  set_cost(v, kInfinity, TriangleBuffer::kNone);
+}
+
+void StreamQem::Impl::apply(const Candidate& k) {
+  const uint32_t h = k.h;
+  const uint32_t a = buffer.vertex_of(h), b = buffer.vertex_of(TriangleBuffer::next(h));
+  double p[3];
+  world(k.x, p);
+  buffer.round_position(p);
+  QemQuadric q = data[a].q;
+  q.add(data[b].q);
+  const bool keep_pinned = pinned(k.keep_start ? a : b);
+  const uint32_t gone = k.keep_start ? b : a;
+  leave_set(gone);
+  const uint32_t keep = buffer.collapse(h, k.keep_start);
+  data[keep].q = q;
+  if (!keep_pinned) {
+    buffer.set_position(keep, p);
+    set_normalized(keep);
+  }
+  score[keep] = static_cast<float>(k.cost);
+  max_cost = std::max(max_cost, k.cost);
+  // The kept vertex moved and its quadric grew: its edges cost anew.
+  refresh(keep, true, a, b);
+}
+
+bool StreamQem::Impl::collapse_one(double limit) {
+  if (set.empty()) return false;
+  // Multiple choice among the candidates of the cheapest band.
+  const std::vector<CostBands::Entry>& band = set.cheapest();
+  uint32_t pick = static_cast<uint32_t>(band.size() == 1 ? 0 : random() % band.size());
+  if (band.size() <= static_cast<size_t>(opt.candidates)) {
+    for (uint32_t j = 0; j < band.size(); ++j)
+      if (band[j].cost < band[pick].cost) pick = j;
+  } else {
+    for (int i = 1; i < opt.candidates; ++i) {
+      const uint32_t j = static_cast<uint32_t>(random() % band.size());
+      if (band[j].cost < band[pick].cost) pick = j;
+    }
+  }
+  const float picked_cost = band[pick].cost;
+  const uint32_t v = band[pick].vertex;
+  const uint32_t target = data[v].target;
+  if (limit >= 0 && picked_cost > limit) return false;
+  uint32_t h = TriangleBuffer::kNone;
+  for_each_edge(v, [&](uint32_t u, uint32_t e) {
+    if (u == target && h == TriangleBuffer::kNone) h = e;
+  });
+  Candidate k;
+  if (h == TriangleBuffer::kNone || buffer.locked(target) || !evaluate(h, &k)) {
+    refresh(v, false);
+    return false;
+  }
+  if (!buffer.can_collapse(h)) {
+    refuse(v);
+    return false;
+  }
+  if (!allowed(k, true)) {
+    // The best place flips a triangle: an end of the edge may not, at a
+    // cost no higher than the next vertex offers; else v offers its best
+    // allowed collapse instead, at its own cost.
+    Candidate ends[2];
+    const int n = end_options(h, ends);
+    int i = 0;
+    while (i < n && !(ends[i].cost <= 2 * picked_cost + 1e-30 && allowed(ends[i], true))) ++i;
+    if (i == n) {
+      refuse(v);
+      return false;
+    }
+    k = ends[i];
+  }
+  apply(k);
+  return true;
+}
+
+void StreamQem::Impl::decimate(bool final) {
+  const double limit = cost_limit();
+  int failed = 0;
+  const int max_failed = final ? kMaxFailedRoundsFinal : kMaxFailedRounds;
+  for (;;) {
+    if (count_target) {
+      const TriangleBufferStats& st = buffer.stats();
+      const double total = static_cast<double>(st.triangles_written + buffer.triangle_count());
+      double goal = ratio * static_cast<double>(st.triangles_read);
+      // The band along the input boundary, which nothing may change yet,
+      // counts as it will be once simplified: the rest is not
+      // over-simplified to make room for it.
+      if (!final) goal += (1 - ratio) * buffer.input_band();
+      if (total <= goal) return;
+    }
+    if (collapse_one(limit)) {
+      failed = 0;
+    } else if (++failed >= max_failed) {
+      return;
+    }
+  }
+}
+
+Status StreamQem::Impl::write_until(uint32_t target) {
+  while (buffer.triangle_count() > target) {
+    const uint32_t t = buffer.pick_output(opt.candidates, score.data());
+    if (t == TriangleBuffer::kNone) break;
+    uint32_t fresh[3];
+    int n = 0;
+    for (int k = 0; k < 3; ++k) {
+      const uint32_t v = buffer.vertex_of(3 * t + k);
+      if (!buffer.written(v)) {
+        leave_set(v);
+        fresh[n++] = v;
+      }
+    }
+    PSQ_RETURN_IF_ERROR(buffer.write(t));
+    // Those still in the buffer are locked now.
+    for (int i = 0; i < n; ++i)
+      if (buffer.first_corner(fresh[i]) != TriangleBuffer::kNone && buffer.written(fresh[i])) locked_now(fresh[i]);
+  }
+  return Status();
+}
+
+Status StreamQem::Impl::finish() {
+  PSQ_RETURN_IF_ERROR(buffer.end_input());
+  decimate(true);
+  if (count_target) {
+    report.target_triangles =
+        static_cast<uint64_t>(std::llround(ratio * static_cast<double>(buffer.stats().triangles_read)));
+  }
+  PSQ_RETURN_IF_ERROR(buffer.finish());
+  const TriangleBufferStats& st = buffer.stats();
+  report.input_vertices = st.vertices_read;
+  report.input_triangles = st.triangles_read;
+  report.output_vertices = st.vertices_written;
+  report.output_triangles = st.triangles_written;
+  report.collapses = st.collapses;
+  report.isolated_dropped = st.isolated_dropped;
+  report.max_buffer_triangles = st.max_triangles;
+  report.max_buffer_vertices = st.max_vertices;
+  report.converter = buffer.converter_stats();
+  double diag = 1;
+  if (!bounds_known) {
+    const double d[3] = {hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]};
+    diag = std::sqrt(dot(d, d)) * scale;
+  }
+  report.max_error = diag > 0 ? std::sqrt(max_cost) / diag : 0;
+  return Status();
+}
+
+StreamQem::StreamQem(SequenceSink* out, const QemOptions& options) : impl_(std::make_unique<Impl>(out, options)) {}
+StreamQem::~StreamQem() = default;
+
+void StreamQem::set_input_triangles(uint64_t count) { impl_->opt.input_triangles = count; }
+
+Status StreamQem::begin(const MeshSchema& schema) {
+  Impl& m = *impl_;
+  if (!m.error.ok()) return m.error;
+  if (m.begun) return m.fail(Status(ErrorCode::kUsage, "begin() called twice"));
+  return m.fail(m.begin(schema));
+}
+
+Status StreamQem::vertex(const SequenceVertex& v) {
+  Impl& m = *impl_;
+  if (!m.error.ok()) return m.error;
+  if (!m.begun || m.finished) return m.fail(Status(ErrorCode::kUsage, "vertex event outside begin()..finish()"));
+  for (int i = 0; i < 3; ++i) {
+    if (!std::isfinite(v.position[i]))
+      return m.fail(Status(ErrorCode::kBadValue, "vertex " + std::to_string(v.index) + ": position is not finite"));
+    if (!m.seen_vertex || v.position[i] < m.lo[i]) m.lo[i] = v.position[i];
+    if (!m.seen_vertex || v.position[i] > m.hi[i]) m.hi[i] = v.position[i];
+  }
+  if (!m.seen_vertex && !m.bounds_known) std::copy(v.position, v.position + 3, m.origin);
+  m.seen_vertex = true;
+  return m.fail(m.buffer.vertex(v));
+}
+
+Status StreamQem::triangle(const SequenceTriangle& t) {
+  Impl& m = *impl_;
+  if (!m.error.ok()) return m.error;
+  if (!m.begun || m.finished) return m.fail(Status(ErrorCode::kUsage, "triangle event outside begin()..finish()"));
+  return m.fail(m.triangle(t));
+}
+
+Status StreamQem::finalize(uint32_t index) {
+  Impl& m = *impl_;
+  if (!m.error.ok()) return m.error;
+  if (!m.begun || m.finished) return m.fail(Status(ErrorCode::kUsage, "finalize event outside begin()..finish()"));
+  return m.fail(m.buffer.finalize(index));
+}
+
+Status StreamQem::finish() {
+  Impl& m = *impl_;
+  if (!m.error.ok()) return m.error;
+  if (!m.begun || m.finished) return m.fail(Status(ErrorCode::kUsage, "finish() outside begin()..finish()"));
+  m.finished = true;
+  return m.fail(m.finish());
+}
+
+const QemReport& StreamQem::report() const { return impl_->report; }
+
+Status simplify_qem(SequenceSource& in, SequenceSink& out, const QemOptions& options, QemReport* report) {
+  StreamQem qem(&out, options);
+  Status s = pump_sequence(in, qem);
+  if (report) *report = qem.report();
+  return s;
+}
+
+}  // namespace psq

@@ -1,0 +1,611 @@
+// The stream edge-collapse simplifier (psq/stream_qem.h) and the streaming
+// smoother (psq/taubin_smooth.h), on meshes made in code: targets, topology,
+// borders, determinism, bounded against whole-mesh buffers.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <set>
+
+#include "psq/mesh_formats.h"
+#include "psq/ply.h"
+#include "psq/sequence_builder.h"
+#include "psq/sequence_check.h"
+#include "psq/stream_qem.h"
+#include "psq/taubin_smooth.h"
+#include "test_util.h"
+
+namespace psq {
+namespace {
+
+using test::Mesh;
+using Pos = std::array<double, 3>;
+
+class Collected : public SequenceSink {
+ public:
+  Status begin(const MeshSchema& s) override {
+    schema = s;
+    return checker.begin(s);
+  }
+  Status vertex(const SequenceVertex& v) override {
+    positions.push_back({v.position[0], v.position[1], v.position[2]});
+    vertex_values.push_back(v.values);
+    return checker.vertex(v);
+  }
+  Status triangle(const SequenceTriangle& t) override {
+    triangles.push_back({t.v[0], t.v[1], t.v[2]});
+    face_values.push_back(t.values);
+    for (int k = 0; k < 3; ++k)
+      if (t.border_mask & (1u << k)) {
+        border_vertices.insert(t.v[k]);
+        border_vertices.insert(t.v[(k + 1) % 3]);
+      }
+    return checker.triangle(t);
+  }
+  Status finalize(uint32_t i) override { return checker.finalize(i); }
+  Status finish() override {
+    finished = true;
+    return checker.finish();
+  }
+  std::multiset<std::array<Pos, 3>> geometry() const {
+    std::multiset<std::array<Pos, 3>> out;
+    for (const auto& t : triangles) {
+      std::array<Pos, 3> g = {positions[t[0]], positions[t[1]], positions[t[2]]};
+      while (g[0] > g[1] || g[0] > g[2]) std::rotate(g.begin(), g.begin() + 1, g.end());
+      out.insert(g);
+    }
+    return out;
+  }
+  Pos normal(size_t t) const {
+    const Pos& a = positions[triangles[t][0]];
+    const Pos& b = positions[triangles[t][1]];
+    const Pos& c = positions[triangles[t][2]];
+    const Pos e1 = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2 = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    return {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+  }
+  MeshSchema schema;
+  SequenceChecker checker;
+  std::vector<Pos> positions;
+  std::vector<PropertyValues> vertex_values, face_values;
+  std::vector<std::array<uint32_t, 3>> triangles;
+  std::set<uint32_t> border_vertices;
+  bool finished = false;
+};
+
+Status run(const Mesh& m, SequenceSink& sink) {
+  test::MemorySource source(m);
+  BuildReport report;
+  return build_sequence(source, sink, BuildOptions(), &report);
+}
+
+Status simplify(const Mesh& m, const QemOptions& o, Collected* out, QemReport* report = nullptr) {
+  StreamQem qem(out, o);
+  Status s = run(m, qem);
+  if (report) *report = qem.report();
+  return s;
+}
+
+// RMS over triangles of the distance of their centroids and corners from
+// the unit sphere.
+double sphere_error(const Collected& c) {
+  double sum = 0;
+  size_t n = 0;
+  for (const auto& t : c.triangles) {
+    Pos centroid = {0, 0, 0};
+    for (uint32_t v : t) {
+      const Pos& p = c.positions[v];
+      const double r = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+      sum += (r - 1) * (r - 1);
+      ++n;
+      for (int i = 0; i < 3; ++i) centroid[i] += p[i] / 3;
+    }
+    const double r = std::sqrt(centroid[0] * centroid[0] + centroid[1] * centroid[1] + centroid[2] * centroid[2]);
+    sum += (r - 1) * (r - 1);
+    ++n;
+  }
+  return std::sqrt(sum / std::max<size_t>(n, 1));
+}
+
+void expect_clean_closed(const Collected& c, uint64_t components, int64_t handles) {
+  ASSERT_TRUE(c.finished);
+  const SequenceStats& st = c.checker.stats();
+  EXPECT_EQ(st.components, components);
+  EXPECT_EQ(st.handles, handles);
+  EXPECT_EQ(st.border_edges, 0u);
+  EXPECT_EQ(st.nonmanifold_vertices, 0u);
+  EXPECT_EQ(st.nonmanifold_edges, 0u);
+  for (size_t t = 0; t < c.triangles.size(); ++t) {
+    const Pos n = c.normal(t);
+    EXPECT_GT(n[0] * n[0] + n[1] * n[1] + n[2] * n[2], 0) << "degenerate triangle " << t;
+  }
+}
+
+bool within_one_percent(uint64_t got, uint64_t want) {
+  const double d = std::fabs(static_cast<double>(got) - static_cast<double>(want));
+  return d <= std::max(2.0, 0.01 * static_cast<double>(want));
+}
+
+TEST(StreamQem, SphereToTenPercentBoundedAndWhole) {
+  const Mesh m = test::make_sphere(60, 80);
+  for (uint32_t buffer : {1500u, 1u << 28}) {
+    QemOptions o;
+    o.ratio = 0.1;
+    o.buffer_triangles = buffer;
+    Collected out;
+    QemReport r;
+    ASSERT_TRUE(simplify(m, o, &out, &r).ok()) << buffer;
+    EXPECT_EQ(r.input_triangles, m.triangles.size());
+    EXPECT_EQ(r.output_triangles, out.triangles.size());
+    EXPECT_EQ(r.target_triangles, 944u);
+    EXPECT_TRUE(within_one_percent(out.triangles.size(), 944)) << out.triangles.size();
+    EXPECT_LE(r.max_buffer_triangles, std::min<uint64_t>(buffer, m.triangles.size()) + 1);
+    expect_clean_closed(out, 1, 0);
+    // No flipped triangle: on a sphere every normal points outwards.
+    for (size_t t = 0; t < out.triangles.size(); ++t) {
+      const Pos n = out.normal(t);
+      const Pos& p = out.positions[out.triangles[t][0]];
+      const double nl = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+      const double pl = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+      EXPECT_GT((n[0] * p[0] + n[1] * p[1] + n[2] * p[2]) / (nl * pl), 0.2) << "flipped triangle " << t << " area " << nl;
+    }
+    EXPECT_LT(sphere_error(out), 0.01);
+    EXPECT_GT(r.max_error, 0);
+    EXPECT_LT(r.max_error, 0.05);
+  }
+}
+
+TEST(StreamQem, WholeBufferIsNoWorseThanABoundedOne) {
+  const Mesh m = test::make_sphere(80, 100);
+  double whole = 0, bounded = 0;
+  for (uint64_t seed : {1, 2, 3}) {
+    for (uint32_t buffer : {2000u, 1u << 28}) {
+      QemOptions o;
+      o.ratio = 0.05;
+      o.buffer_triangles = buffer;
+      o.seed = seed;
+      Collected out;
+      ASSERT_TRUE(simplify(m, o, &out).ok());
+      (buffer == 2000u ? bounded : whole) += sphere_error(out);
+    }
+  }
+  EXPECT_LE(whole, bounded * 1.05) << whole << " " << bounded;
+}
+
+TEST(StreamQem, SameOptionsSameOutput) {
+  // Large enough that the candidates are sampled (small sets are compared
+  // whole, whatever the seed).
+  const Mesh m = test::make_torus(240, 60);
+  QemOptions o;
+  o.ratio = 0.2;
+  o.buffer_triangles = 8000;
+  Collected a, b, c;
+  ASSERT_TRUE(simplify(m, o, &a).ok());
+  ASSERT_TRUE(simplify(m, o, &b).ok());
+  EXPECT_EQ(a.positions, b.positions);
+  EXPECT_EQ(a.triangles, b.triangles);
+  o.seed = 7;
+  ASSERT_TRUE(simplify(m, o, &c).ok());
+  EXPECT_NE(a.positions, c.positions);
+  expect_clean_closed(c, 1, 1);
+}
+
+TEST(StreamQem, TorusKeepsItsHandle) {
+  const Mesh m = test::make_torus(80, 30);
+  QemOptions o;
+  o.ratio = 0.02;
+  o.buffer_triangles = 1000;
+  Collected out;
+  ASSERT_TRUE(simplify(m, o, &out).ok());
+  EXPECT_TRUE(within_one_percent(out.triangles.size(), 96)) << out.triangles.size();
+  expect_clean_closed(out, 1, 1);
+}
+
+// A grid bent into a smooth bump, with a straight square border.
+Mesh bumpy_grid(int n) {
+  Mesh m = test::make_grid(n);
+  for (auto& p : m.positions) {
+    const double x = p[0] / n - 0.5, y = p[1] / n - 0.5;
+    volatile float z = static_cast<float>(0.3 * n * std::exp(-8 * (x * x + y * y)));
+    p[2] = z;
+  }
+  return m;
+}
+
+TEST(StreamQem, BorderOnlyShrinks) {
+  const int n = 40;
+  const Mesh m = bumpy_grid(n);
+  QemOptions o;
+  o.ratio = 0.05;
+  o.buffer_triangles = 600;
+  Collected out;
+  ASSERT_TRUE(simplify(m, o, &out).ok());
+  EXPECT_TRUE(within_one_percent(out.triangles.size(), 160)) << out.triangles.size();
+  const SequenceStats& st = out.checker.stats();
+  EXPECT_EQ(st.components, 1u);
+  EXPECT_EQ(st.border_loops, 1u);
+  EXPECT_LE(st.border_edges, 4u * n);
+  EXPECT_EQ(st.nonmanifold_vertices, 0u);
+  // Border vertices stay on the square; no vertex leaves it.
+  for (uint32_t v : out.border_vertices) {
+    const Pos& p = out.positions[v];
+    const double d = std::min({std::fabs(p[0]), std::fabs(p[0] - n), std::fabs(p[1]), std::fabs(p[1] - n)});
+    EXPECT_LT(d, 1e-3 * n) << p[0] << " " << p[1];
+  }
+  for (const Pos& p : out.positions) {
+    EXPECT_GE(p[0], -1e-6);
+    EXPECT_LE(p[0], n + 1e-6);
+    EXPECT_GE(p[1], -1e-6);
+    EXPECT_LE(p[1], n + 1e-6);
+  }
+}
+
+TEST(StreamQem, LockBorderKeepsEveryBorderVertexBitExact) {
+  const int n = 40;
+  const Mesh m = bumpy_grid(n);
+  std::set<Pos> border_in;
+  for (const Pos& p : m.positions)
+    if (p[0] == 0 || p[0] == n || p[1] == 0 || p[1] == n) border_in.insert(p);
+  QemOptions o;
+  o.ratio = 0.1;
+  o.lock_border = true;
+  o.buffer_triangles = 600;
+  Collected out;
+  ASSERT_TRUE(simplify(m, o, &out).ok());
+  std::set<Pos> border_out;
+  for (uint32_t v : out.border_vertices) border_out.insert(out.positions[v]);
+  EXPECT_EQ(border_out, border_in);
+  EXPECT_EQ(out.checker.stats().border_edges, 4u * n);
+  EXPECT_TRUE(within_one_percent(out.triangles.size(), 320)) << out.triangles.size();
+}
+
+TEST(StreamQem, MaxErrorBoundsEveryCollapse) {
+  const Mesh m = test::make_sphere(60, 80);
+  QemOptions o;
+  o.max_error = 0.002;
+  o.buffer_triangles = 2000;
+  Collected out;
+  QemReport r;
+  ASSERT_TRUE(simplify(m, o, &out, &r).ok());
+  EXPECT_LE(r.max_error, 0.002);
+  EXPECT_LT(out.triangles.size(), m.triangles.size() / 2);
+  EXPECT_EQ(r.target_triangles, 0u);
+  expect_clean_closed(out, 1, 0);
+  // A flat grid costs nothing: it goes as far as the topology allows.
+  Mesh flat = test::make_grid(30);
+  Collected flat_out;
+  ASSERT_TRUE(simplify(flat, o, &flat_out).ok());
+  EXPECT_LT(flat_out.triangles.size(), 40u);
+}
+
+TEST(StreamQem, TargetTrianglesNeedsTheInputCount) {
+  const Mesh m = test::make_sphere(40, 50);
+  QemOptions o;
+  o.target_triangles = 500;
+  Collected out;
+  // The sequence builder does not promise a count.
+  EXPECT_EQ(simplify(m, o, &out).code(), ErrorCode::kUsage);
+  o.input_triangles = m.triangles.size();
+  Collected out2;
+  ASSERT_TRUE(simplify(m, o, &out2).ok());
+  EXPECT_TRUE(within_one_percent(out2.triangles.size(), 500)) << out2.triangles.size();
+  QemOptions none;
+  Collected out3;
+  EXPECT_EQ(simplify(m, none, &out3).code(), ErrorCode::kUsage);
+  QemOptions bad;
+  bad.ratio = 0.5;
+  bad.candidates = 0;
+  Collected out4;
+  EXPECT_EQ(simplify(m, bad, &out4).code(), ErrorCode::kUsage);
+}
+
+TEST(StreamQem, PropertiesTravelWithTheirElements) {
+  Mesh m = test::make_sphere(30, 40);
+  m.schema.vertex_properties.push_back({"id", ScalarType::kUInt32});
+  m.schema.face_properties.push_back({"tag", ScalarType::kUInt8});
+  for (size_t v = 0; v < m.positions.size(); ++v) m.vertex_values[v] = {static_cast<double>(v)};
+  for (size_t t = 0; t < m.triangles.size(); ++t) m.face_values[t] = {static_cast<double>(t % 7)};
+  QemOptions o;
+  o.ratio = 0.25;
+  o.buffer_triangles = 500;
+  Collected out;
+  ASSERT_TRUE(simplify(m, o, &out).ok());
+  ASSERT_EQ(out.schema.vertex_properties.size(), 1u);
+  ASSERT_EQ(out.schema.face_properties.size(), 1u);
+  std::set<double> ids;
+  for (const PropertyValues& v : out.vertex_values) {
+    ASSERT_EQ(v.size(), 1u);
+    EXPECT_LT(v[0], m.positions.size());
+    ids.insert(v[0]);
+  }
+  EXPECT_EQ(ids.size(), out.vertex_values.size());  // a merged vertex keeps one end's values
+  for (const PropertyValues& f : out.face_values) {
+    ASSERT_EQ(f.size(), 1u);
+    EXPECT_LT(f[0], 7);
+  }
+}
+
+// A recorded sequence as a pull source.
+class Replay : public SequenceSource {
+ public:
+  Status begin(const MeshSchema& s) {
+    schema_ = s;
+    return Status();
+  }
+  const MeshSchema& schema() const override { return schema_; }
+  Status next(SequenceEvent* e) override {
+    if (at_ >= events.size()) {
+      e->kind = SequenceEvent::Kind::kEnd;
+      return Status();
+    }
+    *e = events[at_++];
+    return Status();
+  }
+  std::vector<SequenceEvent> events;
+  MeshSchema schema_;
+
+ private:
+  size_t at_ = 0;
+};
+
+class Record : public SequenceSink {
+ public:
+  explicit Record(Replay* r) : r_(r) {}
+  Status begin(const MeshSchema& s) override { return r_->begin(s); }
+  Status vertex(const SequenceVertex& v) override {
+    SequenceEvent e;
+    e.kind = SequenceEvent::Kind::kVertex;
+    e.vertex = v;
+    r_->events.push_back(e);
+    return Status();
+  }
+  Status triangle(const SequenceTriangle& t) override {
+    SequenceEvent e;
+    e.kind = SequenceEvent::Kind::kTriangle;
+    e.triangle = t;
+    r_->events.push_back(e);
+    return Status();
+  }
+  Status finalize(uint32_t i) override {
+    SequenceEvent e;
+    e.kind = SequenceEvent::Kind::kFinalize;
+    e.finalized = i;
+    r_->events.push_back(e);
+    return Status();
+  }
+  Status finish() override { return Status(); }
+
+ private:
+  Replay* r_;
+};
+
+TEST(StreamQem, PullFromASourceAsFromPushes) {
+  const Mesh m = test::make_torus(40, 20);
+  Replay source;
+  Record record(&source);
+  ASSERT_TRUE(run(m, record).ok());
+  QemOptions o;
+  o.ratio = 0.3;
+  o.buffer_triangles = 700;
+  Collected pulled, pushed;
+  QemReport r;
+  ASSERT_TRUE(simplify_qem(source, pulled, o, &r).ok());
+  ASSERT_TRUE(simplify(m, o, &pushed).ok());
+  EXPECT_EQ(pulled.triangles, pushed.triangles);
+  EXPECT_EQ(pulled.positions, pushed.positions);
+  EXPECT_EQ(r.output_triangles, pulled.triangles.size());
+}
+
+// ---- Taubin smoothing.
+
+Mesh noisy(const Mesh& clean, double amount, uint32_t seed) {
+  Mesh m = clean;
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-amount, amount);
+  for (auto& p : m.positions) {
+    const double f = 1 + u(rng);
+    for (double& c : p) {
+      volatile float r = static_cast<float>(c * f);
+      c = r;
+    }
+  }
+  return m;
+}
+
+double vertex_sphere_error(const Collected& c) {
+  double sum = 0;
+  for (const Pos& p : c.positions) {
+    const double r = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+    sum += (r - 1) * (r - 1);
+  }
+  return std::sqrt(sum / c.positions.size());
+}
+
+TEST(TaubinSmoother, ReducesNoiseOnAMeshLargerThanTheBuffer) {
+  const Mesh clean = test::make_sphere(60, 80);
+  const Mesh m = noisy(clean, 0.02, 5);
+  Collected before;
+  {
+    SmoothOptions none;
+    none.iterations = 0;
+    TaubinSmoother s(&before, none);
+    ASSERT_TRUE(run(m, s).ok());
+    EXPECT_EQ(before.geometry().size(), m.triangles.size());
+  }
+  const double e0 = vertex_sphere_error(before);
+  SmoothOptions o;
+  o.iterations = 10;
+  Collected whole, bounded, tiny;
+  SmoothReport rw, rb, rt;
+  {
+    o.buffer_triangles = 1u << 28;
+    TaubinSmoother s(&whole, o);
+    ASSERT_TRUE(run(m, s).ok());
+    rw = s.report();
+  }
+  {
+    o.buffer_triangles = 3000;  // a fifth of the mesh, more than the band
+    TaubinSmoother s(&bounded, o);
+    ASSERT_TRUE(run(m, s).ok());
+    rb = s.report();
+  }
+  {
+    o.buffer_triangles = 300;
+    TaubinSmoother s(&tiny, o);
+    ASSERT_TRUE(run(m, s).ok());
+    rt = s.report();
+  }
+  EXPECT_EQ(rw.stopped_vertices, 0u);
+  EXPECT_EQ(rb.stopped_vertices, 0u);
+  EXPECT_LE(rb.max_buffer_triangles, 3001u);
+  EXPECT_EQ(rw.smoothed_vertices, m.positions.size() - 0);
+  // Bounded but holding every neighbourhood: exactly the whole-mesh result.
+  EXPECT_EQ(bounded.geometry(), whole.geometry());
+  const double e_whole = vertex_sphere_error(whole);
+  EXPECT_LT(e_whole, 0.5 * e0) << e_whole << " " << e0;
+  // A buffer too small for the neighbourhoods: some vertices stop early,
+  // the noise still drops.
+  EXPECT_GT(rt.stopped_vertices, 0u);
+  EXPECT_LT(vertex_sphere_error(tiny), 0.8 * e0);
+  for (const Collected* c : {&whole, &bounded, &tiny}) {
+    ASSERT_TRUE(c->finished);
+    EXPECT_EQ(c->triangles.size(), m.triangles.size());
+    EXPECT_EQ(c->checker.stats().components, 1u);
+    EXPECT_EQ(c->checker.stats().border_edges, 0u);
+  }
+}
+
+TEST(TaubinSmoother, BorderVerticesStay) {
+  const int n = 30;
+  Mesh m = noisy(bumpy_grid(n), 0.01, 3);
+  SmoothOptions o;
+  o.buffer_triangles = 400;
+  Collected out;
+  TaubinSmoother s(&out, o);
+  ASSERT_TRUE(run(m, s).ok());
+  std::set<Pos> border_in, border_out;
+  for (int j = 0; j <= n; ++j)
+    for (int i = 0; i <= n; ++i)
+      if (i == 0 || j == 0 || i == n || j == n) border_in.insert(m.positions[j * (n + 1) + i]);
+  for (uint32_t v : out.border_vertices) border_out.insert(out.positions[v]);
+  EXPECT_EQ(border_in, border_out);
+  EXPECT_EQ(out.triangles.size(), m.triangles.size());
+}
+
+// ---- the psq qem and psq smooth commands.
+
+std::string write_ply(const test::TempDir& dir, const std::string& name, const Mesh& m) {
+  OutputFile out;
+  EXPECT_TRUE(out.open(dir.file(name), false).ok());
+  PlyWriter w(&out);
+  test::MemorySource src(m);
+  EXPECT_TRUE(pump(src, w).ok());
+  EXPECT_TRUE(out.commit().ok());
+  return dir.file(name);
+}
+
+TEST(QemCli, PsqToPsqDeterministicThroughPipesToo) {
+  test::TempDir dir;
+  const std::string ply = write_ply(dir, "torus.ply", test::make_torus(120, 40));
+  std::string out, err;
+  ASSERT_EQ(test::run_psq("convert " + ply + " " + dir.file("in.psq"), &out, &err), 0) << err;
+  ASSERT_EQ(test::run_psq("qem " + dir.file("in.psq") + " " + dir.file("a.psq") + " --ratio 10% --buffer 2000 --json",
+                          &out, &err),
+            0)
+      << err;
+  EXPECT_NE(out.find("\"output_triangles\": "), std::string::npos) << out;
+  EXPECT_NE(out.find("\"target_triangles\": 960"), std::string::npos) << out;
+  EXPECT_TRUE(err.empty()) << err;
+  ASSERT_EQ(test::run_psq("verify " + dir.file("a.psq"), &out, &err), 0) << err;
+  ASSERT_EQ(test::run_psq("qem " + dir.file("in.psq") + " " + dir.file("b.psq") + " --ratio 0.1 --buffer 2000", &out,
+                          &err),
+            0);
+  EXPECT_EQ(test::read_file(dir.file("a.psq")), test::read_file(dir.file("b.psq")));
+  // Standard input to standard output: the same bytes.
+  ASSERT_EQ(test::run_psq("qem - - --to psq --ratio 0.1 --buffer 2000", &out, &err, dir.file("in.psq")), 0) << err;
+  EXPECT_EQ(out, test::read_file(dir.file("a.psq")));
+  // The result as a mesh: a closed torus still.
+  Mesh result;
+  ASSERT_TRUE(test::load_mesh(dir.file("a.psq"), &result).ok());
+  EXPECT_TRUE(within_one_percent(result.triangles.size(), 960)) << result.triangles.size();
+  ASSERT_EQ(test::run_psq("qem " + ply + " " + dir.file("c.ply") + " --triangles 1000", &out, &err), 0) << err;
+  ASSERT_TRUE(test::load_mesh(dir.file("c.ply"), &result).ok());
+  EXPECT_TRUE(within_one_percent(result.triangles.size(), 1000)) << result.triangles.size();
+  // A .psq file without a declared count is counted first; from a pipe it cannot be.
+  ASSERT_EQ(test::run_psq("qem " + dir.file("in.psq") + " " + dir.file("d.psq") + " --triangles 2k", &out, &err), 0)
+      << err;
+  ASSERT_TRUE(test::load_mesh(dir.file("d.psq"), &result).ok());
+  EXPECT_TRUE(within_one_percent(result.triangles.size(), 2000)) << result.triangles.size();
+  EXPECT_EQ(test::run_psq("qem - " + dir.file("e.psq") + " --triangles 2k", &out, &err, dir.file("in.psq")), 2);
+  EXPECT_NE(err.find("--ratio"), std::string::npos) << err;
+  EXPECT_FALSE(test::file_exists(dir.file("e.psq")));
+}
+
+TEST(QemCli, UsageAndDataErrors) {
+  test::TempDir dir;
+  const std::string ply = write_ply(dir, "s.ply", test::make_sphere(10, 12));
+  std::string out, err;
+  EXPECT_EQ(test::run_psq("qem " + ply + " " + dir.file("o.psq"), &out, &err), 2);  // no target
+  EXPECT_NE(err.find("target"), std::string::npos);
+  EXPECT_EQ(test::run_psq("qem " + ply + " " + dir.file("o.psq") + " --ratio 0", &out, &err), 2);
+  EXPECT_EQ(test::run_psq("qem " + ply + " " + dir.file("o.psq") + " --ratio 2", &out, &err), 2);
+  EXPECT_EQ(test::run_psq("qem " + ply + " " + dir.file("o.psq") + " --ratio 0.5 --candidates 0", &out, &err), 2);
+  EXPECT_EQ(test::run_psq("qem " + ply + " " + dir.file("o.xyz") + " --ratio 0.5", &out, &err), 2);
+  EXPECT_EQ(test::run_psq("qem " + ply + " " + ply + " --ratio 0.5", &out, &err), 2);
+  EXPECT_EQ(test::run_psq("smooth " + ply + " " + dir.file("o.psq") + " --iterations 300", &out, &err), 2);
+  EXPECT_EQ(test::run_psq("smooth " + ply + " " + dir.file("o.psq") + " --mu 0.5", &out, &err), 2);
+  EXPECT_FALSE(test::file_exists(dir.file("o.psq")));
+  // Not a mesh: one line, exit 1, no output left behind.
+  test::write_file(dir.file("junk.psq"), std::string("PSQ\x89\r\n\x1a\n") + std::string(100, '\x07'));
+  EXPECT_EQ(test::run_psq("qem " + dir.file("junk.psq") + " " + dir.file("o.psq") + " --ratio 0.5", &out, &err), 1);
+  EXPECT_EQ(err.rfind("psq: error: ", 0), 0u) << err;
+  EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
+  EXPECT_FALSE(test::file_exists(dir.file("o.psq")));
+  // An existing output needs -f.
+  test::write_file(dir.file("exists.ply"), "x");
+  EXPECT_NE(test::run_psq("qem " + ply + " " + dir.file("exists.ply") + " --ratio 0.5", &out, &err), 0);
+  EXPECT_EQ(test::read_file(dir.file("exists.ply")), "x");
+  EXPECT_EQ(test::run_psq("qem " + ply + " " + dir.file("exists.ply") + " --ratio 0.5 -f", &out, &err), 0) << err;
+}
+
+TEST(QemCli, LockBorderAndSmooth) {
+  test::TempDir dir;
+  const int n = 30;
+  const std::string ply = write_ply(dir, "g.ply", bumpy_grid(n));
+  std::string out, err;
+  ASSERT_EQ(test::run_psq("qem " + ply + " " + dir.file("l.ply") + " --ratio 0.2 --lock-border", &out, &err), 0) << err;
+  Mesh in, locked;
+  ASSERT_TRUE(test::load_mesh(ply, &in).ok());
+  ASSERT_TRUE(test::load_mesh(dir.file("l.ply"), &locked).ok());
+  std::set<Pos> border_in, kept;
+  for (const Pos& p : in.positions)
+    if (p[0] == 0 || p[0] == n || p[1] == 0 || p[1] == n) border_in.insert(p);
+  for (const Pos& p : locked.positions)
+    if (border_in.count(p)) kept.insert(p);
+  EXPECT_EQ(kept, border_in);
+  // Smoothing a noisy sphere brings it closer to the sphere, in a buffer
+  // smaller than the mesh.
+  const Mesh clean = test::make_sphere(60, 80);
+  const std::string noisy_ply = write_ply(dir, "n.ply", noisy(clean, 0.02, 9));
+  ASSERT_EQ(test::run_psq("smooth " + noisy_ply + " " + dir.file("s.psq") + " --lossless --buffer 3000 --json", &out,
+                          &err),
+            0)
+      << err;
+  EXPECT_NE(out.find("\"stopped_vertices\": 0"), std::string::npos) << out;
+  Mesh smoothed, rough;
+  ASSERT_TRUE(test::load_mesh(dir.file("s.psq"), &smoothed).ok());
+  ASSERT_TRUE(test::load_mesh(noisy_ply, &rough).ok());
+  auto error = [](const Mesh& m) {
+    double sum = 0;
+    for (const Pos& p : m.positions) {
+      const double r = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+      sum += (r - 1) * (r - 1);
+    }
+    return std::sqrt(sum / m.positions.size());
+  };
+  EXPECT_EQ(smoothed.triangles.size(), rough.triangles.size());
+  EXPECT_LT(error(smoothed), 0.5 * error(rough));
+}
+
+}  // namespace
+}  // namespace psq

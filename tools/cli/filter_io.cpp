@@ -1,0 +1,285 @@
+// Plumbing of the sequence-filter commands; see filter_io.h.
+#include "filter_io.h"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstdlib>
+#include <thread>
+
+namespace psq::cli {
+namespace {
+
+// A processing sequence written as an indexed mesh: vertices in the order
+// they are introduced, re-appearing vertices (non-manifold cuts) merged back
+// into the vertex they re-appear.
+class SequenceMeshAdapter : public SequenceSink {
+ public:
+  explicit SequenceMeshAdapter(MeshSink* out) : out_(out) {}
+  Status begin(const MeshSchema& schema) override {
+    MeshSchema s = schema;
+    s.vertex_count = MeshSchema::kUnknown;
+    s.triangle_count = MeshSchema::kUnknown;
+    return out_->begin(s);
+  }
+  Status vertex(const SequenceVertex& v) override {
+    if (v.reappears != kNoVertex) {
+      reappearing_.push_back(v.index);
+      first_.push_back(mesh_index(v.reappears));
+      return Status();
+    }
+    return out_->vertex(v.position, v.values);
+  }
+  Status triangle(const SequenceTriangle& t) override {
+    const uint32_t index[3] = {mesh_index(t.v[0]), mesh_index(t.v[1]), mesh_index(t.v[2])};
+    return out_->triangle(index, t.values);
+  }
+  Status finalize(uint32_t) override { return Status(); }
+  Status finish() override { return out_->finish(); }
+
+ private:
+  // Dense sequence index to mesh index: minus the re-appearances before it,
+  // or the index of the vertex it re-appears.
+  uint32_t mesh_index(uint32_t dense) const {
+    auto it = std::lower_bound(reappearing_.begin(), reappearing_.end(), dense);
+    if (it != reappearing_.end() && *it == dense) return first_[static_cast<size_t>(it - reappearing_.begin())];
+    return dense - static_cast<uint32_t>(it - reappearing_.begin());
+  }
+
+  MeshSink* out_;
+  std::vector<uint32_t> reappearing_, first_;
+};
+
+// Counts the input's triangles for the progress line and calls a hook
+// before the filter's begin().
+class InputSink : public SequenceSink {
+ public:
+  InputSink(SequenceSink* out, Progress* progress, std::function<void()> at_begin)
+      : out_(out), progress_(progress), at_begin_(std::move(at_begin)) {}
+  Status begin(const MeshSchema& s) override {
+    if (at_begin_) at_begin_();
+    return out_->begin(s);
+  }
+  Status vertex(const SequenceVertex& v) override { return out_->vertex(v); }
+  Status triangle(const SequenceTriangle& t) override {
+    if (count_progress_) progress_->triangle();
+    return out_->triangle(t);
+  }
+  Status finalize(uint32_t i) override { return out_->finalize(i); }
+  Status finish() override { return out_->finish(); }
+  bool count_progress_ = true;
+
+ private:
+  SequenceSink* out_;
+  Progress* progress_;
+  std::function<void()> at_begin_;
+};
+
+class CountingSource : public MeshSource {
+ public:
+  CountingSource(MeshSource* in, Progress* progress) : in_(in), progress_(progress) {}
+  const MeshSchema& schema() const override { return in_->schema(); }
+  const SourceReport& report() const override { return in_->report(); }
+  Status next(MeshItem* item) override {
+    Status s = in_->next(item);
+    if (s.ok() && item->kind == MeshItem::Kind::kTriangle) {
+      ++triangles;
+      progress_->triangle();
+    }
+    return s;
+  }
+  uint64_t triangles = 0;
+
+ private:
+  MeshSource* in_;
+  Progress* progress_;
+};
+
+class NullSink : public SequenceSink {
+ public:
+  Status begin(const MeshSchema&) override { return Status(); }
+  Status vertex(const SequenceVertex&) override { return Status(); }
+  Status triangle(const SequenceTriangle&) override {
+    ++triangles;
+    return Status();
+  }
+  Status finalize(uint32_t) override { return Status(); }
+  Status finish() override { return Status(); }
+  uint64_t triangles = 0;
+};
+
+}  // namespace
+
+const char kFilterOptionsHelp[] =
+    "  --to FORMAT    output format: psq, ply, obj or drc (needed when OUT is '-';\n"
+    "                 else from OUT's extension)\n"
+    "  --bits N       .psq: quantize positions to N bits, 1..31 (default: the\n"
+    "                 input's, for a quantized .psq; else 16)\n"
+    "  --lossless     .psq: keep positions bit-exact (the default for a\n"
+    "                 lossless .psq input)\n"
+    "  --profile P    .psq: compact, fast or auto (the input's profile for a\n"
+    "                 .psq input, else compact)\n"
+    "  --memory SIZE  memory budget of the whole run (default 64M)\n"
+    "  --tmpdir DIR   directory for temporary files (default $TMPDIR)\n"
+    "  -f, --force    overwrite OUT if it exists\n"
+    "  -q, --quiet    print no notes, no progress line and no summary\n"
+    "  --json         print a JSON summary on standard output (not with OUT '-')\n"
+    "  -h, --help     show this help\n";
+
+std::string parse_filter_options(Args& args, FilterOptions* o) {
+  o->force = args.flag("--force", "-f");
+  o->quiet = args.flag("--quiet", "-q");
+  o->json = args.flag("--json");
+  o->lossless = args.flag("--lossless");
+  o->to = args.option("--to");
+  o->bits = args.option("--bits");
+  o->profile = args.option("--profile", "auto");
+  o->tmpdir = args.option("--tmpdir");
+  std::string memory = args.option("--memory", "64M");
+  if (!parse_size(memory, &o->memory)) return "bad --memory '" + memory + "' (e.g. 64M, 1G)";
+  if (o->memory < (uint64_t{8} << 20)) return "--memory must be at least 8M";
+  if (o->profile != "compact" && o->profile != "fast" && o->profile != "auto")
+    return "bad --profile '" + o->profile + "' (compact, fast or auto)";
+  if (!o->bits.empty() && o->lossless) return "--bits and --lossless exclude each other";
+  return "";
+}
+
+FilterRun::~FilterRun() {
+  threaded_.reset();  // joins the encoder's thread before its sink goes
+}
+
+int64_t FilterRun::declared_triangles() const {
+  const MeshSchema& s = mesh_.decoder ? mesh_.decoder->schema() : mesh_.source->schema();
+  return s.triangle_count;
+}
+
+std::vector<std::string> FilterRun::input_notes() const {
+  std::vector<std::string> notes = mesh_.source->report().notes;
+  if (build_report_.converter.degenerate_dropped)
+    notes.push_back(std::to_string(build_report_.converter.degenerate_dropped) + " degenerate triangle(s) dropped");
+  return notes;
+}
+
+uint64_t FilterRun::bytes_in() const { return mesh_.stream ? mesh_.stream->offset() : 0; }
+
+int FilterRun::open(const std::string& command, const FilterOptions& o) {
+  o_ = o;
+  const std::string& in = o.in;
+  const std::string& out = o.out;
+  out_format_ = o.to.empty() ? format_from_extension(out) : format_from_name(o.to);
+  if (out_format_ == MeshFormat::kUnknown) {
+    if (!o.to.empty()) return usage_error(command, "unknown output format '" + o.to + "' (psq, ply, obj or drc)");
+    return usage_error(command, "cannot tell the output format from '" + out + "': use --to psq|ply|obj|drc");
+  }
+  if (same_file(in, out)) return usage_error(command, "IN and OUT are the same file");
+  if (out == "-" && o.json) return usage_error(command, "--json needs OUT to be a file (stdout carries the mesh)");
+  if (out == "-" && ::isatty(STDOUT_FILENO) && out_format_ != MeshFormat::kObj)
+    return usage_error(command, "refusing to write binary data to a terminal");
+  if (!o.bits.empty()) {
+    char* end = nullptr;
+    long b = std::strtol(o.bits.c_str(), &end, 10);
+    if (*end != 0 || b < 1 || b > 31) return usage_error(command, "bad --bits '" + o.bits + "' (1..31)");
+    encode_.bits = static_cast<int>(b);
+  }
+
+  OpenOptions open_options;
+  open_options.spool_dir = o.tmpdir;
+  open_options.memory_budget = o.memory;
+  Status s = open_mesh(in, open_options, &mesh_);
+  if (!s.ok()) return report_error(in, s);
+  input_format_ = format_name(mesh_.format);
+  output_format_ = format_name(out_format_);
+
+  // A .psq input keeps its quantization unless told otherwise; a lossless
+  // one has no bounding box to quantize on (the grid needs it before the
+  // first vertex), so its output stays lossless.
+  encode_.lossless = o.lossless;
+  if (mesh_.decoder) {
+    const PsqHeader& h = mesh_.decoder->header();
+    if (h.lossless && !o.lossless) {
+      if (!o.bits.empty())
+        return usage_error(command, "--bits: the input is a lossless .psq, which gives no bounding box to quantize "
+                                    "on; use --lossless");
+      encode_.lossless = true;
+    }
+    if (!h.lossless && o.bits.empty()) encode_.bits = h.bits;
+    encode_.fast = o.profile == "fast" || (o.profile == "auto" && h.fast);
+  } else {
+    encode_.fast = o.profile == "fast";
+  }
+  // The sequence builder reads a mesh input completely first, within half
+  // the budget; the decoder of a .psq needs little (its boundary and a chunk).
+  build_.tmpdir = o.tmpdir;
+  build_.memory_budget = o.memory / 2;
+  filter_budget_ = mesh_.decoder ? o.memory - std::min<uint64_t>(o.memory / 4, uint64_t{12} << 20) : o.memory / 2;
+
+  s = output_.open(out, o.force);
+  if (!s.ok()) return report_error(out, s);
+  progress_ = std::make_unique<Progress>(mesh_.stream.get(), !o.quiet);
+  SequenceSink* chain = nullptr;
+  if (out_format_ == MeshFormat::kPsq) {
+    byte_writer_ = std::make_unique<FileWriter>(&output_);
+    encoder_ = std::make_unique<PsqEncoder>(byte_writer_.get(), encode_);
+    chain = encoder_.get();
+    if (std::thread::hardware_concurrency() >= 2) {
+      threaded_ = std::make_unique<ThreadedSequenceSink>(encoder_.get());
+      chain = threaded_.get();
+    }
+  } else {
+    WriteOptions w;
+    w.spool_dir = o.tmpdir;
+    w.draco_bits = std::min(encode_.bits, 30);
+    w.lossless = encode_.lossless;
+    w.memory_budget = o.memory;
+    mesh_writer_ = make_mesh_writer(out_format_, &output_, w);
+    adapter_ = std::make_unique<SequenceMeshAdapter>(mesh_writer_.get());
+    chain = adapter_.get();
+  }
+  sink_ = std::make_unique<ProgressSequenceSink>(chain, progress_.get());
+  return -1;
+}
+
+int FilterRun::count_psq_triangles(uint64_t* count) {
+  if (o_.in == "-") return -2;
+  OpenedMesh again;
+  OpenOptions open_options;
+  open_options.spool_dir = o_.tmpdir;
+  Status s = open_mesh(o_.in, open_options, &again);
+  if (s.ok() && !again.decoder) s = Status(ErrorCode::kUnknownFormat, "not a .psq any more");
+  NullSink counter;
+  if (s.ok()) s = again.decoder->pump(counter);
+  if (!s.ok()) return report_error(o_.in, s);
+  *count = counter.triangles;
+  return -1;
+}
+
+Status FilterRun::run(SequenceSink* filter, std::function<void(uint64_t)> at_begin) {
+  if (mesh_.decoder) {
+    InputSink input(filter, progress_.get(), [&] {
+      if (at_begin) at_begin(0);
+    });
+    return mesh_.decoder->pump(input);
+  }
+  CountingSource source(mesh_.source.get(), progress_.get());
+  InputSink input(filter, progress_.get(), [&] {
+    if (at_begin) at_begin(source.triangles);
+  });
+  input.count_progress_ = false;
+  return build_sequence(source, input, build_, &build_report_);
+}
+
+int FilterRun::finish(const Status& run_status, const std::string& summary, const std::vector<std::string>& notes) {
+  if (!run_status.ok()) {
+    threaded_.reset();
+    output_.discard();
+    return report_pipeline_error(o_.in, o_.out, run_status);
+  }
+  Status s = output_.commit();
+  if (!s.ok()) return report_error(o_.out, s);
+  if (!o_.quiet)
+    for (const std::string& n : notes) note(o_.in, n);
+  progress_->finish(o_.in, o_.out, summary);
+  return kExitOk;
+}
+
+}  // namespace psq::cli
