@@ -444,7 +444,7 @@ Mesh psq_run(const Recorder& seq, size_t input_triangles, size_t target, uint32_
   const double t0 = now();
   psq::Status s = seq.replay(qem);
   *seconds = now() - t0;
-  if (!s.ok()) std::fprintf(stderr, "psq qem: %s\n", s.to_string().c_str());
+  if (!s.ok()) std::fprintf(stderr, "psq simplify --method qem: %s\n", s.to_string().c_str());
   *report = qem.report();
   return out;
 }

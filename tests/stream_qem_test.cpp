@@ -492,7 +492,7 @@ TEST(TaubinSmoother, BorderVerticesStay) {
   EXPECT_EQ(out.triangles.size(), m.triangles.size());
 }
 
-// ---- the psq qem and psq smooth commands.
+// ---- psq simplify --method qem and psq smooth.
 
 std::string write_ply(const test::TempDir& dir, const std::string& name, const Mesh& m) {
   OutputFile out;
@@ -509,7 +509,7 @@ TEST(QemCli, PsqToPsqDeterministicThroughPipesToo) {
   const std::string ply = write_ply(dir, "torus.ply", test::make_torus(120, 40));
   std::string out, err;
   ASSERT_EQ(test::run_psq("convert " + ply + " " + dir.file("in.psq"), &out, &err), 0) << err;
-  ASSERT_EQ(test::run_psq("qem " + dir.file("in.psq") + " " + dir.file("a.psq") + " --ratio 10% --buffer 2000 --json",
+  ASSERT_EQ(test::run_psq("simplify --method qem " + dir.file("in.psq") + " " + dir.file("a.psq") + " --ratio 10% --buffer 2000 --json",
                           &out, &err),
             0)
       << err;
@@ -517,26 +517,26 @@ TEST(QemCli, PsqToPsqDeterministicThroughPipesToo) {
   EXPECT_NE(out.find("\"target_triangles\": 960"), std::string::npos) << out;
   EXPECT_TRUE(err.empty()) << err;
   ASSERT_EQ(test::run_psq("verify " + dir.file("a.psq"), &out, &err), 0) << err;
-  ASSERT_EQ(test::run_psq("qem " + dir.file("in.psq") + " " + dir.file("b.psq") + " --ratio 0.1 --buffer 2000", &out,
+  ASSERT_EQ(test::run_psq("simplify --method qem " + dir.file("in.psq") + " " + dir.file("b.psq") + " --ratio 0.1 --buffer 2000", &out,
                           &err),
             0);
   EXPECT_EQ(test::read_file(dir.file("a.psq")), test::read_file(dir.file("b.psq")));
   // Standard input to standard output: the same bytes.
-  ASSERT_EQ(test::run_psq("qem - - --to psq --ratio 0.1 --buffer 2000", &out, &err, dir.file("in.psq")), 0) << err;
+  ASSERT_EQ(test::run_psq("simplify --method qem - - --to psq --ratio 0.1 --buffer 2000", &out, &err, dir.file("in.psq")), 0) << err;
   EXPECT_EQ(out, test::read_file(dir.file("a.psq")));
   // The result as a mesh: a closed torus still.
   Mesh result;
   ASSERT_TRUE(test::load_mesh(dir.file("a.psq"), &result).ok());
   EXPECT_TRUE(within_one_percent(result.triangles.size(), 960)) << result.triangles.size();
-  ASSERT_EQ(test::run_psq("qem " + ply + " " + dir.file("c.ply") + " --triangles 1000", &out, &err), 0) << err;
+  ASSERT_EQ(test::run_psq("simplify --method qem " + ply + " " + dir.file("c.ply") + " --triangles 1000", &out, &err), 0) << err;
   ASSERT_TRUE(test::load_mesh(dir.file("c.ply"), &result).ok());
   EXPECT_TRUE(within_one_percent(result.triangles.size(), 1000)) << result.triangles.size();
   // A .psq file without a declared count is counted first; from a pipe it cannot be.
-  ASSERT_EQ(test::run_psq("qem " + dir.file("in.psq") + " " + dir.file("d.psq") + " --triangles 2k", &out, &err), 0)
+  ASSERT_EQ(test::run_psq("simplify --method qem " + dir.file("in.psq") + " " + dir.file("d.psq") + " --triangles 2k", &out, &err), 0)
       << err;
   ASSERT_TRUE(test::load_mesh(dir.file("d.psq"), &result).ok());
   EXPECT_TRUE(within_one_percent(result.triangles.size(), 2000)) << result.triangles.size();
-  EXPECT_EQ(test::run_psq("qem - " + dir.file("e.psq") + " --triangles 2k", &out, &err, dir.file("in.psq")), 2);
+  EXPECT_EQ(test::run_psq("simplify --method qem - " + dir.file("e.psq") + " --triangles 2k", &out, &err, dir.file("in.psq")), 2);
   EXPECT_NE(err.find("--ratio"), std::string::npos) << err;
   EXPECT_FALSE(test::file_exists(dir.file("e.psq")));
 }
@@ -545,27 +545,27 @@ TEST(QemCli, UsageAndDataErrors) {
   test::TempDir dir;
   const std::string ply = write_ply(dir, "s.ply", test::make_sphere(10, 12));
   std::string out, err;
-  EXPECT_EQ(test::run_psq("qem " + ply + " " + dir.file("o.psq"), &out, &err), 2);  // no target
+  EXPECT_EQ(test::run_psq("simplify --method qem " + ply + " " + dir.file("o.psq"), &out, &err), 2);  // no target
   EXPECT_NE(err.find("target"), std::string::npos);
-  EXPECT_EQ(test::run_psq("qem " + ply + " " + dir.file("o.psq") + " --ratio 0", &out, &err), 2);
-  EXPECT_EQ(test::run_psq("qem " + ply + " " + dir.file("o.psq") + " --ratio 2", &out, &err), 2);
-  EXPECT_EQ(test::run_psq("qem " + ply + " " + dir.file("o.psq") + " --ratio 0.5 --candidates 0", &out, &err), 2);
-  EXPECT_EQ(test::run_psq("qem " + ply + " " + dir.file("o.xyz") + " --ratio 0.5", &out, &err), 2);
-  EXPECT_EQ(test::run_psq("qem " + ply + " " + ply + " --ratio 0.5", &out, &err), 2);
+  EXPECT_EQ(test::run_psq("simplify --method qem " + ply + " " + dir.file("o.psq") + " --ratio 0", &out, &err), 2);
+  EXPECT_EQ(test::run_psq("simplify --method qem " + ply + " " + dir.file("o.psq") + " --ratio 2", &out, &err), 2);
+  EXPECT_EQ(test::run_psq("simplify --method qem " + ply + " " + dir.file("o.psq") + " --ratio 0.5 --candidates 0", &out, &err), 2);
+  EXPECT_EQ(test::run_psq("simplify --method qem " + ply + " " + dir.file("o.xyz") + " --ratio 0.5", &out, &err), 2);
+  EXPECT_EQ(test::run_psq("simplify --method qem " + ply + " " + ply + " --ratio 0.5", &out, &err), 2);
   EXPECT_EQ(test::run_psq("smooth " + ply + " " + dir.file("o.psq") + " --iterations 300", &out, &err), 2);
   EXPECT_EQ(test::run_psq("smooth " + ply + " " + dir.file("o.psq") + " --mu 0.5", &out, &err), 2);
   EXPECT_FALSE(test::file_exists(dir.file("o.psq")));
   // Not a mesh: one line, exit 1, no output left behind.
   test::write_file(dir.file("junk.psq"), std::string("PSQ\x89\r\n\x1a\n") + std::string(100, '\x07'));
-  EXPECT_EQ(test::run_psq("qem " + dir.file("junk.psq") + " " + dir.file("o.psq") + " --ratio 0.5", &out, &err), 1);
+  EXPECT_EQ(test::run_psq("simplify --method qem " + dir.file("junk.psq") + " " + dir.file("o.psq") + " --ratio 0.5", &out, &err), 1);
   EXPECT_EQ(err.rfind("psq: error: ", 0), 0u) << err;
   EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
   EXPECT_FALSE(test::file_exists(dir.file("o.psq")));
   // An existing output needs -f.
   test::write_file(dir.file("exists.ply"), "x");
-  EXPECT_NE(test::run_psq("qem " + ply + " " + dir.file("exists.ply") + " --ratio 0.5", &out, &err), 0);
+  EXPECT_NE(test::run_psq("simplify --method qem " + ply + " " + dir.file("exists.ply") + " --ratio 0.5", &out, &err), 0);
   EXPECT_EQ(test::read_file(dir.file("exists.ply")), "x");
-  EXPECT_EQ(test::run_psq("qem " + ply + " " + dir.file("exists.ply") + " --ratio 0.5 -f", &out, &err), 0) << err;
+  EXPECT_EQ(test::run_psq("simplify --method qem " + ply + " " + dir.file("exists.ply") + " --ratio 0.5 -f", &out, &err), 0) << err;
 }
 
 TEST(QemCli, LockBorderAndSmooth) {
@@ -573,7 +573,7 @@ TEST(QemCli, LockBorderAndSmooth) {
   const int n = 30;
   const std::string ply = write_ply(dir, "g.ply", bumpy_grid(n));
   std::string out, err;
-  ASSERT_EQ(test::run_psq("qem " + ply + " " + dir.file("l.ply") + " --ratio 0.2 --lock-border", &out, &err), 0) << err;
+  ASSERT_EQ(test::run_psq("simplify --method qem " + ply + " " + dir.file("l.ply") + " --ratio 0.2 --lock-border", &out, &err), 0) << err;
   Mesh in, locked;
   ASSERT_TRUE(test::load_mesh(ply, &in).ok());
   ASSERT_TRUE(test::load_mesh(dir.file("l.ply"), &locked).ok());

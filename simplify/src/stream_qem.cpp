@@ -199,6 +199,11 @@ struct StreamQem::Impl {
   double origin[3] = {0, 0, 0};
   double scale = 1;
   bool bounds_known = false;
+  // The input's declared bounding box in normalized coordinates: the output
+  // is quantized on the grid of that box (psq/mesh_stream.h), so no vertex
+  // may leave it.
+  double box_lo[3] = {0, 0, 0}, box_hi[3] = {0, 0, 0};
+  double world_lo[3] = {0, 0, 0}, world_hi[3] = {0, 0, 0};  // the same box, unnormalized
   bool seen_vertex = false;
   double lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
   double ratio = 0;
@@ -225,8 +230,12 @@ struct StreamQem::Impl {
     for (int i = 0; i < 3; ++i) x[i] = (p[i] - origin[i]) * scale;
   }
   void set_normalized(uint32_t v) { to_normalized(buffer.position(v), data[v].x); }
+  // Back to the input's coordinates, inside its declared box also where
+  // the division rounds past the box's face.
   void world(const double x[3], double p[3]) const {
     for (int i = 0; i < 3; ++i) p[i] = x[i] / scale + origin[i];
+    if (bounds_known)
+      for (int i = 0; i < 3; ++i) p[i] = std::min(world_hi[i], std::max(world_lo[i], p[i]));
   }
   bool pinned(uint32_t v) const { return buffer.cut(v) || (opt.lock_border && buffer.border(v)); }
 
@@ -334,6 +343,12 @@ Status StreamQem::Impl::begin(const MeshSchema& schema) {
     if (diag > 0 && std::isfinite(diag) && std::isfinite(origin[0] + origin[1] + origin[2])) {
       scale = 1 / diag;
       bounds_known = true;
+      for (int i = 0; i < 3; ++i) {
+        world_lo[i] = schema.bounds_min[i];
+        world_hi[i] = schema.bounds_max[i];
+        box_lo[i] = (schema.bounds_min[i] - origin[i]) * scale;
+        box_hi[i] = (schema.bounds_max[i] - origin[i]) * scale;
+      }
     } else {
       origin[0] = origin[1] = origin[2] = 0;
     }
@@ -498,6 +513,11 @@ bool StreamQem::Impl::evaluate(uint32_t h, Candidate* c) {
       double d[3];
       sub(c->x, m, d);
       placed = dot(d, d) <= 4 * len2;
+      // The minimum may lie past the input's box (a convex corner's planes
+      // meet outside it); the edge's ends and every point between them lie
+      // inside, so the clamped point is no worse a start than the segment.
+      if (placed && bounds_known)
+        for (int i = 0; i < 3; ++i) c->x[i] = std::min(box_hi[i], std::max(box_lo[i], c->x[i]));
     }
     if (!placed) {
       const double t = q.minimum_on_segment(xa, e);

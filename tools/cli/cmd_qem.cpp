@@ -1,5 +1,5 @@
-// psq qem: stream edge-collapse simplification (psq/stream_qem.h), the
-// command that `psq simplify --method qem` runs.
+// psq simplify --method qem: stream edge-collapse simplification
+// (psq/stream_qem.h). cmd_simplify hands its arguments here.
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -13,7 +13,7 @@ namespace psq::cli {
 namespace {
 
 const char kHelp[] =
-    "Usage: psq qem IN OUT [OPTIONS]\n"
+    "Usage: psq simplify IN OUT --method qem [OPTIONS]\n"
     "\n"
     "Simplifies IN by quadric edge collapse in a fixed triangle buffer between\n"
     "the input and the output boundary of its processing sequence (Wu and\n"
@@ -55,13 +55,14 @@ bool parse_count(const std::string& text, uint64_t* n) {
 
 }  // namespace
 
-int cmd_qem(int argc, char** argv) {
+int cmd_simplify_qem(int argc, char** argv) {
   Args args(argc, argv, 1);
   if (args.flag("--help", "-h")) {
     std::fputs(kHelp, stdout);
     std::fputs(kFilterOptionsHelp, stdout);
     return kExitOk;
   }
+  args.option("--method");  // "qem": cmd_simplify chose this method by it
   FilterOptions fo;
   std::string error = parse_filter_options(args, &fo);
   const bool lock_border = args.flag("--lock-border");
@@ -72,9 +73,9 @@ int cmd_qem(int argc, char** argv) {
   const std::string candidates_text = args.option("--candidates", "8");
   const std::string seed_text = args.option("--seed", "1");
   std::vector<std::string> files = args.positionals();
-  if (!args.error().empty()) return usage_error("qem", args.error());
-  if (!error.empty()) return usage_error("qem", error);
-  if (files.size() != 2) return usage_error("qem", "qem takes IN and OUT");
+  if (!args.error().empty()) return usage_error("simplify", args.error());
+  if (!error.empty()) return usage_error("simplify", error);
+  if (files.size() != 2) return usage_error("simplify", "simplify takes IN and OUT");
   fo.in = files[0];
   fo.out = files[1];
 
@@ -90,39 +91,39 @@ int cmd_qem(int argc, char** argv) {
     char* end = nullptr;
     const double r = std::strtod(t.c_str(), &end) * scale;
     if (t.empty() || *end != 0 || !(r > 0 && r <= 1))
-      return usage_error("qem", "bad --ratio '" + ratio_text + "' (a fraction in (0, 1] or a percentage)");
+      return usage_error("simplify", "bad --ratio '" + ratio_text + "' (a fraction in (0, 1] or a percentage)");
     q.ratio = r;
   }
   if (!triangles_text.empty() && !parse_count(triangles_text, &q.target_triangles))
-    return usage_error("qem", "bad --triangles '" + triangles_text + "' (a positive count)");
+    return usage_error("simplify", "bad --triangles '" + triangles_text + "' (a positive count)");
   if (!error_text.empty()) {
     char* end = nullptr;
     q.max_error = std::strtod(error_text.c_str(), &end);
     if (*end != 0 || !(q.max_error >= 0) || !std::isfinite(q.max_error))
-      return usage_error("qem", "bad --max-error '" + error_text + "' (a non-negative number)");
+      return usage_error("simplify", "bad --max-error '" + error_text + "' (a non-negative number)");
   }
   if (q.ratio == 0 && q.target_triangles == 0 && q.max_error < 0)
-    return usage_error("qem", "give a target: --ratio, --triangles or --max-error");
+    return usage_error("simplify", "give a target: --ratio, --triangles or --max-error");
   if (!buffer_text.empty()) {
     uint64_t b = 0;
     if (!parse_count(buffer_text, &b) || b < 16 || b > (uint64_t{1} << 28))
-      return usage_error("qem", "bad --buffer '" + buffer_text + "' (16 to 268435456 triangles)");
+      return usage_error("simplify", "bad --buffer '" + buffer_text + "' (16 to 268435456 triangles)");
     q.buffer_triangles = static_cast<uint32_t>(b);
   }
   {
     char* end = nullptr;
     long c = std::strtol(candidates_text.c_str(), &end, 10);
     if (candidates_text.empty() || *end != 0 || c < 1 || c > 64)
-      return usage_error("qem", "bad --candidates '" + candidates_text + "' (1..64)");
+      return usage_error("simplify", "bad --candidates '" + candidates_text + "' (1..64)");
     q.candidates = static_cast<int>(c);
     end = nullptr;
     q.seed = std::strtoull(seed_text.c_str(), &end, 10);
     if (seed_text.empty() || *end != 0 || seed_text[0] == '-')
-      return usage_error("qem", "bad --seed '" + seed_text + "' (a non-negative integer)");
+      return usage_error("simplify", "bad --seed '" + seed_text + "' (a non-negative integer)");
   }
 
   FilterRun run;
-  int code = run.open("qem", fo);
+  int code = run.open("simplify", fo);
   if (code >= 0) return code;
   q.memory_budget = run.filter_budget();
   // A triangle count target needs the input's count: a .psq header may
@@ -132,7 +133,7 @@ int cmd_qem(int argc, char** argv) {
     uint64_t n = 0;
     code = run.count_psq_triangles(&n);
     if (code == -2)
-      return usage_error("qem", "--triangles: the .psq on standard input does not declare its triangle count; use "
+      return usage_error("simplify", "--triangles: the .psq on standard input does not declare its triangle count; use "
                                 "--ratio");
     if (code >= 0) return code;
     q.input_triangles = n;

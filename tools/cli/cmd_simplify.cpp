@@ -50,7 +50,7 @@ const char kHelp[] =
     "                 into three cells remain\n"
     "\n"
     "Options:\n"
-    "  --method M          the method: clustering (the default and only one)\n"
+    "  --method M          clustering (the default) or qem\n"
     "  --cells MODE        clustering: what a cluster is:\n"
     "                        connected (default): a connected part of a cell's\n"
     "                          vertices (layers through a cell stay apart)\n"
@@ -254,6 +254,13 @@ bool parse_double(const std::string& text, double* v) {
 }  // namespace
 
 int cmd_simplify(int argc, char** argv) {
+  // --method qem has options of its own (cmd_qem.cpp).
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--") break;
+    if (a == "--method=qem" || (a == "--method" && i + 1 < argc && std::string(argv[i + 1]) == "qem"))
+      return cmd_simplify_qem(argc, argv);
+  }
   const auto start = std::chrono::steady_clock::now();
   Args args(argc, argv, 1);
   if (args.flag("--help", "-h")) {
@@ -283,7 +290,7 @@ int cmd_simplify(int argc, char** argv) {
   const std::string& in = files[0];
   const std::string& out = files[1];
 
-  if (method != "clustering") return usage_error("simplify", "unknown --method '" + method + "' (clustering)");
+  if (method != "clustering") return usage_error("simplify", "unknown --method '" + method + "' (clustering or qem)");
   ClusteringOptions options;
   if (!parse_cell_mode(cells_text, &options.cells))
     return usage_error("simplify", "bad --cells '" + cells_text + "' (connected, active or global)");

@@ -11,7 +11,7 @@ int cmd_verify(int argc, char** argv);   // argv[0] is "verify"
 int cmd_distance(int argc, char** argv); // argv[0] is "distance"
 int cmd_simplify(int argc, char** argv); // argv[0] is "simplify"
 int cmd_smooth(int argc, char** argv);   // argv[0] is "smooth"
-int cmd_qem(int argc, char** argv);      // argv[0] is "qem" (to become psq simplify --method qem)
+int cmd_simplify_qem(int argc, char** argv);  // argv[0] is "simplify", with --method qem
 
 }  // namespace psq::cli
 

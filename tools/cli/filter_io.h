@@ -1,4 +1,4 @@
-// The plumbing that the sequence-filter commands (psq qem, psq smooth)
+// The plumbing that the sequence-filter commands (psq simplify --method qem, psq smooth)
 // share: the input read as a processing sequence and pushed into a filter
 // (a .psq through its decoder, any other mesh through the sequence
 // builder), the filter's output written as .psq or as a mesh (PLY, OBJ,

@@ -22,7 +22,8 @@ const char kUsage[] =
     "  dump IN          print the processing sequence of a mesh as text\n"
     "  verify FILE      decode a .psq completely and check it\n"
     "  distance A B     surface distance between two meshes (Metro: max, mean, RMS)\n"
-    "  simplify IN OUT  simplify a mesh of any size out of core (--method clustering)\n"
+    "  simplify IN OUT  simplify a mesh of any size out of core (--method\n"
+    "                   clustering or qem)\n"
     "  smooth IN OUT    smooth a mesh of any size (Taubin), streaming\n"
     "\n"
     "Options:\n"
@@ -47,7 +48,6 @@ const Command kCommands[] = {
     {"simplify", psq::cli::cmd_simplify},
     {"distance", psq::cli::cmd_distance},
     {"smooth", psq::cli::cmd_smooth},
-    {"qem", psq::cli::cmd_qem},
 };
 
 const Command* find_command(const std::string& name) {
