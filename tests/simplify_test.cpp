@@ -368,6 +368,58 @@ TEST(Quadric, MinimizerIsRobustWhenSingular) {
   EXPECT_EQ(x[2], 0.4);
 }
 
+// The closed forms of minimize_quadric() against the truncated solve in
+// Jacobi's eigenbasis, on random quadrics of every rank with noise.
+TEST(Quadric, ClosedFormsAgreeWithTheEigenDecomposition) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-1, 1);
+  int cases[4] = {0, 0, 0, 0};
+  for (int trial = 0; trial < 3000; ++trial) {
+    detail::Quadric q;
+    const int planes = 1 + trial % 6;
+    const double noise = trial % 3 == 0 ? 0 : std::pow(10.0, -1 - trial % 7);
+    double axis[3] = {u(rng), u(rng), u(rng)};
+    for (int k = 0; k < planes; ++k) {
+      // Planes around a common axis (a cylinder-like cluster) or arbitrary.
+      double n[3] = {u(rng), u(rng), u(rng)};
+      if (trial % 2) {
+        const double dot = (n[0] * axis[0] + n[1] * axis[1] + n[2] * axis[2]) /
+                           (axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2]);
+        for (int c = 0; c < 3; ++c) n[c] -= (1 - noise) * dot * axis[c];
+      }
+      q.add_plane(n, u(rng), 0.5 + u(rng) * 0.4);
+    }
+    const double mean[3] = {u(rng), u(rng), u(rng)};
+    double x[3];
+    detail::minimize_quadric(q, mean, 1e-3, x);
+    // Reference.
+    double w[3], v[3][3];
+    detail::symmetric_eigen(q.a, w, v);
+    const double largest = std::max({w[0], w[1], w[2]});
+    const double r[3] = {-(q.a[0] * mean[0] + q.a[1] * mean[1] + q.a[2] * mean[2] + q.b[0]),
+                         -(q.a[1] * mean[0] + q.a[3] * mean[1] + q.a[4] * mean[2] + q.b[1]),
+                         -(q.a[2] * mean[0] + q.a[4] * mean[1] + q.a[5] * mean[2] + q.b[2])};
+    double ref[3] = {mean[0], mean[1], mean[2]};
+    int kept = 0;
+    bool near_cut = false;
+    for (int i = 0; i < 3; ++i) {
+      near_cut = near_cut || std::fabs(w[i] - 1e-3 * largest) < 1e-6 * largest;
+      if (!(w[i] > 1e-3 * largest)) continue;
+      ++kept;
+      const double proj = (v[0][i] * r[0] + v[1][i] * r[1] + v[2][i] * r[2]) / w[i];
+      for (int k = 0; k < 3; ++k) ref[k] += proj * v[k][i];
+    }
+    if (near_cut) continue;  // the two may decide differently there
+    ++cases[kept];
+    double step = 0;
+    for (int k = 0; k < 3; ++k) step = std::max(step, std::fabs(ref[k] - mean[k]));
+    for (int k = 0; k < 3; ++k) EXPECT_NEAR(x[k], ref[k], 1e-8 * (1 + step)) << trial << " kept " << kept;
+  }
+  EXPECT_GT(cases[1], 100);
+  EXPECT_GT(cases[2], 100);
+  EXPECT_GT(cases[3], 100);
+}
+
 // ------------------------------------------------------------------- grid
 
 TEST(ClusterGrid, CellsAlongTheLongestSide) {

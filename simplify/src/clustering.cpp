@@ -119,15 +119,14 @@ struct SlotData {
 static_assert(sizeof(SlotData) == 32, "a slot is half a cache line");
 
 // A cluster (a root of the forest) or a cluster merged into another (a
-// child: only parent and refs matter).
-struct Node {
-  detail::Quadric q;       // in the frame of `origin`
-  double origin[3];        // the cell's lower corner
-  double sum[3];           // vertex positions, relative to origin
-  double first_pos[3];     // the position of its first vertex (a point of the cell)
-  uint64_t first_order;    // that vertex's dense index
-  uint64_t count;          // vertices added
-  uint64_t cell;
+// child: only parent and refs matter). The fields a triangle touches
+// (parent, the quadric) come first: two cache lines per cluster and
+// triangle. Quadric and sum are in the grid's frame (positions less the
+// grid's origin), so that a triangle's plane is computed once for all its
+// clusters; the minimizer then loses to cancellation about as many digits
+// as the number of cells across has (at most 7 of double's 16), far less
+// than a cell.
+struct alignas(64) Node {
   uint32_t parent;         // itself for a root
   uint32_t refs;           // slots, waiting triangles' corners, children, the cell map
   uint32_t live;           // root: vertices not finalized
@@ -136,7 +135,14 @@ struct Node {
   uint32_t out_id;         // its output vertex, once output
   uint8_t closed;
   uint8_t finalized;
+  detail::Quadric q;
+  double sum[3];           // vertex positions
+  uint64_t count;          // vertices added
+  uint64_t cell;
+  double first_pos[3];     // the position of its first vertex (absolute: a point of the cell)
+  uint64_t first_order;    // that vertex's dense index
 };
+static_assert(sizeof(Node) == 192, "a cluster takes three cache lines");
 
 // An output triangle waiting for its clusters.
 struct Waiting {
@@ -380,10 +386,7 @@ uint32_t ClusteringFilter::Impl::new_node(uint64_t cell) {
   }
   Node& x = nodes[n];
   x.q = detail::Quadric();
-  const uint32_t ijk[3] = {static_cast<uint32_t>(cell & 0x1fffff), static_cast<uint32_t>((cell >> 21) & 0x1fffff),
-                           static_cast<uint32_t>(cell >> 42)};
   for (int a = 0; a < 3; ++a) {
-    x.origin[a] = grid.origin[a] + ijk[a] * grid.cell;
     x.sum[a] = 0;
     x.first_pos[a] = 0;
   }
@@ -435,7 +438,7 @@ void ClusteringFilter::Impl::adopt(uint32_t slot, uint32_t root) {
   sd.node = root;
   ++r.refs;
   ++r.live;
-  for (int a = 0; a < 3; ++a) r.sum[a] += sd.pos[a] - r.origin[a];
+  for (int a = 0; a < 3; ++a) r.sum[a] += sd.pos[a] - grid.origin[a];
   if (r.count == 0 || sd.dense < r.first_order) {
     for (int a = 0; a < 3; ++a) r.first_pos[a] = sd.pos[a];
     r.first_order = sd.dense;
@@ -554,20 +557,20 @@ bool ClusteringFilter::Impl::emit_vertex(uint32_t x) {
   const double mean[3] = {c.sum[0] / n, c.sum[1] / n, c.sum[2] / n};
   double rel[3];
   detail::minimize_quadric(c.q, mean, kTolerance, rel);
+  const uint32_t want[3] = {static_cast<uint32_t>(c.cell & 0x1fffff), static_cast<uint32_t>((c.cell >> 21) & 0x1fffff),
+                            static_cast<uint32_t>(c.cell >> 42)};
   double lo[3], hi[3];
   for (int a = 0; a < 3; ++a) {
-    lo[a] = c.origin[a];
-    hi[a] = c.origin[a] + grid.cell;
+    lo[a] = grid.origin[a] + want[a] * grid.cell;
+    hi[a] = lo[a] + grid.cell;
     if (std::max(lo[a], box_lo[a]) <= std::min(hi[a], box_hi[a])) {
       lo[a] = std::max(lo[a], box_lo[a]);
       hi[a] = std::min(hi[a], box_hi[a]);
     }
   }
-  const uint32_t want[3] = {static_cast<uint32_t>(c.cell & 0x1fffff), static_cast<uint32_t>((c.cell >> 21) & 0x1fffff),
-                            static_cast<uint32_t>(c.cell >> 42)};
   auto place = [&](const double r[3], double p[3]) {
     for (int a = 0; a < 3; ++a) {
-      double v = c.origin[a] + r[a];
+      double v = grid.origin[a] + r[a];
       v = std::min(hi[a], std::max(lo[a], v));  // also turns NaN into lo
       p[a] = float_positions ? nearest_float(v) : v;
     }
@@ -819,12 +822,16 @@ bool ClusteringFilter::Impl::triangle(const SequenceTriangle& t) {
     // Area A = len / 2 and unit normal n = nrm / len: A (n.x + d)^2 is
     // (nrm.x + D)^2 / (2 len) with D = -nrm.p0.
     const double k = 0.5 / len;
-    for (int c = 0; c < 3; ++c) {
-      if ((c > 0 && r[c] == r[0]) || (c > 1 && r[c] == r[1])) continue;
-      const double mult = 1 + (c < 1 && r[1] == r[c]) + (c < 2 && r[2] == r[c]);
-      Node& x = nodes[r[c]];
-      const double d = -(nrm[0] * (p0[0] - x.origin[0]) + nrm[1] * (p0[1] - x.origin[1]) + nrm[2] * (p0[2] - x.origin[2]));
-      x.q.add_plane(nrm, d, k * mult);
+    const double d = -(nrm[0] * (p0[0] - grid.origin[0]) + nrm[1] * (p0[1] - grid.origin[1]) +
+                       nrm[2] * (p0[2] - grid.origin[2]));
+    if (r[0] == r[1] && r[1] == r[2]) {
+      nodes[r[0]].q.add_plane(nrm, d, 3 * k);
+    } else {
+      for (int c = 0; c < 3; ++c) {
+        if ((c > 0 && r[c] == r[0]) || (c > 1 && r[c] == r[1])) continue;
+        const double mult = 1 + (c < 1 && r[1] == r[c]) + (c < 2 && r[2] == r[c]);
+        nodes[r[c]].q.add_plane(nrm, d, k * mult);
+      }
     }
     // Border quadrics (paper section 5; Garland and Heckbert 1997): the
     // plane through a border edge perpendicular to the triangle, weighted
@@ -845,11 +852,9 @@ bool ClusteringFilter::Impl::triangle(const SequenceTriangle& t) {
         // |m| = elen * len; weight w = border_weight * elen * cell, so the
         // unnormalized plane m takes w / |m|^2.
         const double kb = options.border_weight * grid.cell / (elen * len2);
-        for (int end : {a, b}) {
-          Node& x = nodes[r[end]];
-          const double d = -(m[0] * (pa[0] - x.origin[0]) + m[1] * (pa[1] - x.origin[1]) + m[2] * (pa[2] - x.origin[2]));
-          x.q.add_plane(m, d, kb);
-        }
+        const double db = -(m[0] * (pa[0] - grid.origin[0]) + m[1] * (pa[1] - grid.origin[1]) +
+                            m[2] * (pa[2] - grid.origin[2]));
+        for (int end : {a, b}) nodes[r[end]].q.add_plane(m, db, kb);
       }
     }
   }

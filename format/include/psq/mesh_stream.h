@@ -20,9 +20,10 @@
 // 4294967295), before finalize(id); triangle() over ids not yet finalized;
 // finalize(id) once per id; finish() once. SequenceConverter accepts a
 // triangle before the vertices it uses; DenseMeshSink needs the vertices
-// first (every filter of simplify/ gives them first). An id may be given
-// again after its finalization only to SequenceConverter's kBadIndex
-// error: ids are never reused.
+// first (every filter of simplify/ gives them first). An id is given
+// once: SequenceConverter remembers finalized ids and rejects them
+// (kBadIndex); DenseMeshSink forgets an id at its finalization and would
+// take it again as a new vertex.
 #ifndef PSQ_MESH_STREAM_H_
 #define PSQ_MESH_STREAM_H_
 

@@ -45,7 +45,16 @@
 // cluster's mean position (Lindstrom 2000), and the result is clamped to
 // the cell (and the input's bounds), so that every output vertex lies in
 // the cell of its cluster: the error is bounded by the cell. With float
-// positions the vertex is a float, still inside its cell.
+// positions the vertex is a float, still inside its cell. A cluster of
+// one vertex is that vertex exactly (a grid that keeps everything gives the
+// input back).
+//
+// Non-manifold input vertices re-appear in the sequence (cut apart, paper
+// section 3). Global and active cells put all occurrences of a vertex in
+// its cell's cluster; in connected mode a re-appearance joins the cluster
+// of its first occurrence while that is still on the boundary, and starts
+// its own otherwise (the sequence visits the other fan later, like a layer
+// that comes back).
 //
 // Output triangles wait (in the filter) until their three clusters are
 // output, then go to the sink, duplicates (the same three clusters in the
@@ -63,8 +72,8 @@
 // filter fails with kLimit when its structures would exceed
 // `memory_budget`.
 //
-// Deterministic: the same sequence and options give the same output
-// events, whatever the machine or thread.
+// Deterministic: the same sequence, options and build give the same
+// output events, on one thread or behind a ThreadedSequenceSink.
 //
 // Safe on untrusted sequences: events that break the processing-sequence
 // rules the filter relies on (an unknown or reused slot, a vertex used
