@@ -26,7 +26,8 @@ using detail::QemQuadric;
 // surface over the edge's neighbourhood (Garland and Heckbert, section 6.1).
 constexpr double kBorderWeight = 4.0;
 // Rounds of candidates in a row that yield no collapse before decimation
-// gives up for now (it resumes at the next fill).
+// gives up for now (it resumes at the next step, or, at the end of the
+// input, for good).
 constexpr int kMaxFailedRounds = 16;
 constexpr int kMaxFailedRoundsFinal = 64;
 // Decimation runs every this many triangles read, while what it works on
@@ -377,7 +378,9 @@ void StreamQem::Impl::add_quadrics(uint32_t tri, uint8_t border_mask) {
   const bool degenerate = shape(n, e1, e2) < kDegenerate;
   for (double& c : n) c /= len;
   reference[tri] = {0, 0, 0};
-  if (!degenerate) reference[tri] = {static_cast<float>(n[0]), static_cast<float>(n[1]), static_cast<float>(n[2])};
+  if (!degenerate) {
+    for (int i = 0; i < 3; ++i) reference[tri][i] = static_cast<float>(n[i]);
+  }
   const double d = -dot(n, p[0]);
   QemQuadric q;
   q.add_plane(n, d, 0.5 * len);
