@@ -43,7 +43,7 @@ constexpr uint64_t kConverterBytes = uint64_t{90000} * 200;
 constexpr double kVerticesPerTriangle = 0.6;
 // Bytes per buffer triangle: the buffer's own, a reference normal per
 // triangle, and per vertex a VertexData, a score and a candidate entry.
-constexpr double kVertexQemBytes = 128 + 4 + 8;
+constexpr double kVertexQemBytes = 104 + 4 + 8;
 constexpr double kBytesPerTriangle =
     TriangleBuffer::kTriangleBytes + 12 + kVerticesPerTriangle * (TriangleBuffer::kVertexBytes + kVertexQemBytes);
 // Below this shape() a triangle is a sliver (its smallest angle under
@@ -175,7 +175,6 @@ struct StreamQem::Impl {
   // edges; here each sampled vertex offers its cheapest edge).
   struct VertexData {
     QemQuadric q;
-    double x[3] = {0, 0, 0};  // its position, normalized
     float cost = kInfinity;  // of its cheapest edge; infinite: none
     uint32_t target = TriangleBuffer::kNone;  // the other end of that edge
     uint32_t slot = TriangleBuffer::kNone;    // its place in its band of `set`
@@ -222,11 +221,10 @@ struct StreamQem::Impl {
     return z ^ (z >> 31);
   }
 
-  void normalized(uint32_t v, double x[3]) const { std::copy(data[v].x, data[v].x + 3, x); }
   void to_normalized(const double p[3], double x[3]) const {
     for (int i = 0; i < 3; ++i) x[i] = (p[i] - origin[i]) * scale;
   }
-  void set_normalized(uint32_t v) { to_normalized(buffer.position(v), data[v].x); }
+  void normalized(uint32_t v, double x[3]) const { to_normalized(buffer.position(v), x); }
   void world(const double x[3], double p[3]) const {
     for (int i = 0; i < 3; ++i) p[i] = x[i] / scale + origin[i];
   }
@@ -412,7 +410,6 @@ Status StreamQem::Impl::triangle(const SequenceTriangle& t) {
     if (!(t.new_mask & (1u << k))) continue;
     const uint32_t v = buffer.vertex_of(3 * tri + k);
     data[v] = VertexData();
-    set_normalized(v);
     score[v] = 0;
   }
   add_quadrics(tri, t.border_mask);
@@ -539,7 +536,7 @@ int StreamQem::Impl::end_options(uint32_t h, Candidate out[2]) {
     Candidate& c = out[n++];
     c.h = h;
     c.keep_start = keep_start;
-    std::copy(data[keep_start ? a : b].x, data[keep_start ? a : b].x + 3, c.x);
+    normalized(keep_start ? a : b, c.x);
     c.cost = q.error(c.x);
   }
   if (out[1].cost < out[0].cost) std::swap(out[0], out[1]);
@@ -560,9 +557,10 @@ bool StreamQem::Impl::flips(uint32_t h, const double x[3]) {
     for (uint32_t c = buffer.first_corner(v); c != TriangleBuffer::kNone; c = buffer.next_corner(c)) {
       const uint32_t v1 = buffer.vertex_of(TriangleBuffer::next(c)), v2 = buffer.vertex_of(TriangleBuffer::prev(c));
       if (v1 == other || v2 == other) continue;  // goes with the edge
-      const double* p0 = data[v].x;
-      const double* p1 = data[v1].x;
-      const double* p2 = data[v2].x;
+      double p0[3], p1[3], p2[3];
+      normalized(v, p0);
+      normalized(v1, p1);
+      normalized(v2, p2);
       double e1[3], e2[3], f1[3], f2[3], n0[3], n1[3];
       sub(p1, p0, e1);
       sub(p2, p0, e2);
@@ -603,8 +601,8 @@ void StreamQem::Impl::fan_normal(uint32_t a, uint32_t b, double n[3]) {
       const uint32_t v1 = buffer.vertex_of(TriangleBuffer::next(c)), v2 = buffer.vertex_of(TriangleBuffer::prev(c));
       if (v == b && (v1 == a || v2 == a)) continue;  // counted from a
       double e1[3], e2[3], m[3];
-      sub(data[v1].x, data[v].x, e1);
-      sub(data[v2].x, data[v].x, e2);
+      sub(buffer.position(v1), buffer.position(v), e1);
+      sub(buffer.position(v2), buffer.position(v), e2);
       cross(e1, e2, m);
       for (int i = 0; i < 3; ++i) n[i] += m[i];
     }
@@ -669,10 +667,7 @@ void StreamQem::Impl::apply(const Candidate& k) {
   leave_set(gone);
   const uint32_t keep = buffer.collapse(h, k.keep_start);
   data[keep].q = q;
-  if (!keep_pinned) {
-    buffer.set_position(keep, p);
-    set_normalized(keep);
-  }
+  if (!keep_pinned) buffer.set_position(keep, p);
   score[keep] = static_cast<float>(k.cost);
   max_cost = std::max(max_cost, k.cost);
   // The kept vertex moved and its quadric grew: its edges cost anew.
