@@ -29,6 +29,7 @@
 #include <vector>
 
 #include "psq/mesh_formats.h"
+#include "psq/ply.h"
 #include "psq/sequence_builder.h"
 #include "psq/sequence_check.h"
 #include "psq/stream_qem.h"
@@ -747,9 +748,55 @@ int distance_of(int argc, char** argv) {
   return 0;
 }
 
+// Writes MESH with each vertex moved along its normal by Gaussian noise of
+// SIGMA times the mean edge length (a "scan" of a clean mesh).
+int noise(int argc, char** argv) {
+  if (argc != 3) return 2;
+  Mesh m;
+  if (!load(argv[0], &m)) return 1;
+  const double sigma = std::atof(argv[2]);
+  std::vector<Vec> normal(m.vertices(), Vec{0, 0, 0});
+  double edges = 0;
+  for (size_t t = 0; t < m.triangles(); ++t) {
+    const uint32_t* i = &m.indices[3 * t];
+    const Vec a = m.pos(i[0]), b = m.pos(i[1]), c = m.pos(i[2]);
+    const Vec n = cross(sub(b, a), sub(c, a));
+    for (int k = 0; k < 3; ++k)
+      for (int j = 0; j < 3; ++j) normal[i[k]][j] += n[j];
+    edges += std::sqrt(dot(sub(b, a), sub(b, a))) + std::sqrt(dot(sub(c, b), sub(c, b))) +
+             std::sqrt(dot(sub(a, c), sub(a, c)));
+  }
+  const double step = sigma * edges / std::max<size_t>(1, 3 * m.triangles());
+  std::mt19937_64 rng(7);
+  std::normal_distribution<double> g(0, 1);
+  psq::OutputFile out;
+  psq::Status s = out.open(argv[1], true);
+  psq::PlyWriter w(&out);
+  psq::MeshSchema schema;
+  schema.vertex_count = static_cast<int64_t>(m.vertices());
+  schema.triangle_count = static_cast<int64_t>(m.triangles());
+  if (s.ok()) s = w.begin(schema);
+  for (size_t v = 0; v < m.vertices() && s.ok(); ++v) {
+    const Vec n = normal[v];
+    const double l = std::sqrt(dot(n, n));
+    const double d = g(rng) * step;
+    Vec p = m.pos(static_cast<uint32_t>(v));
+    if (l > 0)
+      for (int j = 0; j < 3; ++j) p[j] += d * n[j] / l;
+    const double q[3] = {static_cast<float>(p[0]), static_cast<float>(p[1]), static_cast<float>(p[2])};
+    s = w.vertex(q, {});
+  }
+  for (size_t t = 0; t < m.triangles() && s.ok(); ++t) s = w.triangle(&m.indices[3 * t], {});
+  if (s.ok()) s = w.finish();
+  if (s.ok()) s = out.commit();
+  if (!s.ok()) std::fprintf(stderr, "%s\n", s.to_string().c_str());
+  return s.ok() ? 0 : 1;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
+  if (argc >= 2 && std::strcmp(argv[1], "noise") == 0) return noise(argc - 2, argv + 2);
   if (argc >= 2 && std::strcmp(argv[1], "distance") == 0) return distance_of(argc - 2, argv + 2);
   if (argc >= 2 && std::strcmp(argv[1], "slabs") == 0) return slabs(argc - 2, argv + 2);
   if (argc >= 2 && std::strcmp(argv[1], "shape") == 0) return shape(argc - 2, argv + 2);

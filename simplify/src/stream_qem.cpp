@@ -26,21 +26,24 @@ using detail::QemQuadric;
 // surface over the edge's neighbourhood (Garland and Heckbert, section 6.1).
 constexpr double kBorderWeight = 4.0;
 // Rounds of candidates in a row that yield no collapse before decimation
-// gives up for now (it resumes at the next fill).
+// gives up for now (it resumes at the next step, or, at the end of the
+// input, for good).
 constexpr int kMaxFailedRounds = 16;
 constexpr int kMaxFailedRoundsFinal = 64;
 // Decimation runs every this many triangles read, while what it works on
 // is still in the processor's caches.
 constexpr uint32_t kDecimationStep = 2048;
 // The converter behind the buffer keeps at least 65536 triangles waiting
-// (about 200 bytes each) and gets a sixteenth of the budget beyond.
-constexpr uint64_t kConverterFloor = uint64_t{65536} * 200;
+// (about 200 bytes each; no lookahead beyond: the buffer's output order is
+// a processing sequence's already), and some more while they settle
+// (bench/RESULTS.md: up to 101,000 on a 50M-triangle mesh).
+constexpr uint64_t kConverterBytes = uint64_t{90000} * 200;
 // Vertices per triangle in the buffer (about one half on closed meshes;
 // room for more on meshes with borders).
 constexpr double kVerticesPerTriangle = 0.6;
 // Bytes per buffer triangle: the buffer's own, a reference normal per
 // triangle, and per vertex a VertexData, a score and a candidate entry.
-constexpr double kVertexQemBytes = 128 + 4 + 8;
+constexpr double kVertexQemBytes = 104 + 4 + 8;
 constexpr double kBytesPerTriangle =
     TriangleBuffer::kTriangleBytes + 12 + kVerticesPerTriangle * (TriangleBuffer::kVertexBytes + kVertexQemBytes);
 // Below this shape() a triangle is a sliver (its smallest angle under
@@ -157,8 +160,7 @@ class CostBands {
 }  // namespace
 
 uint32_t qem_buffer_triangles(uint64_t memory_budget) {
-  const double spare = static_cast<double>(memory_budget) - static_cast<double>(kConverterFloor) -
-                       static_cast<double>(memory_budget / 16) - (1 << 20);
+  const double spare = static_cast<double>(memory_budget) - static_cast<double>(kConverterBytes) - (2 << 20);
   const double n = spare / kBytesPerTriangle;
   return static_cast<uint32_t>(std::clamp(n, 1024.0, static_cast<double>(uint64_t{1} << 28)));
 }
@@ -173,7 +175,6 @@ struct StreamQem::Impl {
   // edges; here each sampled vertex offers its cheapest edge).
   struct VertexData {
     QemQuadric q;
-    double x[3] = {0, 0, 0};  // its position, normalized
     float cost = kInfinity;  // of its cheapest edge; infinite: none
     uint32_t target = TriangleBuffer::kNone;  // the other end of that edge
     uint32_t slot = TriangleBuffer::kNone;    // its place in its band of `set`
@@ -225,11 +226,10 @@ struct StreamQem::Impl {
     return z ^ (z >> 31);
   }
 
-  void normalized(uint32_t v, double x[3]) const { std::copy(data[v].x, data[v].x + 3, x); }
   void to_normalized(const double p[3], double x[3]) const {
     for (int i = 0; i < 3; ++i) x[i] = (p[i] - origin[i]) * scale;
   }
-  void set_normalized(uint32_t v) { to_normalized(buffer.position(v), data[v].x); }
+  void normalized(uint32_t v, double x[3]) const { to_normalized(buffer.position(v), x); }
   // Back to the input's coordinates, inside its declared box also where
   // the division rounds past the box's face.
   void world(const double x[3], double p[3]) const {
@@ -359,7 +359,7 @@ Status StreamQem::Impl::begin(const MeshSchema& schema) {
   report.buffer_triangles = capacity;
   rng = opt.seed ^ 0x5851f42d4c957f2dull;
   buffer.set_seed(opt.seed);
-  buffer.set_lookahead_budget(opt.memory_budget / 16);
+  buffer.set_lookahead_budget(0);
   // All the room at once: growth by doubling would copy, and take up to
   // half as much again while it does.
   const uint32_t room = std::min(capacity, qem_buffer_triangles(opt.memory_budget)) + 64;
@@ -391,7 +391,9 @@ void StreamQem::Impl::add_quadrics(uint32_t tri, uint8_t border_mask) {
   const bool degenerate = shape(n, e1, e2) < kDegenerate;
   for (double& c : n) c /= len;
   reference[tri] = {0, 0, 0};
-  if (!degenerate) reference[tri] = {static_cast<float>(n[0]), static_cast<float>(n[1]), static_cast<float>(n[2])};
+  if (!degenerate) {
+    for (int i = 0; i < 3; ++i) reference[tri][i] = static_cast<float>(n[i]);
+  }
   const double d = -dot(n, p[0]);
   QemQuadric q;
   q.add_plane(n, d, 0.5 * len);
@@ -423,7 +425,6 @@ Status StreamQem::Impl::triangle(const SequenceTriangle& t) {
     if (!(t.new_mask & (1u << k))) continue;
     const uint32_t v = buffer.vertex_of(3 * tri + k);
     data[v] = VertexData();
-    set_normalized(v);
     score[v] = 0;
   }
   add_quadrics(tri, t.border_mask);
@@ -555,7 +556,7 @@ int StreamQem::Impl::end_options(uint32_t h, Candidate out[2]) {
     Candidate& c = out[n++];
     c.h = h;
     c.keep_start = keep_start;
-    std::copy(data[keep_start ? a : b].x, data[keep_start ? a : b].x + 3, c.x);
+    normalized(keep_start ? a : b, c.x);
     c.cost = q.error(c.x);
   }
   if (out[1].cost < out[0].cost) std::swap(out[0], out[1]);
@@ -576,9 +577,10 @@ bool StreamQem::Impl::flips(uint32_t h, const double x[3]) {
     for (uint32_t c = buffer.first_corner(v); c != TriangleBuffer::kNone; c = buffer.next_corner(c)) {
       const uint32_t v1 = buffer.vertex_of(TriangleBuffer::next(c)), v2 = buffer.vertex_of(TriangleBuffer::prev(c));
       if (v1 == other || v2 == other) continue;  // goes with the edge
-      const double* p0 = data[v].x;
-      const double* p1 = data[v1].x;
-      const double* p2 = data[v2].x;
+      double p0[3], p1[3], p2[3];
+      normalized(v, p0);
+      normalized(v1, p1);
+      normalized(v2, p2);
       double e1[3], e2[3], f1[3], f2[3], n0[3], n1[3];
       sub(p1, p0, e1);
       sub(p2, p0, e2);
@@ -619,8 +621,8 @@ void StreamQem::Impl::fan_normal(uint32_t a, uint32_t b, double n[3]) {
       const uint32_t v1 = buffer.vertex_of(TriangleBuffer::next(c)), v2 = buffer.vertex_of(TriangleBuffer::prev(c));
       if (v == b && (v1 == a || v2 == a)) continue;  // counted from a
       double e1[3], e2[3], m[3];
-      sub(data[v1].x, data[v].x, e1);
-      sub(data[v2].x, data[v].x, e2);
+      sub(buffer.position(v1), buffer.position(v), e1);
+      sub(buffer.position(v2), buffer.position(v), e2);
       cross(e1, e2, m);
       for (int i = 0; i < 3; ++i) n[i] += m[i];
     }
@@ -685,10 +687,7 @@ void StreamQem::Impl::apply(const Candidate& k) {
   leave_set(gone);
   const uint32_t keep = buffer.collapse(h, k.keep_start);
   data[keep].q = q;
-  if (!keep_pinned) {
-    buffer.set_position(keep, p);
-    set_normalized(keep);
-  }
+  if (!keep_pinned) buffer.set_position(keep, p);
   score[keep] = static_cast<float>(k.cost);
   max_cost = std::max(max_cost, k.cost);
   // The kept vertex moved and its quadric grew: its edges cost anew.

@@ -13,10 +13,16 @@
 namespace psq {
 namespace {
 
-// Estimated bytes per buffer triangle: the buffer's own (about 56 per
-// triangle and 72 per vertex) plus 26 per vertex here, at about half a
-// vertex per triangle, with room for vectors' growth.
-constexpr uint64_t kBytesPerTriangle = 140;
+// The converter behind the buffer keeps at least 65536 triangles waiting
+// (about 200 bytes each; no lookahead beyond), and some more while they
+// settle.
+constexpr uint64_t kConverterBytes = uint64_t{90000} * 200;
+// Vertices per triangle in the buffer (about one half on closed meshes).
+constexpr double kVerticesPerTriangle = 0.6;
+// Bytes per buffer triangle: the buffer's own, a flag per triangle, and per
+// vertex its steps, its stop and its previous position.
+constexpr double kBytesPerTriangle =
+    TriangleBuffer::kTriangleBytes + 1 + kVerticesPerTriangle * (TriangleBuffer::kVertexBytes + 26);
 
 struct Position {
   double p[3];
@@ -25,8 +31,8 @@ struct Position {
 }  // namespace
 
 uint32_t smooth_buffer_triangles(uint64_t memory_budget) {
-  const uint64_t n = (memory_budget - memory_budget / 4) / kBytesPerTriangle;
-  return static_cast<uint32_t>(std::clamp<uint64_t>(n, 1024, uint64_t{1} << 28));
+  const double spare = static_cast<double>(memory_budget) - static_cast<double>(kConverterBytes) - (2 << 20);
+  return static_cast<uint32_t>(std::clamp(spare / kBytesPerTriangle, 1024.0, static_cast<double>(uint64_t{1} << 28)));
 }
 
 struct TaubinSmoother::Impl {
@@ -87,7 +93,15 @@ Status TaubinSmoother::Impl::begin(const MeshSchema& schema) {
   capacity = std::max<uint32_t>(capacity, 16);
   low = capacity - capacity / 8;
   report.buffer_triangles = capacity;
-  buffer.set_lookahead_budget(opt.memory_budget / 4);
+  buffer.set_lookahead_budget(0);
+  // All the room at once (growth by doubling copies).
+  const uint32_t room = std::min(capacity, smooth_buffer_triangles(opt.memory_budget)) + 64;
+  const uint32_t vertices = static_cast<uint32_t>(kVerticesPerTriangle * room);
+  buffer.reserve(room, vertices);
+  level.reserve(vertices);
+  stopped.reserve(vertices);
+  before.reserve(vertices);
+  queued.reserve(room);
   begun = true;
   return buffer.begin(schema);
 }

@@ -48,10 +48,11 @@
 // hostile source cannot corrupt the buffer; the buffer is safe on
 // untrusted input.
 //
-// Memory: about 56 bytes per triangle and 72 per vertex in the buffer (plus
-// property values, if the mesh has any), the converter's waiting area, and
-// arrays over the input's boundary slots; never the mesh. The buffer does
-// not bound itself: its client decides when to write.
+// Memory: kTriangleBytes per triangle and kVertexBytes per vertex in the
+// buffer (plus property values, if the mesh has any), the converter's
+// waiting area (at least 65536 triangles of about 200 bytes), and arrays
+// over the input's boundary slots; never the mesh. The buffer does not
+// bound itself: its client decides when to write.
 //
 // Errors are sticky only as the client propagates them: after an error the
 // buffer's state is unspecified, and the client must stop.

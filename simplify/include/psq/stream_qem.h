@@ -14,27 +14,39 @@
 //   by its area, to the error quadrics of its vertices (Garland and
 //   Heckbert); a border edge adds a plane through it, perpendicular to its
 //   triangle, so that borders and holes are simplified as they go instead
-//   of clogging the buffer.
-// - DECIMATE: when the buffer is full, edges are collapsed until the
+//   of clogging the buffer (paper section 6).
+// - DECIMATE: every 2048 triangles read (while they are in the processor's
+//   caches), and whenever the buffer is full, edges are collapsed until the
 //   triangles written and held are as many as the target allows for what
 //   was read (the band along the input boundary, which nothing may change
-//   yet, counted as it will be once simplified). Each collapse is chosen
-//   by multiple choice: of `candidates` random edges with no vertex on either
-//   boundary, the one of least quadric error (Wu and Kobbelt). The merged
-//   vertex goes where the summed quadric is smallest (solving it, or, where
-//   that is ill-posed, on the edge); a vertex that must not move (a cut,
-//   or a border with lock_border) keeps its place and absorbs the other. A
-//   collapse is refused when it breaks the link condition, leaves a vertex
-//   without triangles, or flips or degenerates a triangle.
-// - WRITE: then triangles leave the buffer across the output boundary
-//   (TriangleBuffer::pick_output: end, fill, join, then the add whose free
-//   vertex carries the largest error) until it is 7/8 full.
+//   yet, counted as it will be once simplified). Only edges with no vertex
+//   on either boundary collapse. Each unlocked vertex keeps its cheapest
+//   edge, updated as the buffer changes; the vertices are kept in bands of
+//   a quarter octave of that cost, and each collapse is chosen by multiple
+//   choice (Wu and Kobbelt): of `candidates` random vertices of the
+//   cheapest band, the cheapest edge. A collapse costs each end's mean
+//   squared distance to its planes, at the merged vertex's place: the
+//   minimum of the summed quadric (gently pulled towards the edge's
+//   midpoint where the quadric is flat) or an end, whichever is cheaper. A
+//   border vertex stays on the border (a border edge collapses onto itself;
+//   an interior vertex merges into a border neighbour), and a vertex that
+//   must not move (a non-manifold cut, or a border with lock_border) keeps
+//   its place and absorbs the other. A collapse is refused when it breaks
+//   the link condition, leaves a vertex without triangles, flips a
+//   triangle, turns one past a right angle from its normal when read, or
+//   makes a sliver of a sound one; the vertex then offers its cheapest
+//   collapse that passes, an end of an edge perhaps.
+// - WRITE: when the buffer is full, triangles leave it across the output
+//   boundary (TriangleBuffer::pick_output: end, fill, join, then the add
+//   whose free vertex carries the largest error) until it is 7/8 full.
 // At the end of the input, the rest is decimated to the target and written.
 //
 // Targets: a ratio of the input's triangles, a triangle count (which needs
 // the input's count: the schema's, or QemOptions::input_triangles), and/or
-// a largest error; decimation stops at the first reached. The output is
-// the same for the same input events and options (seeded choices).
+// a largest error; decimation stops at the first reached. Components,
+// handles and borders are kept: where the target needs them gone, it is
+// not met (the report says what was achieved). The output is the same for
+// the same input events and options (seeded choices).
 //
 // Vertex properties: a merged vertex keeps the values of the end it kept
 // (the one nearer its new place); triangles keep theirs.
@@ -65,10 +77,11 @@ struct QemOptions {
   uint64_t input_triangles = 0;
   // Triangles in the buffer; 0: as many as memory_budget allows.
   uint32_t buffer_triangles = 0;
-  // Bytes for the buffer and the converter's waiting area together.
+  // Bytes for the buffer and the converter's waiting area together (the
+  // converter's floor of 65536 waiting triangles is about 18 MB).
   uint64_t memory_budget = uint64_t{48} << 20;
-  // Random edges compared for each collapse (Wu and Kobbelt's multiple
-  // choice), 1..64.
+  // Random candidates compared for each collapse (Wu and Kobbelt's
+  // multiple choice), 1..64.
   int candidates = 8;
   // Keep every border vertex where it is (tiles that must fit together).
   bool lock_border = false;
