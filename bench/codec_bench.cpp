@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Speed of the .psq encoder and decoder, in memory, parsing excluded:
 // - encode: a processing sequence held in memory (built once from the mesh)
 //   replayed into PsqEncoder writing to a byte vector;

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq_bench_compare: end-to-end size and speed of mesh codecs on the same
 // meshes, in one process.
 //

@@ -1,4 +1,5 @@
 #!/bin/bash
+# SPDX-License-Identifier: Apache-2.0
 # bench/convert_threads.sh: wall time of `psq convert` to .psq on one
 # thread and on two (--threads 1 and 2): from a PLY (reader and converter,
 # then the encoder) and from the .psq written (decoder, then the encoder,

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Speed of the processing-sequence converter (waiting area) on coherent
 // input, parsing excluded: a grid of n x n quads fed row by row, each vertex
 // finalized as soon as the rows below it are done, into a sink that only

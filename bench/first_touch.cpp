@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq_bench_first_touch: what fresh memory costs decode_mesh() on this
 // machine, in two measurements.
 //

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Instructions per triangle of psq's and Draco's encoders and decoders,
 # counted by callgrind: a measure of the codecs' work that does not depend
 # on the machine's load (the timings of bench/run_compare.sh vary by up to

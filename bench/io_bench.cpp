@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Throughput of the streaming PLY and OBJ readers and writers on a generated
 // grid mesh held in memory (no disk in the loop for reading).
 //

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """Writes the codec comparison of bench/RESULTS.md from psq_bench_compare --json.
 
 The JSON is the only source of numbers. The Markdown goes between the lines

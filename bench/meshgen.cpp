@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq-meshgen: generates large closed triangle meshes to try psq at scale.
 //
 // The mesh is the boundary of a "foam ball": the solid where |gyroid(p)| >

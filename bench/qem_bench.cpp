@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq_bench_qem: the stream edge-collapse simplifier (psq/stream_qem.h)
 // beside meshoptimizer's in-core meshopt_simplify, at the same output count.
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Throughput of the range coder on adaptive bits (skewed 1:9) and on
 // integers of mixed size, encode and decode.
 //

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """The simplification benchmark: psq's simplifiers beside meshoptimizer's.
 
 Runs every simplifier as a process of its own (so that its peak memory is

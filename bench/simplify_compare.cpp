@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq_simplify_compare: the pieces of the simplification benchmark that run
 // as processes of their own (bench/run_simplify_compare.py drives them):
 //

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Whole-process speed and peak memory of psq simplify --method clustering,
 # .psq to .psq, on generated foam meshes (psq-meshgen) at about 1% and 10%
 # of the input triangles: wall and CPU time, peak RSS (/usr/bin/time), input

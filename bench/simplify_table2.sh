@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # The paper's Table 2 (Isenburg et al. 2003, section 5.1) for psq simplify
 # --method clustering: for each mesh and grid, the original OoCS (--cells
 # global) against active cells and connected layers: output triangles and

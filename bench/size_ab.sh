@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Compares the .psq sizes that two psq binaries write for the same meshes:
 # the quick check of a format or encoder experiment before a full
 # bench/run_compare.sh. Each mesh is converted by both binaries at 11, 14

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Speed ratios of psq codecs against a reference codec, each ratio taken
 # within one invocation of psq_bench_compare, so that the machine's drift
 # between invocations (10% and more between hours on the project's shared

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The psq binary as a user runs it: exit codes, stdout/stderr discipline,
 // atomic outputs, pipes, and the shared corpus.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The codec's internal helpers whose fast paths must agree with the
 // definitions of spec/psq-format.md: a fast path that differed would change
 // contexts in the encoder and the decoder alike, so that round trips still

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Tests of the .psq codec (codec/, spec/psq-format.md): exact round trips of
 // processing sequences, quantization error bounds, determinism, chunking,
 // and hostile input (every truncation, random bit flips, bad fields).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The conformance vectors of spec/conformance (spec/psq-format.md section
 // 12): every valid vector decodes to exactly its .dump, every invalid one
 // fails with the listed error at the listed byte, and the vectors made from

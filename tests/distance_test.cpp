@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq distance (psq/distance.h): analytic cases, an independent brute-force
 // measure of the same samples, the streaming path against the all-in-memory
 // one, determinism, degenerate and hostile input, and the CLI.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Draco (.drc) reading and writing: round trips, attributes, corrupt input,
 // the memory budget, and the CLI.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The encoder fuzz target's oracle (tests/fuzz/fuzz_encoder.cpp) in every
 // build, GCC and sanitizers included: its seed corpus, then inputs mutated
 // from it by a fixed pseudo-random generator. The oracle aborts on a

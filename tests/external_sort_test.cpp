@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // ExternalSorter: in memory, spilled runs, intermediate merge passes, custom
 // comparators, temporary-file cleanup and usage errors.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq info: a .psq reports the mesh it holds as the same mesh in PLY does,
 // and the boundary figures of its own sequence, counted as the decoder yields
 // it; malformed streams fail in one line; no progress goes to a stderr that

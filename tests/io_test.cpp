@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // InputStream, OutputFile and SpoolFile: offsets, line ends, atomic output.
 #include <gtest/gtest.h>
 

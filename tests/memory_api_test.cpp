@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The in-memory door into the codec (psq/psq_memory.h): arrays to bytes and
 // back, the same mesh up to the order of vertices and triangles.
 #include <gtest/gtest.h>

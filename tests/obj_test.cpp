@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Tests of the OBJ reader and writer (psq/obj.h).
 
 #include <unistd.h>

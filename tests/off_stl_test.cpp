@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Tests of the OFF and STL readers (psq/off.h, psq/stl.h): layouts, welding,
 // detection and hostile input.
 #include <gtest/gtest.h>

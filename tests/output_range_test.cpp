@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Values that an output cannot hold at the precision asked for are refused
 // with the vertex named, never written as something else: doubles beyond
 // float range in OBJ, Draco and decode_mesh()'s float arrays, and double

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The filter pipeline's pieces in format/: the streaming mesh interface and
 // its adapters (psq/mesh_stream.h), the sequence-to-mesh adapter
 // (psq/sequence_mesh.h), property merge rules (psq/property_merge.h) and

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // PLY reader and writer: every encoding, type and layout, and hostile input.
 #include <gtest/gtest.h>
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The CLI's progress line (tools/cli/progress.h): the recent rate and the
 // time left, their text, and silence when stderr is not a terminal.
 #include <gtest/gtest.h>

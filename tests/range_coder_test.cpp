@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The range coder: exact round trips of bits, symbols, raw bits and
 // integers; compression close to the entropy; safe decoding of truncated
 // and corrupt streams.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The fast profile's static rANS coder and raw bit stream (codec/src/rans.h).
 #include <gtest/gtest.h>
 

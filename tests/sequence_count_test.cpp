@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // SequenceCounter: the same statistics as SequenceChecker (whose union-finds
 // span the whole mesh) from the boundary slots alone, on sequences from the
 // converter and from the decoder; and the input mesh's counts equal what the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Processing sequences: the converter and builder produce valid sequences
 // (checked independently by SequenceChecker) that hold exactly the input's
 // triangles, on manifold, non-manifold, shuffled and soup meshes.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Vertex clustering on the processing boundary (simplify/, paper section
 // 5): the quadric solver, the grid, the three cell modes' promises (valid
 // output sequences, every vertex in its cell, closed stays closed, holes

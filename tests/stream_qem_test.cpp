@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The stream edge-collapse simplifier (psq/stream_qem.h) and the streaming
 // smoother (psq/taubin_smooth.h), on meshes made in code: targets, topology,
 // borders, determinism, bounded against whole-mesh buffers.

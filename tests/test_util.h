@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Shared helpers for psq's tests: meshes generated in code, an in-memory sink,
 // temporary directories and running the psq binary.
 #ifndef PSQ_TESTS_TEST_UTIL_H_

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Threaded sinks (psq/threaded_sink.h): the wrapped sink sees exactly the
 // events, in order, that it would see without the thread (so an encoder
 // behind one writes the same bytes); its errors reach the producer; a

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // TriangleBuffer (psq/triangle_buffer.h): connectivity from the sequence,
 // locks on both boundaries, the output order of paper section 6, edge
 // collapse under the link condition, and refusal of sequences it cannot use.

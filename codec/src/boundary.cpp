@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // codec/src/boundary.cpp: see boundary.h; the rules are spec/psq-format.md
 // section 6.1.
 #include "boundary.h"

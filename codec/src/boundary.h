@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // codec/src/boundary.h: the processing boundary as the .psq encoder and
 // decoder both track it (spec/psq-format.md section 6.1).
 //

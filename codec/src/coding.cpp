@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // codec/src/coding.cpp: the models' initial state and the cost table of
 // coding.h.
 #include "coding.h"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // codec/src/coding.h: the adaptive models of the .psq record coder and the
 // helpers that code with them (spec/psq-format.md sections 5 and 6), shared
 // by the encoder and the decoder so that both use the same contexts.

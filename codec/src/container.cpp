@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // codec/src/container.cpp: the .psq header (spec/psq-format.md 4.1, 4.2).
 #include "container.h"
 

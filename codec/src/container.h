@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // codec/src/container.h: the framing of a .psq stream (spec/psq-format.md
 // section 4): little-endian field helpers, the header, the chunk and end
 // record layouts and the limits a decoder enforces.

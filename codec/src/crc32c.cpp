@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // CRC-32C by table lookup, eight bytes per step ("slicing by 8": eight
 // 256-entry tables, each the previous one advanced by a zero byte), or by
 // the CRC32 instruction of SSE 4.2 on x86-64 processors that have it.

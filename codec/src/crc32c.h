@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // codec/src/crc32c.h: CRC-32C (Castagnoli), the checksum of every .psq
 // header, chunk and stream (spec/psq-format.md section 3.3).
 #ifndef PSQ_CODEC_CRC32C_H_

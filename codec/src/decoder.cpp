@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // codec/src/decoder.cpp: the .psq decoder (psq/psq_codec.h). Section
 // numbers refer to spec/psq-format.md.
 #include <algorithm>

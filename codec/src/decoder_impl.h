@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // codec/src/decoder_impl.h: the state of the .psq decoder
 // (psq/psq_codec.h), shared by its two record decoders: decoder.cpp (format
 // 7 coding, the compact profile) and fast_decoder.cpp (the fast profile,

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // codec/src/encoder_impl.h: the state of the .psq encoder (psq/psq_codec.h),
 // shared by its two record coders: encoder.cpp (format 7 coding, the
 // compact profile) and fast_encoder.cpp (the fast profile,

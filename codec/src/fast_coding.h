@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // codec/src/fast_coding.h: the symbols, contexts and tables of the fast
 // profile (spec section 13), shared by its encoder and decoder.
 #ifndef PSQ_CODEC_FAST_CODING_H_

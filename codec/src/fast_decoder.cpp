@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // codec/src/fast_decoder.cpp: the fast profile's records (spec
 // section 13). The boundary is a
 // FastBoundary: every edge a triangle completes is named by its record

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // codec/src/fast_encoder.cpp: the fast profile's records (spec
 // section 13): static rANS symbols and raw
 // bits, coded at the end of each chunk.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // codec/src/geometry.h: coded coordinates and their predictions
 // (spec/psq-format.md section 7), shared by the encoder and the decoder.
 #ifndef PSQ_CODEC_GEOMETRY_H_

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // codec/src/memory_api.cpp: psq/psq_memory.h, the in-memory door over the
 // streaming encoder and decoder.
 #include <cmath>

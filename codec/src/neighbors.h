@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // codec/src/neighbors.h: which active vertices are joined by an edge, for
 // the fast profile's decoder (spec 13.6.3).
 //

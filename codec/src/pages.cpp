@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // codec/src/pages.cpp: see pages.h.
 #include "pages.h"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // codec/src/pages.h: asking the kernel for an array's pages ahead of use.
 #ifndef PSQ_CODEC_PAGES_H_
 #define PSQ_CODEC_PAGES_H_

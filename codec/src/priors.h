@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // codec/src/priors.h: the trained initial state of the connectivity models
 // (spec/psq-format.md 6.2.7 and Appendix C).
 #ifndef PSQ_CODEC_PRIORS_H_

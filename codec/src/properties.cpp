@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // codec/src/properties.cpp: see properties.h and spec/psq-format.md 8.
 #include "properties.h"
 

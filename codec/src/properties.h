@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // codec/src/properties.h: the property section of a .psq chunk
 // (spec/psq-format.md section 8): the values of the chunk's new vertices and
 // of its triangles, one column per property, scalar columns split into byte

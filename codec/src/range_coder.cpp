@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The adaptive binary range coder (psq/range_coder.h). A range coder in
 // the style of Martin (1979), with 32-bit range, bottom renormalisation by
 // bytes and carry propagation through a cached byte and a run of 0xff bytes

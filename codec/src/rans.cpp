@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // codec/src/rans.cpp: see rans.h.
 #include "rans.h"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // codec/src/rans.h: static rANS coding and a raw bit stream, the entropy
 // coder of the fast profile (spec 13.3 to 13.5).
 //

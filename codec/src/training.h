@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // codec/src/training.h: what the prior-training tool
 // (codec/tools/train_priors.cpp) needs of the encoder, and nothing else
 // uses: an encoder whose models start flat, and its models at the end.

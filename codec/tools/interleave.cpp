@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq_interleave: writes the conformance vector with far gates of every
 // kind (spec/psq-format.md 6.2.1 and 12).
 //

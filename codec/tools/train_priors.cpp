@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq_train_priors: derives the initial state of the connectivity models
 // (spec/psq-format.md 6.2.7, Appendix C) from a training stream.
 //

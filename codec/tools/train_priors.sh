@@ -1,4 +1,5 @@
 #!/bin/bash
+# SPDX-License-Identifier: Apache-2.0
 # Regenerates the trained initial state of the .psq connectivity models
 # (spec/psq-format.md 6.2.7 and Appendix C): codec/src/priors.cpp and the
 # spec's table between <!-- priors:begin --> and <!-- priors:end -->.

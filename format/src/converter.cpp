@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // SequenceConverter (psq/converter.h): the waiting area that turns loosely
 // ordered indexed triangles into a processing sequence (Isenburg, Lindstrom,
 // Gumhold, Snoeyink 2003, section 3 and Figure 3), cutting non-manifold

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The temporary files of the external merge sort (psq/external_sort.h), after
 // the external sorts of Lindstrom and Silva, "A memory insensitive technique
 // for large model simplification" (IEEE Visualization 2001).

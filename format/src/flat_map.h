@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A hash map from uint64_t keys for the per-boundary and per-cut tables of
 // SequenceChecker and SequenceCounter: open addressing with linear probing
 // and backward-shift deletion, so that no element costs an allocation.

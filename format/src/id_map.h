@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A map from 32-bit ids to 32-bit values for the waiting areas of format/
 // (the converter's vertex pool, DenseMeshSink's renumbering): open
 // addressing with linear probing and backward-shift deletion, so that a

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "psq/indexed_mesh.h"
 
 #include <cmath>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // DenseMeshSink and TeeMeshSink (psq/mesh_stream.h).
 #include "psq/mesh_stream.h"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Merge rules of vertex and face properties (psq/property_merge.h).
 #include "psq/property_merge.h"
 

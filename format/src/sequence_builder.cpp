@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // build_sequence (psq/sequence_builder.h): spool an indexed mesh, then feed
 // the converter either in file order (coherent input) or after an external
 // spatial sort (paper section 3, "from scratch"; external sorts as in

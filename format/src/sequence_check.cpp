@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // SequenceChecker (psq/sequence_check.h): recomputes the processing boundary
 // of a sequence from its triangles (paper section 3, Figure 2) and checks the
 // stream's claims against it, counting Table 1's statistics on the way.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // SequenceCounter (psq/sequence_count.h): Table 1's statistics of a
 // processing sequence (Isenburg, Lindstrom, Gumhold, Snoeyink 2003, "Large
 // Mesh Simplification using Processing Sequences", section 3) in the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // DumpWriter (psq/sequence_dump.h): the "psq-dump 1" text form of a
 // processing sequence, specified in spec/psq-dump.md.
 #include "psq/sequence_dump.h"

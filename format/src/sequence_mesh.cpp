@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // SequenceMeshSource (psq/sequence_mesh.h): a processing sequence as a mesh,
 // re-appearing vertices merged (paper section 3, "non-manifold meshes").
 #include "psq/sequence_mesh.h"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // ThreadedMeshSink (psq/threaded_mesh_sink.h): a streaming mesh's events
 // carried over ThreadedSequenceSink's batches. A vertex travels as a
 // sequence vertex (its id in the index), a triangle as a sequence

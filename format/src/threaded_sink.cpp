@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq/threaded_sink.h: events packed into byte batches on the producing
 // thread, replayed into the wrapped sink by a worker.
 #include "psq/threaded_sink.h"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Buffer-based processing: a triangle buffer between an input and an output
 // processing boundary (Isenburg, Lindstrom, Gumhold, Snoeyink, "Large Mesh
 // Simplification using Processing Sequences", 2003, sections 3 and 6; the

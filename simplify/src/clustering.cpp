@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Vertex clustering on the processing boundary: Isenburg, Lindstrom,
 // Gumhold and Snoeyink, "Large mesh simplification using processing
 // sequences" (2003), section 5 (active cells, connected layers, border

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The surface distance between two meshes (psq/distance.h), after Metro:
 // P. Cignoni, C. Rocchini, R. Scopigno, "Metro: measuring error on
 // simplified surfaces", Computer Graphics Forum 17(2), 1998. As in Metro,

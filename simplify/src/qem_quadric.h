@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Error quadrics (Garland and Heckbert, "Surface Simplification Using
 // Quadric Error Metrics", 1997): the sum of weighted squared distances to a
 // set of planes, Q(x) = x'Ax + 2b'x + c, with the total weight kept so that

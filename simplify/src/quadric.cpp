@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Quadric error metrics (Garland and Heckbert, "Surface simplification
 // using quadric error metrics", 1997) and the robust minimizer of Lindstrom
 // ("Out-of-core simplification of large polygonal models", 2000): the

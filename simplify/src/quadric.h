@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Quadric error metrics (Garland and Heckbert 1997) and their robust
 // minimizer (Lindstrom 2000, section 3.2): the pieces that simplify/'s
 // filters share.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Stream decimation on a processing sequence: Wu and Kobbelt, "A Stream
 // Algorithm for the Decimation of Massive Meshes" (Graphics Interface 2003),
 // as adapted to processing sequences by Isenburg, Lindstrom, Gumhold and

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Streaming lambda|mu smoothing (Taubin, "A Signal Processing Approach to
 // Fair Surface Design", SIGGRAPH 1995) as buffer-based processing of a
 // processing sequence (Isenburg, Lindstrom, Gumhold and Snoeyink, "Large

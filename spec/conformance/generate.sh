@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Regenerates the .psq conformance vectors of spec/psq-format.md (section
 # 12) from meshes in tests/data and meshes written here, with the psq binary
 # given as $1 (default: build/psq). Every valid vector NAME.psq comes with

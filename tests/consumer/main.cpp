@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // An application of an installed psq, as README.md shows it: writes a
 // one-triangle PLY and reads it back, encodes and decodes a mesh in memory,
 // and streams a .psq through a SequenceSink (the README's surface area).

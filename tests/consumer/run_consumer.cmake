@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # Installs the psq build into a scratch prefix, then configures, builds and
 # runs tests/consumer against it with find_package(psq).
 file(REMOVE_RECURSE "${WORK_DIR}")

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Shared pieces of psq's libFuzzer targets: a sink that discards, a soup
 // source, a sequence recorder, and the "every accepted mesh gives a valid
 // processing sequence" oracle.

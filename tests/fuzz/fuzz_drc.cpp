@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // libFuzzer target: DracoReader (check_draco_header, then libdraco) over
 // arbitrary bytes.
 //

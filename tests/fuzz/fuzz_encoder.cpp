@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // libFuzzer target: the .psq encoder (PsqEncoder) on hostile event sequences.
 //
 // An application that links psq feeds the encoder processing-sequence events

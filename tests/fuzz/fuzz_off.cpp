@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // libFuzzer target: OffReader over arbitrary bytes (built once
 // tools/src/off_reader.cpp is part of psq_convert).
 //

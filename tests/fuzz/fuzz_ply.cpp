@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // libFuzzer target: PlyReader over arbitrary bytes.
 //
 // Any Status is an acceptable answer; crashes, sanitizer reports, leaks and

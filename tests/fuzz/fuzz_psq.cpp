@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // libFuzzer target: the .psq decoder on arbitrary bytes.
 //
 // Fuzzing builds skip the checksum comparisons (FUZZING_BUILD_MODE_UNSAFE_

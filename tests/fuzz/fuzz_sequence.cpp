@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // libFuzzer target: build_sequence over arbitrary index soups.
 //
 // The bytes describe a small indexed mesh:

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Shared pieces of the psq command-line tool: argument parsing, diagnostics
 // and exit codes (STYLE.md: data on stdout only, diagnostics on stderr as
 // "psq: error: FILE: message"; exit 0 success, 1 data or I/O failure, 2 usage).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq convert: stream a mesh from one format to another.
 #include <unistd.h>
 

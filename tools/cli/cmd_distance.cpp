@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq distance: Metro's surface distance between two meshes (psq/distance.h).
 #include <unistd.h>
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq dump: the processing sequence of any input as text (spec/psq-dump.md).
 #include <cstdio>
 #include <string>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq info: what a mesh holds, counted in one streaming pass.
 #include <algorithm>
 #include <cstdio>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq simplify --method qem: stream edge-collapse simplification
 // (psq/stream_qem.h). cmd_simplify hands its arguments here.
 #include <cmath>

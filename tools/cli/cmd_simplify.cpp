@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq simplify: out-of-core simplification, processing sequence in,
 // processing sequence (or any mesh format) out (paper sections 3 and 5).
 #include <fcntl.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq smooth: Taubin lambda|mu smoothing, streaming (psq/taubin_smooth.h).
 #include <cmath>
 #include <cstdio>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq verify: decode a .psq completely and check it.
 #include <cstdio>
 #include <string>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The psq subcommands; each takes its own argv slice and returns an exit code.
 #ifndef PSQ_CLI_COMMANDS_H_
 #define PSQ_CLI_COMMANDS_H_

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Plumbing of the sequence-filter commands; see filter_io.h.
 #include "filter_io.h"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The plumbing that the sequence-filter commands (psq simplify --method qem, psq smooth)
 // share: the input read as a processing sequence and pushed into a filter
 // (a .psq through its decoder, any other mesh through the sequence

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq: the command-line tool. Thin glue over the libraries; see --help.
 #include <algorithm>
 #include <cstdio>

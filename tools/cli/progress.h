@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Progress on long runs: a line on stderr, rewritten in
 // place at most ten times a second, when stderr is a terminal and -q was
 // not given; then a one-line summary, or nothing (clear()). Nothing at all

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Draco (.drc) reader and writer (psq/draco.h), on libdraco's in-core API.
 #include "psq/draco.h"
 

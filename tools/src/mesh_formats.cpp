@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Format detection by content and the reader/writer factory (psq/mesh_formats.h).
 #include "psq/mesh_formats.h"
 #include "psq/psq_mesh.h"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // ObjReader and looks_like_obj: reading Wavefront OBJ as an indexed mesh
 // (see psq/obj.h for what is supported and how memory is used).
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // ObjWriter: writing an indexed mesh as Wavefront OBJ text, streaming (see
 // psq/obj.h for which properties OBJ can hold).
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // OffReader and looks_like_off: streaming ascii OFF (see psq/off.h).
 //
 // OFF is Geomview's Object File Format; the keyword prefixes ([ST][C][N][4]

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Streaming PLY reader (psq/ply.h): header parsing, ascii and binary element
 // decoding, polygon fans and triangle strips, one element in memory at a time.
 //

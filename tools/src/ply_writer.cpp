@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Streaming PLY writer (psq/ply.h). PLY puts element counts in its header,
 // so when the source cannot promise them up front the elements are spooled to
 // unlinked temporary files and copied after the header at finish().

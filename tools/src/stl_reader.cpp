@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // StlReader and looks_like_stl: binary and ascii STL read in core, vertices
 // welded by exact position (see psq/stl.h).
 #include <charconv>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Token parsing shared by the text mesh readers (text_parse.h).
 #include "text_parse.h"
 

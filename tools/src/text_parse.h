@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Token parsing shared by the text mesh readers (OBJ, OFF, STL): locale-
 // independent numbers through std::from_chars, and tokens quoted safely in
 // error messages. Internal to tools/; not installed.

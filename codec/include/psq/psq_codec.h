@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq/psq_codec.h: the .psq encoder (a SequenceSink) and decoder (a
 // SequenceSource), specified in spec/psq-format.md.
 //

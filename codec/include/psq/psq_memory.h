@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq/psq_memory.h: the in-memory door into the codec (DESIGN.md, layers):
 // vertex and index arrays to .psq bytes and back, for meshes that fit in
 // memory, as Draco and meshoptimizer offer. Applications whose meshes do

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq/range_coder.h: the adaptive binary range coder of the .psq codec.
 //
 // A range coder (Martin 1979; the carry handling with a cached byte as in

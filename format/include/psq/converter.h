@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq/converter.h: the processing-sequence converter ("waiting area", paper
 // section 3, Figure 3).
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq/external_sort.h: sorting more fixed-size records than fit in memory.
 //
 // The converter's external spatial sort (paper section 3: vertices sorted by

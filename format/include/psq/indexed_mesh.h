@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq/indexed_mesh.h: the streaming indexed-mesh model.
 //
 // An indexed mesh is a stream of vertices (a position and property values)

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq/io.h: buffered byte input with offsets, and atomic output files.
 //
 // InputStream reads a file, standard input or a memory buffer through one

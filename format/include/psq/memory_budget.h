@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq/memory_budget.h: one memory budget for a pipeline, split among its
 // stages by the code that builds the pipeline.
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq/mesh_stats.h: statistics of an indexed mesh in one streaming pass.
 //
 // MeshStats is a MeshSink that counts what `psq info` reports for any input.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq/mesh_stream.h: a streaming indexed mesh with finalization, the output
 // interface of every filter (paper section 3, Figure 3).
 //

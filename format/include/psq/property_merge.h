@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq/property_merge.h: what a vertex or face property does when elements
 // merge.
 //

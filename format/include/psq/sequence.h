@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq/sequence.h: the processing-sequence model (paper section 3).
 //
 // A processing sequence is a stream of events: a vertex is introduced right

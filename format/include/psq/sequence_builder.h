@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq/sequence_builder.h: a processing sequence from any indexed mesh
 // ("generating processing sequences from scratch", paper section 3).
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq/sequence_check.h: validation and statistics of a processing sequence
 // in one streaming pass (paper section 3 and Table 1).
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq/sequence_count.h: the statistics of a processing sequence in memory
 // proportional to its boundary (paper section 3 and Table 1).
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq/sequence_dump.h: the text dump of a processing sequence (spec/,
 // appendix "psq-dump 1"), one event per line:
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq/sequence_mesh.h: a processing sequence read as an indexed mesh.
 //
 // SequenceMeshSource pulls any SequenceSource (the .psq decoder, a filter's

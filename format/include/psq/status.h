@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq/status.h: error reporting for every psq library.
 //
 // The libraries never print, exit or abort on bad input. Every fallible call

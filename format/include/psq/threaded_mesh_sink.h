@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq/threaded_mesh_sink.h: a StreamingMeshSink (psq/mesh_stream.h) run on
 // a thread of its own.
 //

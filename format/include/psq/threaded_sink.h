@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq/threaded_sink.h: a pipeline stage that runs a sink on a thread of
 // its own.
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq/triangle_buffer.h: buffer-based processing (paper section 3, "buffer-
 // based processing", and section 6).
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq/clustering.h: out-of-core simplification by vertex clustering on the
 // processing boundary (Isenburg, Lindstrom, Gumhold, Snoeyink 2003, section
 // 5; Lindstrom's OoCS, 2000).

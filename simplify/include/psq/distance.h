@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq/distance.h: the surface distance between two triangle meshes, as
 // Metro measures it (Cignoni, Rocchini, Scopigno, "Metro: measuring error
 // on simplified surfaces", Computer Graphics Forum 17(2), 1998).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq/stream_qem.h: adaptive simplification by edge collapse in a fixed
 // triangle buffer (Wu and Kobbelt 2003 on processing sequences, paper
 // section 6).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq/taubin_smooth.h: Taubin's lambda|mu smoothing of a mesh larger than
 // memory, streaming, in a triangle buffer (paper section 3, "buffer-based
 // processing": iterative smoothing is one of its examples).

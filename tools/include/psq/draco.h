@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq/draco.h: Draco (.drc) reader and writer.
 //
 // Draco is an in-core format: a .drc is decoded or encoded as a whole, so

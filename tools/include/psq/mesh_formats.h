@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq/mesh_formats.h: which mesh format a file is, and opening the right
 // reader or writer for it.
 //

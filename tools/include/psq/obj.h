@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq/obj.h: Wavefront OBJ reader and writer.
 //
 // ObjReader is a MeshSource over `v` (with optional r g b colour), `vn`,

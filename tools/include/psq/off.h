@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq/off.h: streaming reader of the Object File Format (OFF).
 //
 // OffReader is a MeshSource over ascii OFF as Geomview defines it: an

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq/ply.h: streaming PLY reader and writer.
 //
 // PlyReader is a MeshSource over ascii, binary little-endian and binary

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq/psq_mesh.h: a .psq stream read as an indexed mesh.
 //
 // PsqMeshSource pulls a PsqDecoder and yields the mesh the processing

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // psq/stl.h: reader of STL (stereolithography) files, binary and ascii.
 //
 // StlReader is a MeshSource over
