@@ -1089,6 +1089,30 @@ TEST(CliSimplify, ATargetTriangleCount) {
             0);
 }
 
+TEST(CliSimplify, MergeRulesFromTheCommandLine) {
+  test::TempDir dir;
+  Mesh m = test::make_sphere(20, 30);
+  m.schema.vertex_properties = {{"red", ScalarType::kUInt8}, {"label", ScalarType::kInt32}};
+  for (size_t i = 0; i < m.positions.size(); ++i) m.vertex_values[i] = {static_cast<double>(i % 200), 1000.0 + i};
+  const std::string ply = write_mesh_ply(dir, "c.ply", m);
+  std::string out, err;
+  ASSERT_EQ(test::run_psq("simplify " + ply + " " + dir.file("d.ply") + " --grid 6 --merge label=drop,red=first", &out,
+                          &err),
+            0)
+      << err;
+  Mesh d;
+  ASSERT_TRUE(test::load_mesh(dir.file("d.ply"), &d).ok());
+  ASSERT_EQ(d.schema.vertex_properties.size(), 1u);
+  EXPECT_EQ(d.schema.vertex_properties[0].name, "red");
+  std::set<double> reds;
+  for (size_t i = 0; i < m.positions.size(); ++i) reds.insert(m.vertex_values[i][0]);
+  for (const PropertyValues& v : d.vertex_values) EXPECT_TRUE(reds.count(v[0]));  // a vertex's, not an average
+  EXPECT_EQ(test::run_psq("simplify " + ply + " " + dir.file("e.ply") + " --merge nosuch=drop", &out, &err), 2);
+  EXPECT_NE(err.find("no property 'nosuch'"), std::string::npos);
+  EXPECT_EQ(test::run_psq("simplify " + ply + " " + dir.file("e.ply") + " --merge red=sum", &out, &err), 2);
+  EXPECT_FALSE(test::file_exists(dir.file("e.ply")));
+}
+
 TEST(CliSimplify, ErrorsAndUsage) {
   test::TempDir dir;
   const std::string ply = write_mesh_ply(dir, "s.ply", test::make_sphere(10, 10));
