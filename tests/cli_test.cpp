@@ -85,6 +85,9 @@ TEST(Cli, HelpCommandAndSuggestions) {
     EXPECT_EQ(run_psq(std::string(cmd) + " --help", &direct, &err), 0) << cmd;
     EXPECT_EQ(out, direct) << cmd;
   }
+  // The simplification benchmark finds the methods in this list.
+  EXPECT_EQ(run_psq("simplify --help", &out, &err), 0);
+  EXPECT_TRUE(std::regex_search(out, std::regex("Methods \\(--method\\):\n  clustering [^]*\n  qem  ")));
   EXPECT_EQ(run_psq("help frobnicate", &out, &err), 2);
   EXPECT_NE(err.find("unknown command 'frobnicate'"), std::string::npos);
   // A typo or a prefix names the nearest command; a word far from every
