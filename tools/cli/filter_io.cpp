@@ -121,6 +121,9 @@ const char kFilterOptionsHelp[] =
     "                 .psq input, else compact)\n"
     "  --memory SIZE  memory budget of the whole run (default 64M)\n"
     "  --tmpdir DIR   directory for temporary files (default $TMPDIR)\n"
+    "  --threads N    1 runs on one thread; 2 (the default on two or more\n"
+    "                 cores) decodes a .psq and encodes on threads of their own\n"
+    "                 (the output is the same)\n"
     "  -f, --force    overwrite OUT if it exists\n"
     "  -q, --quiet    print no notes, no progress line and no summary\n"
     "  --json         print a JSON summary on standard output (not with OUT '-')\n"
@@ -135,6 +138,9 @@ std::string parse_filter_options(Args& args, FilterOptions* o) {
   o->bits = args.option("--bits");
   o->profile = args.option("--profile", "auto");
   o->tmpdir = args.option("--tmpdir");
+  std::string threads = args.option("--threads", std::thread::hardware_concurrency() >= 2 ? "2" : "1");
+  if (threads != "1" && threads != "2") return "bad --threads '" + threads + "' (1 or 2)";
+  o->threads = threads == "2" ? 2 : 1;
   std::string memory = args.option("--memory", "64M");
   if (!parse_size(memory, &o->memory)) return "bad --memory '" + memory + "' (e.g. 64M, 1G)";
   if (o->memory < (uint64_t{8} << 20)) return "--memory must be at least 8M";
@@ -224,7 +230,7 @@ int FilterRun::open(const std::string& command, const FilterOptions& o) {
     byte_writer_ = std::make_unique<FileWriter>(&output_);
     encoder_ = std::make_unique<PsqEncoder>(byte_writer_.get(), encode_);
     chain = encoder_.get();
-    if (std::thread::hardware_concurrency() >= 2) {
+    if (o.threads >= 2) {
       threaded_ = std::make_unique<ThreadedSequenceSink>(encoder_.get());
       chain = threaded_.get();
     }
@@ -261,7 +267,11 @@ Status FilterRun::run(SequenceSink* filter, std::function<void(uint64_t)> at_beg
     InputSink input(filter, progress_.get(), [&] {
       if (at_begin) at_begin(0);
     });
-    return mesh_.decoder->pump(input);
+    if (o_.threads < 2) return mesh_.decoder->pump(input);
+    // The filter on a thread of its own while this one decodes (its events
+    // reach it in the same order: the same output).
+    ThreadedSequenceSink threaded(&input);
+    return mesh_.decoder->pump(threaded);
   }
   CountingSource source(mesh_.source.get(), progress_.get());
   InputSink input(filter, progress_.get(), [&] {
