@@ -103,7 +103,7 @@ class TriangleBuffer {
   void reserve(uint32_t triangles, uint32_t vertices);
   // Bytes the buffer takes per triangle and per vertex it holds (without
   // property values).
-  static constexpr uint32_t kTriangleBytes = 59, kVertexBytes = 56;
+  static constexpr uint32_t kTriangleBytes = 71, kVertexBytes = 56;
   // Seeds the random choices of pick_output() (default 1).
   void set_seed(uint64_t seed);
 
@@ -224,8 +224,13 @@ class TriangleBuffer {
   uint32_t band_ = 0;
   // Triangles touching the output boundary by 1, 2 or 3 edges.
   std::vector<uint32_t> out_set_[4];
-  // Triangle numbers in the order they were read (starts take the oldest).
-  std::vector<uint32_t> arrival_;
+  // Triangles in the order they were read (starts take the oldest).
+  struct Arrival {
+    uint32_t triangle, when;
+  };
+  bool arrived(const Arrival& a) const { return alive_flag_[a.triangle] && arrival_when_[a.triangle] == a.when; }
+  std::vector<Arrival> arrival_;
+  std::vector<uint32_t> arrival_when_;
   size_t arrival_head_ = 0;
   // Vertices.
   // Per vertex, together for the walks around vertices: its position, first
