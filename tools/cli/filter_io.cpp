@@ -121,9 +121,9 @@ const char kFilterOptionsHelp[] =
     "                 .psq input, else compact)\n"
     "  --memory SIZE  memory budget of the whole run (default 64M)\n"
     "  --tmpdir DIR   directory for temporary files (default $TMPDIR)\n"
-    "  --threads N    1 runs on one thread; 2 (the default on two or more\n"
-    "                 cores) decodes a .psq and encodes on threads of their own\n"
-    "                 (the output is the same)\n"
+    "  --threads N    .psq output: 1 runs on one thread; 2 (the default on two\n"
+    "                 or more cores) encodes on a second thread (the output is\n"
+    "                 the same)\n"
     "  -f, --force    overwrite OUT if it exists\n"
     "  -q, --quiet    print no notes, no progress line and no summary\n"
     "  --json         print a JSON summary on standard output (not with OUT '-')\n"
@@ -267,11 +267,9 @@ Status FilterRun::run(SequenceSink* filter, std::function<void(uint64_t)> at_beg
     InputSink input(filter, progress_.get(), [&] {
       if (at_begin) at_begin(0);
     });
-    if (o_.threads < 2) return mesh_.decoder->pump(input);
-    // The filter on a thread of its own while this one decodes (its events
-    // reach it in the same order: the same output).
-    ThreadedSequenceSink threaded(&input);
-    return mesh_.decoder->pump(threaded);
+    // (Decoding on a thread of its own does not pay: handing every event
+    // over costs about what decoding it does; bench/RESULTS.md.)
+    return mesh_.decoder->pump(input);
   }
   CountingSource source(mesh_.source.get(), progress_.get());
   InputSink input(filter, progress_.get(), [&] {
