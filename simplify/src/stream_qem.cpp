@@ -36,7 +36,7 @@ constexpr uint32_t kDecimationStep = 2048;
 // The converter behind the buffer keeps at least 65536 triangles waiting
 // (about 200 bytes each; no lookahead beyond: the buffer's output order is
 // a processing sequence's already), and some more while they settle
-// (bench/RESULTS.md: up to 101,000 on a 50M-triangle mesh).
+// (bench/RESULTS.md, "Simplification: stream edge collapse").
 constexpr uint64_t kConverterBytes = uint64_t{90000} * 200;
 // Vertices per triangle in the buffer (about one half on closed meshes;
 // room for more on meshes with borders).
