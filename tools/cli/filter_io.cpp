@@ -215,12 +215,12 @@ int FilterRun::open(const std::string& command, const FilterOptions& o) {
   }
   // The sequence builder reads a mesh input completely first, within half
   // the budget. The decoder of a .psq and the encoder keep their
-  // boundaries and a chunk each, with the process about 28 MB on a
-  // 50M-triangle foam ball (bench/RESULTS.md, "Simplification: stream edge
+  // boundaries and a chunk each, with the process about 30 MB on a
+  // 200M-triangle foam ball (bench/RESULTS.md, "Simplification: stream edge
   // collapse"); the filter gets the rest.
   build_.tmpdir = o.tmpdir;
   build_.memory_budget = o.memory / 2;
-  filter_budget_ = mesh_.decoder ? o.memory - std::min<uint64_t>(o.memory / 2, uint64_t{28} << 20) : o.memory / 2;
+  filter_budget_ = mesh_.decoder ? o.memory - std::min<uint64_t>(o.memory / 2, uint64_t{30} << 20) : o.memory / 2;
 
   s = output_.open(out, o.force);
   if (!s.ok()) return report_error(out, s);

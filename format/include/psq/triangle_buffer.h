@@ -25,7 +25,10 @@
 // - Vertices of non-manifold cuts (the input re-appears them, or an edge
 //   is a border only because the input was cut) are marked cut(): a client
 //   must not move them, or the copies of a non-manifold vertex would drift
-//   apart; they may still absorb a neighbour.
+//   apart; they may still absorb a neighbour. A re-appearance is written as
+//   a vertex of its own at the same place (its first occurrence may have
+//   been merged away before it came): the output is cut where the input
+//   was non-manifold.
 //
 // Writing: write(t) hands a triangle to the converter, giving each of its
 // vertices an output number the first time, and finalizes a vertex in the
@@ -41,8 +44,8 @@
 // Requirements on the input: the boundary slots of every triangle
 // (SequenceTriangle::vslot and eslot) and its edge and final masks, as the
 // .psq decoder and the converter give them. A sequence without them is
-// refused (kUsage). Vertices used by no triangle (isolated)
-// are dropped and counted. The input is checked as it arrives (a vertex
+// refused (kUsage). Vertices used by no triangle (isolated) are dropped
+// and counted. The input is checked as it arrives (a vertex
 // referenced by a slot it does not hold, an edge that is not one of border,
 // leaving or entering, an open edge left at the end: kBadSequence), so a
 // hostile source cannot corrupt the buffer; the buffer is safe on
@@ -110,6 +113,8 @@ class TriangleBuffer {
   // ---- input side: the client passes its input sequence's events on.
   // Starts the output with `schema` (counts unknown). Errors: the sink's.
   Status begin(const MeshSchema& schema);
+  // A vertex waits for its first triangle. Errors: kBadSequence (more than
+  // three waiting).
   Status vertex(const SequenceVertex& v);
   // Adds a triangle; `*id` is its number in the buffer. The vertices of its
   // new corners are allocated here (their numbers: vertex_of(3 * id + k));
@@ -117,6 +122,8 @@ class TriangleBuffer {
   // Errors: kUsage (no slots or masks), kBadSequence, kLimit (more than
   // 2^29 triangles in the buffer).
   Status triangle(const SequenceTriangle& t, uint32_t* id);
+  // A waiting vertex finalized before any triangle used it is dropped
+  // (isolated); the others are finalized by their triangles' final masks.
   Status finalize(uint32_t index);
   // The input ended. Errors: kBadSequence when a vertex was left open.
   Status end_input();
