@@ -55,6 +55,7 @@ void TriangleBuffer::reserve(uint32_t triangles, uint32_t vertices) {
   out_count_.reserve(triangles);
   open_count_.reserve(triangles);
   out_pos_.reserve(triangles);
+  arrival_when_.reserve(triangles);
   free_triangles_.reserve(triangles);
   arrival_.reserve(2 * static_cast<size_t>(triangles) + 1024);
   verts_.reserve(vertices);
@@ -300,6 +301,7 @@ Status TriangleBuffer::triangle(const SequenceTriangle& t, uint32_t* id) {
     out_count_.push_back(0);
     open_count_.push_back(0);
     out_pos_.push_back(0);
+    arrival_when_.push_back(0);
     if (has_face_values_) face_values_.emplace_back();
   }
   alive_flag_[tri] = 1;
@@ -345,12 +347,16 @@ Status TriangleBuffer::triangle(const SequenceTriangle& t, uint32_t* id) {
     }
   }
   set_out_count(tri, written_edges);
-  arrival_.push_back(tri);
+  // An entry names its triangle by number and by when it was read: the
+  // number of a triangle that left is given to later ones.
+  const uint32_t when = static_cast<uint32_t>(stats_.triangles_read);
+  arrival_when_[tri] = when;
+  arrival_.push_back({tri, when});
   if (arrival_.size() > 2 * static_cast<size_t>(alive_) + 1024) {
     // Drop the entries of triangles that left, keeping the order.
     size_t w = 0;
     for (size_t i = arrival_head_; i < arrival_.size(); ++i)
-      if (alive_flag_[arrival_[i]]) arrival_[w++] = arrival_[i];
+      if (arrived(arrival_[i])) arrival_[w++] = arrival_[i];
     arrival_.resize(w);
     arrival_head_ = 0;
   }
@@ -435,8 +441,8 @@ uint32_t TriangleBuffer::pick_output(int candidates, const float* score) {
     }
     return best;
   }
-  while (arrival_head_ < arrival_.size() && !alive_flag_[arrival_[arrival_head_]]) ++arrival_head_;
-  if (arrival_head_ < arrival_.size()) return arrival_[arrival_head_];
+  while (arrival_head_ < arrival_.size() && !arrived(arrival_[arrival_head_])) ++arrival_head_;
+  if (arrival_head_ < arrival_.size()) return arrival_[arrival_head_].triangle;
   return kNone;
 }
 

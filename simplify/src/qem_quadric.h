@@ -67,6 +67,12 @@ struct QemQuadric {
     return x[0] * ax0 + x[1] * ax1 + x[2] * ax2 + 2 * (b0 * x[0] + b1 * x[1] + b2 * x[2]) + c;
   }
 
+  // Q(x), never negative (for a quadric of weight 1).
+  double value(const double x[3]) const {
+    const double e = eval(x);
+    return e > 0 ? e : 0;
+  }
+
   // The mean squared distance at x (never negative).
   double error(const double x[3]) const {
     const double e = eval(x);

@@ -37,14 +37,16 @@ constexpr uint32_t kDecimationStep = 2048;
 // The converter behind the buffer keeps at least 65536 triangles waiting
 // (about 200 bytes each; no lookahead beyond: the buffer's output order is
 // a processing sequence's already), and some more while they settle
-// (bench/RESULTS.md: up to 101,000 on a 50M-triangle mesh).
+// (bench/RESULTS.md, "Simplification: stream edge collapse").
 constexpr uint64_t kConverterBytes = uint64_t{90000} * 200;
-// Vertices per triangle in the buffer (about one half on closed meshes;
-// room for more on meshes with borders).
-constexpr double kVerticesPerTriangle = 0.6;
+// Vertices per triangle in the buffer, for its room: about one half on
+// closed meshes, but more in the band along the input boundary, which is a
+// strip (0.83 on a 200M-triangle foam ball, whose band fills most of a 64
+// MB buffer); room beyond this grows by doubling.
+constexpr double kVerticesPerTriangle = 0.85;
 // Bytes per buffer triangle: the buffer's own, a reference normal per
 // triangle, and per vertex a VertexData, a score and a candidate entry.
-constexpr double kVertexQemBytes = 104 + 4 + 8;
+constexpr double kVertexQemBytes = 112 + 4 + 8;
 constexpr double kBytesPerTriangle =
     TriangleBuffer::kTriangleBytes + 12 + kVerticesPerTriangle * (TriangleBuffer::kVertexBytes + kVertexQemBytes);
 // Below this shape() a triangle is a sliver (its smallest angle under
@@ -78,6 +80,14 @@ double shape(const double n[3], const double e1[3], const double e2[3]) {
   sub(e2, e1, e3);
   const double l = std::max({dot(e1, e1), dot(e2, e2), dot(e3, e3)});
   return l > 0 ? dot(n, n) / (l * l) : 0;
+}
+
+// shape() < kSliver, without its division.
+bool is_sliver(const double n[3], const double e1[3], const double e2[3]) {
+  double e3[3];
+  sub(e2, e1, e3);
+  const double l = std::max({dot(e1, e1), dot(e2, e2), dot(e3, e3)});
+  return !(dot(n, n) >= kSliver * l * l);
 }
 
 struct Candidate {
@@ -176,6 +186,7 @@ struct StreamQem::Impl {
   // edges; here each sampled vertex offers its cheapest edge).
   struct VertexData {
     QemQuadric q;
+    double inverse_weight = 1;  // of q, once the vertex is complete
     float cost = kInfinity;  // of its cheapest edge; infinite: none
     uint32_t target = TriangleBuffer::kNone;  // the other end of that edge
     uint32_t slot = TriangleBuffer::kNone;    // its place in its band of `set`
@@ -292,8 +303,8 @@ struct StreamQem::Impl {
     QemQuadric q;
     const QemQuadric& qa = data[a].q;
     const QemQuadric& qb = data[b].q;
-    q.add_scaled(qa, qa.weight > 0 ? 1 / qa.weight : 1);
-    q.add_scaled(qb, qb.weight > 0 ? 1 / qb.weight : 1);
+    q.add_scaled(qa, data[a].inverse_weight);
+    q.add_scaled(qb, data[b].inverse_weight);
     q.weight = 1;
     return q;
   }
@@ -303,8 +314,9 @@ struct StreamQem::Impl {
   Status begin(const MeshSchema& schema);
   Status triangle(const SequenceTriangle& t);
   void add_quadrics(uint32_t tri, uint8_t border_mask);
-  bool evaluate(uint32_t h, Candidate* c);
-  int end_options(uint32_t h, Candidate out[2]);
+  // The cheapest collapse of edge h; with `ends`, also those onto either
+  // end (none where the border rules allow one place only).
+  bool evaluate(uint32_t h, Candidate* c, Candidate* ends = nullptr, int* n_ends = nullptr);
   bool allowed(const Candidate& c, bool topology_checked);
   void apply(const Candidate& c);
   bool flips(uint32_t h, const double p[3]);
@@ -433,7 +445,9 @@ Status StreamQem::Impl::triangle(const SequenceTriangle& t) {
   // neighbours become candidates.
   for (int k = 0; k < 3; ++k) {
     const uint32_t v = buffer.vertex_of(3 * tri + k);
-    if ((t.final_mask & (1u << k)) && !buffer.locked(v)) refresh(v, true);
+    if (!(t.final_mask & (1u << k))) continue;
+    data[v].inverse_weight = data[v].q.weight > 0 ? 1 / data[v].q.weight : 1;
+    if (!buffer.locked(v)) refresh(v, true);
   }
   if (++since_decimation >= kDecimationStep || buffer.triangle_count() >= capacity) {
     since_decimation = 0;
@@ -480,7 +494,8 @@ void StreamQem::Impl::locked_now(uint32_t v) {
   }
 }
 
-bool StreamQem::Impl::evaluate(uint32_t h, Candidate* c) {
+bool StreamQem::Impl::evaluate(uint32_t h, Candidate* c, Candidate* ends, int* n_ends) {
+  if (n_ends) *n_ends = 0;
   const uint32_t a = buffer.vertex_of(h), b = buffer.vertex_of(TriangleBuffer::next(h));
   const bool pa = pinned(a), pb = pinned(b);
   if (pa && pb) return false;
@@ -496,80 +511,68 @@ bool StreamQem::Impl::evaluate(uint32_t h, Candidate* c) {
   if (pa || pb || ba != bb) {
     c->keep_start = pa || (!pb && ba);
     std::copy(c->keep_start ? xa : xb, (c->keep_start ? xa : xb) + 3, c->x);
-  } else if (ba) {
-    if (buffer.opposite(h) != TriangleBuffer::kBorder) return false;  // a pinch: can_collapse refuses it
-    double e[3];
-    sub(xb, xa, e);
-    const double t = q.minimum_on_segment(xa, e);
-    for (int i = 0; i < 3; ++i) c->x[i] = xa[i] + t * e[i];
-    c->keep_start = t <= 0.5;
-  } else {
-    double e[3];
-    sub(xb, xa, e);
-    const double len2 = dot(e, e);
+    c->cost = q.value(c->x);
+    return true;
+  }
+  if (ba && buffer.opposite(h) != TriangleBuffer::kBorder) return false;  // a pinch: can_collapse refuses it
+  double e[3];
+  sub(xb, xa, e);
+  bool placed = false;
+  if (!ba) {
     double m[3];
     for (int i = 0; i < 3; ++i) m[i] = 0.5 * (xa[i] + xb[i]);
-    bool placed = q.minimum(kPull * (q.a00 + q.a11 + q.a22), m, c->x);
+    placed = q.minimum(kPull * (q.a00 + q.a11 + q.a22), m, c->x);
     if (placed) {
       // A solution far from the edge comes from a nearly singular system.
       double d[3];
       sub(c->x, m, d);
-      placed = dot(d, d) <= 4 * len2;
+      placed = dot(d, d) <= 4 * dot(e, e);
       // The minimum may lie past the input's box (a convex corner's planes
       // meet outside it); the edge's ends and every point between them lie
       // inside, so the clamped point is no worse a start than the segment.
       if (placed && bounds_known)
         for (int i = 0; i < 3; ++i) c->x[i] = std::min(box_hi[i], std::max(box_lo[i], c->x[i]));
     }
-    if (!placed) {
-      const double t = q.minimum_on_segment(xa, e);
-      for (int i = 0; i < 3; ++i) c->x[i] = xa[i] + t * e[i];
-    }
-    double da[3], db[3];
-    sub(c->x, xa, da);
-    sub(c->x, xb, db);
-    c->keep_start = dot(da, da) <= dot(db, db);
-    // An end may do better than the (regularized) minimum.
-    c->cost = q.error(c->x);
-    const double ea = q.error(xa), eb = q.error(xb);
-    if (ea < c->cost || eb < c->cost) {
-      c->keep_start = ea <= eb;
-      std::copy(c->keep_start ? xa : xb, (c->keep_start ? xa : xb) + 3, c->x);
-      c->cost = std::min(ea, eb);
-    }
-    return true;
   }
-  c->cost = q.error(c->x);
+  if (!placed) {
+    const double t = q.minimum_on_segment(xa, e);
+    for (int i = 0; i < 3; ++i) c->x[i] = xa[i] + t * e[i];
+  }
+  double da[3], db[3];
+  sub(c->x, xa, da);
+  sub(c->x, xb, db);
+  c->keep_start = dot(da, da) <= dot(db, db);
+  c->cost = q.value(c->x);
+  // An end may do better than the (regularized) minimum; the ends are the
+  // fallbacks when the best place flips a triangle.
+  const double ea = q.value(xa), eb = q.value(xb);
+  if (ea < c->cost || eb < c->cost) {
+    c->keep_start = ea <= eb;
+    std::copy(c->keep_start ? xa : xb, (c->keep_start ? xa : xb) + 3, c->x);
+    c->cost = std::min(ea, eb);
+  }
+  if (ends) {
+    const bool start_first = ea <= eb;
+    for (int i = 0; i < 2; ++i) {
+      Candidate& o = ends[i];
+      o.h = h;
+      o.keep_start = (i == 0) == start_first;
+      std::copy(o.keep_start ? xa : xb, (o.keep_start ? xa : xb) + 3, o.x);
+      o.cost = o.keep_start ? ea : eb;
+    }
+    *n_ends = 2;
+  }
   return true;
 }
 
-// The collapses of edge h onto one of its ends (half-edge collapses), as
-// the fallback when the best place flips a triangle; those allowed by the
-// border rules of evaluate().
-int StreamQem::Impl::end_options(uint32_t h, Candidate out[2]) {
-  const uint32_t a = buffer.vertex_of(h), b = buffer.vertex_of(TriangleBuffer::next(h));
-  const bool pa = pinned(a), pb = pinned(b), ba = buffer.border(a), bb = buffer.border(b);
-  if (pa || pb || ba != bb) return 0;  // evaluate() gave the only place
-  if (ba && buffer.opposite(h) != TriangleBuffer::kBorder) return 0;  // a pinch
-  const QemQuadric q = collapse_quadric(a, b);
-  int n = 0;
-  for (const bool keep_start : {true, false}) {
-    Candidate& c = out[n++];
-    c.h = h;
-    c.keep_start = keep_start;
-    normalized(keep_start ? a : b, c.x);
-    c.cost = q.error(c.x);
-  }
-  if (out[1].cost < out[0].cost) std::swap(out[0], out[1]);
-  return n;
-}
-
-// Whether moving the ends of edge h to x (normalized) flips, degenerates or
+// Whether moving the ends of edge h to p (a position) flips, degenerates or
 // turns too far a triangle that stays, or makes a sliver of it. A
 // triangle's orientation is judged against its own normal, or, for a
 // degenerate one, whose normal means nothing, against the normal of the
 // whole neighbourhood.
 bool StreamQem::Impl::flips(uint32_t h, const double x[3]) {
+  // (In the input's coordinates: every test here is one of signs or of
+  // ratios.)
   const uint32_t a = buffer.vertex_of(h), b = buffer.vertex_of(TriangleBuffer::next(h));
   double around[3] = {0, 0, 0};
   bool around_known = false;
@@ -578,10 +581,9 @@ bool StreamQem::Impl::flips(uint32_t h, const double x[3]) {
     for (uint32_t c = buffer.first_corner(v); c != TriangleBuffer::kNone; c = buffer.next_corner(c)) {
       const uint32_t v1 = buffer.vertex_of(TriangleBuffer::next(c)), v2 = buffer.vertex_of(TriangleBuffer::prev(c));
       if (v1 == other || v2 == other) continue;  // goes with the edge
-      double p0[3], p1[3], p2[3];
-      normalized(v, p0);
-      normalized(v1, p1);
-      normalized(v2, p2);
+      const double* p0 = buffer.position(v);
+      const double* p1 = buffer.position(v1);
+      const double* p2 = buffer.position(v2);
       double e1[3], e2[3], f1[3], f2[3], n0[3], n1[3];
       sub(p1, p0, e1);
       sub(p2, p0, e2);
@@ -591,8 +593,9 @@ bool StreamQem::Impl::flips(uint32_t h, const double x[3]) {
       cross(f1, f2, n1);
       // The shapes only where they may matter: a new sliver, or an old
       // normal that may mean nothing.
-      const double q1 = shape(n1, f1, f2);
-      const double q0 = q1 < kSliver || !(dot(n0, n1) > 0) ? shape(n0, e1, e2) : 1.0;
+      const bool sliver = is_sliver(n1, f1, f2);
+      const double q0 = sliver || !(dot(n0, n1) > 0) ? shape(n0, e1, e2) : 1.0;
+      const double q1 = sliver ? 0.0 : 1.0;
       if (q1 < kSliver && q0 >= kSliver) return true;
       if (q0 >= kDegenerate) {
         if (!(dot(n0, n1) > 0)) return true;
@@ -634,11 +637,10 @@ void StreamQem::Impl::fan_normal(uint32_t a, uint32_t b, double n[3]) {
 // flips, degenerates or turns too far no triangle.
 bool StreamQem::Impl::allowed(const Candidate& c, bool topology_checked) {
   if (!topology_checked && !buffer.can_collapse(c.h)) return false;
-  double p[3], x[3];
+  double p[3];
   world(c.x, p);
   buffer.round_position(p);
-  to_normalized(p, x);
-  return !flips(c.h, x);
+  return !flips(c.h, p);
 }
 
 // v's cheapest edge was refused: offer its cheapest collapse that passes,
@@ -651,8 +653,8 @@ void StreamQem::Impl::refuse(uint32_t v) {
   for_each_edge(v, [&](uint32_t u, uint32_t h) {
     if (edges == 32 || buffer.locked(u)) return;
     const int first = n;
-    if (evaluate(h, &options[n])) ++n;
-    n += end_options(h, options + n);
+    int n_ends = 0;
+    if (evaluate(h, &options[n], &options[n + 1], &n_ends)) n += 1 + n_ends;
     for (int i = first; i < n; ++i) edge_of[i] = static_cast<uint8_t>(edges);
     edge_ok[edges++] = -1;
   });
@@ -688,6 +690,7 @@ void StreamQem::Impl::apply(const Candidate& k) {
   leave_set(gone);
   const uint32_t keep = buffer.collapse(h, k.keep_start);
   data[keep].q = q;
+  data[keep].inverse_weight = q.weight > 0 ? 1 / q.weight : 1;
   if (!keep_pinned) buffer.set_position(keep, p);
   score[keep] = static_cast<float>(k.cost);
   max_cost = std::max(max_cost, k.cost);
@@ -717,8 +720,9 @@ bool StreamQem::Impl::collapse_one(double limit) {
   for_each_edge(v, [&](uint32_t u, uint32_t e) {
     if (u == target && h == TriangleBuffer::kNone) h = e;
   });
-  Candidate k;
-  if (h == TriangleBuffer::kNone || buffer.locked(target) || !evaluate(h, &k)) {
+  Candidate k, ends[2];
+  int n = 0;
+  if (h == TriangleBuffer::kNone || buffer.locked(target) || !evaluate(h, &k, ends, &n)) {
     refresh(v, false);
     return false;
   }
@@ -730,8 +734,6 @@ bool StreamQem::Impl::collapse_one(double limit) {
     // The best place flips a triangle: an end of the edge may not, at a
     // cost no higher than the next vertex offers; else v offers its best
     // allowed collapse instead, at its own cost.
-    Candidate ends[2];
-    const int n = end_options(h, ends);
     int i = 0;
     while (i < n && !(ends[i].cost <= 2 * picked_cost + 1e-30 && allowed(ends[i], true))) ++i;
     if (i == n) {

@@ -18,8 +18,10 @@ namespace {
 // (about 200 bytes each; no lookahead beyond), and some more while they
 // settle.
 constexpr uint64_t kConverterBytes = uint64_t{90000} * 200;
-// Vertices per triangle in the buffer (about one half on closed meshes).
-constexpr double kVerticesPerTriangle = 0.6;
+// Vertices per triangle in the buffer, for its room: about one half on
+// closed meshes, but more in the band along the input boundary, which is a
+// strip; room beyond this grows by doubling.
+constexpr double kVerticesPerTriangle = 0.85;
 // Bytes per buffer triangle: the buffer's own, a flag per triangle, and per
 // vertex its steps, its stop and its previous position.
 constexpr double kBytesPerTriangle =

@@ -32,6 +32,7 @@ struct FilterOptions {
   std::string profile = "auto";
   uint64_t memory = uint64_t{64} << 20;
   std::string tmpdir;
+  int threads = 2;
   bool force = false, quiet = false, json = false;
 };
 

@@ -26,7 +26,10 @@
 // - Vertices of non-manifold cuts (the input re-appears them, or an edge
 //   is a border only because the input was cut) are marked cut(): a client
 //   must not move them, or the copies of a non-manifold vertex would drift
-//   apart; they may still absorb a neighbour.
+//   apart; they may still absorb a neighbour. A re-appearance is written as
+//   a vertex of its own at the same place (its first occurrence may have
+//   been merged away before it came): the output is cut where the input
+//   was non-manifold.
 //
 // Writing: write(t) hands a triangle to the converter, giving each of its
 // vertices an output number the first time, and finalizes a vertex in the
@@ -42,8 +45,8 @@
 // Requirements on the input: the boundary slots of every triangle
 // (SequenceTriangle::vslot and eslot) and its edge and final masks, as the
 // .psq decoder and the converter give them. A sequence without them is
-// refused (kUsage). Vertices used by no triangle (isolated)
-// are dropped and counted. The input is checked as it arrives (a vertex
+// refused (kUsage). Vertices used by no triangle (isolated) are dropped
+// and counted. The input is checked as it arrives (a vertex
 // referenced by a slot it does not hold, an edge that is not one of border,
 // leaving or entering, an open edge left at the end: kBadSequence), so a
 // hostile source cannot corrupt the buffer; the buffer is safe on
@@ -104,13 +107,15 @@ class TriangleBuffer {
   void reserve(uint32_t triangles, uint32_t vertices);
   // Bytes the buffer takes per triangle and per vertex it holds (without
   // property values).
-  static constexpr uint32_t kTriangleBytes = 59, kVertexBytes = 56;
+  static constexpr uint32_t kTriangleBytes = 71, kVertexBytes = 56;
   // Seeds the random choices of pick_output() (default 1).
   void set_seed(uint64_t seed);
 
   // ---- input side: the client passes its input sequence's events on.
   // Starts the output with `schema` (counts unknown). Errors: the sink's.
   Status begin(const MeshSchema& schema);
+  // A vertex waits for its first triangle. Errors: kBadSequence (more than
+  // three waiting).
   Status vertex(const SequenceVertex& v);
   // Adds a triangle; `*id` is its number in the buffer. The vertices of its
   // new corners are allocated here (their numbers: vertex_of(3 * id + k));
@@ -118,6 +123,8 @@ class TriangleBuffer {
   // Errors: kUsage (no slots or masks), kBadSequence, kLimit (more than
   // 2^29 triangles in the buffer).
   Status triangle(const SequenceTriangle& t, uint32_t* id);
+  // A waiting vertex finalized before any triangle used it is dropped
+  // (isolated); the others are finalized by their triangles' final masks.
   Status finalize(uint32_t index);
   // The input ended. Errors: kBadSequence when a vertex was left open.
   Status end_input();
@@ -225,8 +232,13 @@ class TriangleBuffer {
   uint32_t band_ = 0;
   // Triangles touching the output boundary by 1, 2 or 3 edges.
   std::vector<uint32_t> out_set_[4];
-  // Triangle numbers in the order they were read (starts take the oldest).
-  std::vector<uint32_t> arrival_;
+  // Triangles in the order they were read (starts take the oldest).
+  struct Arrival {
+    uint32_t triangle, when;
+  };
+  bool arrived(const Arrival& a) const { return alive_flag_[a.triangle] && arrival_when_[a.triangle] == a.when; }
+  std::vector<Arrival> arrival_;
+  std::vector<uint32_t> arrival_when_;
   size_t arrival_head_ = 0;
   // Vertices.
   // Per vertex, together for the walks around vertices: its position, first
