@@ -15,7 +15,7 @@
 // are any.
 #include "psq/converter.h"
 
-#include "id_map.h"
+#include "flat_map.h"
 
 #include <algorithm>
 #include <array>

@@ -4,7 +4,7 @@
 
 #include <string>
 
-#include "id_map.h"
+#include "flat_map.h"
 
 namespace psq {
 

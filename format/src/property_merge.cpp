@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <cstring>
+#include "float_round.h"
 
 namespace psq {
 namespace {
@@ -14,17 +15,10 @@ bool one_of(const std::string& name, std::initializer_list<const char*> names) {
   return false;
 }
 
-// The nearest float to `d`, widened back, without GCC 12's -O2 trap that
-// drops the rounding of (double)(float)d (../shared/toolchain).
-double nearest_float(double d) {
-  volatile float f = static_cast<float>(d);
-  return static_cast<double>(f);
-}
-
 double round_to_type(double v, ScalarType type) {
   if (std::isnan(v)) return scalar_is_float(type) ? v : 0.0;
   switch (type) {
-    case ScalarType::kFloat32: return nearest_float(v);
+    case ScalarType::kFloat32: return detail::round_to_float(v);
     case ScalarType::kFloat64: return v;
     default: break;
   }

@@ -10,41 +10,12 @@
 #include <vector>
 
 #include "flat_map.h"
+#include "union_find.h"
 
 namespace psq {
 namespace {
 
-uint64_t directed(uint32_t a, uint32_t b) { return (uint64_t{a} << 32) | b; }
-uint64_t undirected(uint32_t a, uint32_t b) { return a < b ? directed(a, b) : directed(b, a); }
-
-// Union-find over dense indices, grown as vertices arrive.
-class UnionFind {
- public:
-  uint32_t add() {
-    parent_.push_back(static_cast<uint32_t>(parent_.size()));
-    return parent_.back();
-  }
-  uint32_t find(uint32_t x) {
-    while (parent_[x] != x) {
-      parent_[x] = parent_[parent_[x]];
-      x = parent_[x];
-    }
-    return x;
-  }
-  // True when x and y were in different sets.
-  bool unite(uint32_t x, uint32_t y) {
-    x = find(x);
-    y = find(y);
-    if (x == y) return false;
-    if (x < y) std::swap(x, y);
-    parent_[x] = y;
-    return true;
-  }
-
- private:
-  std::vector<uint32_t> parent_;
-};
-
+using detail::UnionFind;
 using detail::FlatMap;
 
 struct Empty {};
@@ -252,7 +223,7 @@ Status SequenceChecker::triangle(const SequenceTriangle& t) {
   for (int k = 0; k < 3; ++k) {
     uint32_t x = t.v[k], y = t.v[(k + 1) % 3];
     bool border = ((t.border_mask >> k) & 1) != 0;
-    found[k] = m.edges.find(undirected(x, y));
+    found[k] = m.edges.find(detail::undirected_edge(x, y));
     if (found[k] != nullptr) {
       if (found[k]->state == Edge::kClosed) {
         return m.bad("edge " + std::to_string(k) + " reuses a closed edge (flagged border, or completed by two triangles)");
@@ -326,7 +297,7 @@ Status SequenceChecker::triangle(const SequenceTriangle& t) {
       if (t.eslot[k] != kNoSlot && !m.edge_slots.insert(t.eslot[k], Empty())) {
         return m.bad("edge " + std::to_string(k) + " enters with slot " + std::to_string(t.eslot[k]) + ", which an open edge holds");
       }
-      uint64_t key = undirected(x, y);
+      uint64_t key = detail::undirected_edge(x, y);
       Edge edge;
       edge.slot = t.eslot[k];
       edge.state = x < y ? Edge::kOpenUp : Edge::kOpenDown;
@@ -337,7 +308,7 @@ Status SequenceChecker::triangle(const SequenceTriangle& t) {
       ++ax->open_edges;
       ++ay->open_edges;
     } else {
-      uint64_t key = undirected(x, y);
+      uint64_t key = detail::undirected_edge(x, y);
       m.edges.insert(key, Edge());
       ax->edges.push_back(key);
       ay->edges.push_back(key);
@@ -347,7 +318,7 @@ Status SequenceChecker::triangle(const SequenceTriangle& t) {
       const uint32_t ox = o[k], oy = o[(k + 1) % 3];
       if ((t.nonmanifold_mask >> k) & 1) {
         if (!degenerate) {
-          Impl::Cut& c = m.cut_edges[undirected(ox, oy)];
+          Impl::Cut& c = m.cut_edges[detail::undirected_edge(ox, oy)];
           ++c.triangles;
           c.direction += ox < oy ? 1 : -1;
         }

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "flat_map.h"
+#include "union_find.h"
 
 namespace psq {
 namespace {
@@ -28,38 +29,7 @@ using detail::FlatMap;
 
 constexpr uint32_t kNone = 0xffffffffu;
 
-uint64_t undirected(uint32_t a, uint32_t b) {
-  return a < b ? (uint64_t{a} << 32) | b : (uint64_t{b} << 32) | a;
-}
-
-// Union-find whose nodes stay; counts the sets it holds.
-class Forest {
- public:
-  uint32_t add() {
-    parent_.push_back(static_cast<uint32_t>(parent_.size()));
-    return parent_.back();
-  }
-  uint32_t find(uint32_t x) {
-    while (parent_[x] != x) {
-      parent_[x] = parent_[parent_[x]];
-      x = parent_[x];
-    }
-    return x;
-  }
-  void unite(uint32_t x, uint32_t y) {
-    x = find(x);
-    y = find(y);
-    if (x == y) return;
-    if (x < y) std::swap(x, y);
-    parent_[x] = y;
-    ++unions_;
-  }
-  uint64_t sets() const { return parent_.size() - unions_; }
-
- private:
-  std::vector<uint32_t> parent_;
-  uint64_t unions_ = 0;
-};
+using detail::UnionFind;
 
 // What a vertex slot holds while its vertex is active.
 struct Slot {
@@ -93,13 +63,13 @@ struct SequenceCounter::Impl {
   uint32_t last_slot = 0;
   // Regions (start ops) joined by joins (cut_regions, the cut mesh) and
   // also by re-appearances (mesh_regions, the input mesh): the same nodes.
-  Forest cut_regions, mesh_regions;
+  UnionFind cut_regions, mesh_regions;
   // (first dense index, region) of runs of consecutive vertices that
   // entered one region, kNone for isolated vertices: the region of any
   // vertex, long after its finalization.
   std::vector<std::pair<uint32_t, uint32_t>> runs;
-  Forest loops;  // border edges of the cut mesh, by dense vertex
-  Forest holes;  // uncut border edges, by first occurrence
+  UnionFind loops;  // border edges of the cut mesh, by dense vertex
+  UnionFind holes;  // uncut border edges, by first occurrence
   FlatMap<uint32_t> hole_of;      // first occurrence -> its node of `holes`
   FlatMap<uint32_t> origin_of;    // re-appearing vertex -> first occurrence
   FlatMap<uint8_t> cut_origins;   // first occurrences that re-appear
@@ -283,7 +253,7 @@ Status SequenceCounter::triangle(const SequenceTriangle& t) {
     m.loops.unite(m.loop_node(x), m.loop_node(y));
     if ((t.nonmanifold_mask >> k) & 1) {
       if (!degenerate) {
-        Cut& cut = m.cut_edges[undirected(x.origin, y.origin)];
+        Cut& cut = m.cut_edges[detail::undirected_edge(x.origin, y.origin)];
         ++cut.triangles;
         cut.direction += x.origin < y.origin ? 1 : -1;
       }

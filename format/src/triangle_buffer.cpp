@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <string>
+#include "float_round.h"
 
 namespace psq {
 namespace {
@@ -22,20 +23,6 @@ constexpr uint32_t kWrittenEdge = 0xffffffffu;
 constexpr uint32_t kMaxTriangles = uint32_t{1} << 29;
 // Slots map into [kOpen, kWritten).
 constexpr uint32_t kMaxSlot = 0x7ffffffdu;
-
-// The float nearest to `d`, widened back to double, without the GCC 12 -O2
-// trap that drops the rounding of (double)(float)d (toolchain notes): the
-// empty asm keeps the value a float in a register.
-double round_to_float(double d) {
-  float f = static_cast<float>(d);
-#if (defined(__GNUC__) || defined(__clang__)) && defined(__SSE__)
-  __asm__("" : "+x"(f));
-#else
-  volatile float g = f;
-  f = g;
-#endif
-  return static_cast<double>(f);
-}
 
 Status bad_sequence(uint64_t triangle, const std::string& what) {
   return Status(ErrorCode::kBadSequence, "triangle " + std::to_string(triangle) + ": " + what);
@@ -85,7 +72,7 @@ Status TriangleBuffer::begin(const MeshSchema& schema) {
 
 void TriangleBuffer::round_position(double p[3]) const {
   if (!float_positions_) return;
-  for (int i = 0; i < 3; ++i) p[i] = round_to_float(p[i]);
+  for (int i = 0; i < 3; ++i) p[i] = detail::round_to_float(p[i]);
 }
 
 void TriangleBuffer::set_position(uint32_t v, const double p[3]) {

@@ -24,6 +24,8 @@
 #include <vector>
 
 #include "quadric.h"
+#include "float_round.h"
+#include "flat_map.h"
 
 namespace psq {
 namespace {
@@ -35,79 +37,7 @@ constexpr uint32_t kMaxSlot = 1u << 28;
 // Lindstrom 2000: eigenvalues below 1/1000 of the largest are noise.
 constexpr double kTolerance = 1e-3;
 
-// The nearest float to `d`, widened back, without GCC 12's -O2 trap that
-// drops the rounding of (double)(float)d (../shared/toolchain).
-double nearest_float(double d) {
-  float f = static_cast<float>(d);
-#if (defined(__GNUC__) || defined(__clang__)) && defined(__SSE__)
-  __asm__("" : "+x"(f));
-#else
-  volatile float g = f;
-  f = g;
-#endif
-  return static_cast<double>(f);
-}
-
-// A map from 64-bit keys (packed cells, dense vertex indices) to 32-bit
-// values: open addressing, linear probing, backward-shift deletion.
-class KeyMap {
- public:
-  KeyMap() { rehash(64); }
-  size_t size() const { return size_; }
-  size_t bytes() const { return cells_.capacity() * sizeof(Cell); }
-  uint32_t find(uint64_t key) const {
-    for (size_t i = home(key);; i = (i + 1) & mask_) {
-      if (cells_[i].key == kEmpty) return kNone;
-      if (cells_[i].key == key) return cells_[i].value;
-    }
-  }
-  // `key` must be absent.
-  void insert(uint64_t key, uint32_t value) {
-    if (2 * (size_ + 1) > cells_.size()) rehash(2 * cells_.size());
-    size_t i = home(key);
-    while (cells_[i].key != kEmpty) i = (i + 1) & mask_;
-    cells_[i] = Cell{key, value};
-    ++size_;
-  }
-  void erase(uint64_t key) {
-    size_t i = home(key);
-    while (cells_[i].key != key) {
-      if (cells_[i].key == kEmpty) return;
-      i = (i + 1) & mask_;
-    }
-    for (size_t j = (i + 1) & mask_; cells_[j].key != kEmpty; j = (j + 1) & mask_) {
-      const size_t h = home(cells_[j].key);
-      if (((j - h) & mask_) >= ((j - i) & mask_)) {
-        cells_[i] = cells_[j];
-        i = j;
-      }
-    }
-    cells_[i].key = kEmpty;
-    --size_;
-  }
-
- private:
-  static constexpr uint64_t kEmpty = ~uint64_t{0};
-  struct Cell {
-    uint64_t key;
-    uint32_t value;
-  };
-  size_t home(uint64_t key) const { return static_cast<size_t>((key * 0x9E3779B97F4A7C15ull) >> shift_); }
-  void rehash(size_t capacity) {
-    std::vector<Cell> old(capacity, Cell{kEmpty, 0});
-    old.swap(cells_);
-    mask_ = capacity - 1;
-    shift_ = 64;
-    for (size_t c = capacity; c > 1; c >>= 1) --shift_;
-    size_ = 0;
-    for (const Cell& c : old)
-      if (c.key != kEmpty) insert(c.key, c.value);
-  }
-  std::vector<Cell> cells_;
-  size_t mask_ = 0;
-  int shift_ = 64;
-  size_t size_ = 0;
-};
+using KeyMap = detail::IndexMap<uint64_t>;
 
 // A boundary vertex of the input, by slot: 32 bytes, two to a cache line
 // (its cell is recomputed from the position where needed: cheaper than
@@ -573,7 +503,7 @@ bool ClusteringFilter::Impl::emit_vertex(uint32_t x) {
     for (int a = 0; a < 3; ++a) {
       double v = grid.origin[a] + r[a];
       v = std::min(hi[a], std::max(lo[a], v));  // also turns NaN into lo
-      p[a] = float_positions ? nearest_float(v) : v;
+      p[a] = float_positions ? detail::round_to_float(v) : v;
     }
     // On a cell's far face (or rounded across it) a point belongs to the
     // next cell: step it back by the smallest amounts the type has.
