@@ -1087,6 +1087,17 @@ TEST(CliSimplify, ATargetTriangleCount) {
   ASSERT_EQ(shell("cat " + ply + " | " + std::string(PSQ_BINARY) + " simplify - " + dir.file("p.psq") +
                   " --triangles 2000 -q"),
             0);
+  // --ratio: the same target, from the input's count (declared by a PLY
+  // header, counted by the first pass of an OBJ from a pipe).
+  const double input = 2.0 * 300 * 100;
+  ASSERT_EQ(test::run_psq("simplify " + ply + " " + dir.file("r.psq") + " -f --json --ratio 10%", &out, &err), 0) << err;
+  EXPECT_EQ(json_field(out, "target_triangles"), "6000");
+  EXPECT_NEAR(std::stod(json_field(out, "triangles")), 0.1 * input, 0.015 * input) << out;
+  ASSERT_EQ(test::run_psq("convert " + ply + " " + dir.file("t.obj"), &out, &err), 0) << err;
+  ASSERT_EQ(shell("cat " + dir.file("t.obj") + " | " + std::string(PSQ_BINARY) + " simplify - " + dir.file("o.psq") +
+                  " --to psq --json --ratio 0.1 > " + dir.file("o.json")),
+            0);
+  EXPECT_EQ(json_field(test::read_file(dir.file("o.json")), "target_triangles"), "6000");
 }
 
 TEST(CliSimplify, MergeRulesFromTheCommandLine) {
@@ -1122,7 +1133,9 @@ TEST(CliSimplify, ErrorsAndUsage) {
        {"simplify " + ply, "simplify " + ply + " " + out_file + " --method qem",
         "simplify " + ply + " " + out_file + " --cells some", "simplify " + ply + " " + out_file + " --grid 0",
         "simplify " + ply + " " + out_file + " --grid 4 --cell 1", "simplify " + ply + " " + out_file + " --cell -2",
-        "simplify " + ply + " " + out_file + " --triangles x", "simplify " + ply + " " + out_file + " --border-weight -1",
+        "simplify " + ply + " " + out_file + " --triangles x",
+        "simplify " + ply + " " + out_file + " --ratio 0", "simplify " + ply + " " + out_file + " --ratio 2 --grid 3",
+        "simplify " + ply + " " + out_file + " --border-weight -1",
         "simplify " + ply + " " + out_file + " --bits 40", "simplify " + ply + " - --json --to psq",
         "simplify " + ply + " " + dir.file("o.xyz"), "simplify " + ply + " " + ply}) {
     EXPECT_EQ(test::run_psq(args, &out, &err), 2) << args;

@@ -158,6 +158,22 @@ bool parse_size(const std::string& text, uint64_t* bytes) {
   return true;
 }
 
+bool parse_ratio(const std::string& text, double* ratio) {
+  std::string t = text;
+  double scale = 1;
+  if (!t.empty() && t.back() == '%') {
+    t.pop_back();
+    scale = 0.01;
+  }
+  double r = 0;
+  const auto res = std::from_chars(t.data(), t.data() + t.size(), r);
+  if (t.empty() || res.ec != std::errc() || res.ptr != t.data() + t.size()) return false;
+  r *= scale;
+  if (!(r > 0 && r <= 1)) return false;
+  *ratio = r;
+  return true;
+}
+
 bool same_file(const std::string& a, const std::string& b) {
   if (a == "-" || b == "-") return false;
   if (a == b) return true;

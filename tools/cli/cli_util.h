@@ -67,6 +67,9 @@ std::string json_number(double v);
 // Parses a byte size: a number with an optional K, M, G or T suffix (powers
 // of 1024; "MiB", "MB" and "M" all mean 2^20). False when malformed or zero.
 bool parse_size(const std::string& text, uint64_t* bytes);
+// Parses a fraction of the input to keep: "0.1" or "10%", in (0, 1]. False
+// when malformed or out of range.
+bool parse_ratio(const std::string& text, double* ratio);
 
 // Whether two paths name the same existing file.
 bool same_file(const std::string& a, const std::string& b);

@@ -70,6 +70,8 @@ const char kHelp[] =
     "  --triangles N       aim at N output triangles: a trial pass picks the grid\n"
     "                      (two passes over IN; a pipe is spooled to --tmpdir); the\n"
     "                      count reached is reported\n"
+    "  --ratio P           aim at this fraction of the input's triangles (0.1 or\n"
+    "                      10%), as --triangles\n"
     "  --border-weight W   weight of the border quadrics (default 1; 0: none)\n"
     "  --merge NAME=RULE[,NAME=RULE...]\n"
     "                      what a property becomes when vertices (or duplicate\n"
@@ -326,6 +328,7 @@ int cmd_simplify(int argc, char** argv) {
   const std::string grid_text = args.option("--grid");
   const std::string cell_text = args.option("--cell");
   const std::string target_text = args.option("--triangles");
+  const std::string ratio_text = args.option("--ratio");
   const std::string border_text = args.option("--border-weight", "1");
   const std::string memory = args.option("--memory", "256M");
   const std::string to = args.option("--to");
@@ -344,9 +347,10 @@ int cmd_simplify(int argc, char** argv) {
   ClusteringOptions options;
   if (!parse_cell_mode(cells_text, &options.cells))
     return usage_error("simplify", "bad --cells '" + cells_text + "' (connected, active or global)");
-  if (!grid_text.empty() + !cell_text.empty() + !target_text.empty() > 1)
-    return usage_error("simplify", "give one of --grid, --cell and --triangles");
+  if (!grid_text.empty() + !cell_text.empty() + !target_text.empty() + !ratio_text.empty() > 1)
+    return usage_error("simplify", "give one of --grid, --cell, --triangles and --ratio");
   uint64_t target = 0;
+  double ratio = 0;
   if (!grid_text.empty()) {
     if (!parse_double(grid_text, &options.grid) || !(options.grid >= 1) || !(options.grid < ClusterGrid::kMaxDim))
       return usage_error("simplify", "bad --grid '" + grid_text + "' (1 to " + std::to_string(ClusterGrid::kMaxDim - 1) + ")");
@@ -358,6 +362,9 @@ int cmd_simplify(int argc, char** argv) {
     if (!parse_uint(target_text, uint64_t{1} << 40, &target) || target < 1)
       return usage_error("simplify", "bad --triangles '" + target_text + "' (a positive count)");
     options.grid = first_grid_for_triangles(target);
+  } else if (!ratio_text.empty()) {
+    if (!parse_ratio(ratio_text, &ratio))
+      return usage_error("simplify", "bad --ratio '" + ratio_text + "' (a fraction in (0, 1] or a percentage)");
   }
   if (!parse_double(border_text, &options.border_weight) || options.border_weight < 0)
     return usage_error("simplify", "bad --border-weight '" + border_text + "' (a number >= 0)");
@@ -397,7 +404,7 @@ int cmd_simplify(int argc, char** argv) {
   open_options.memory_budget = build.memory_budget;
 
   Input input;
-  Status s = input.prepare(in, target > 0, tmpdir);
+  Status s = input.prepare(in, target > 0 || ratio > 0, tmpdir);
   if (!s.ok()) return report_error(in, s);
   OutputFile output;
   s = output.open(out, force);
@@ -426,10 +433,19 @@ int cmd_simplify(int argc, char** argv) {
     s = input.open(open_options, &mesh);
     if (!s.ok()) return report_error(in, s);
   }
+  // --ratio: the target follows from the input's triangle count, declared
+  // by its header or else counted by the first trial pass.
+  if (ratio > 0) {
+    const MeshSchema& schema = mesh.decoder ? mesh.decoder->schema() : mesh.source->schema();
+    if (schema.triangle_count > 0) {
+      target = std::max<uint64_t>(1, std::llround(ratio * static_cast<double>(schema.triangle_count)));
+      options.grid = first_grid_for_triangles(target);
+    }
+  }
   // --triangles: trial passes count the output of a grid (T grows about
   // as the grid squared: one trial, a second only when the first was far
   // off, then the final grid interpolated in log-log).
-  if (target > 0) {
+  if (target > 0 || ratio > 0) {
     double trial_grid[2] = {options.grid, 0};
     uint64_t trial_triangles[2] = {0, 0};
     for (int t = 0; t < 2; ++t) {
@@ -446,6 +462,14 @@ int cmd_simplify(int argc, char** argv) {
       mesh = OpenedMesh();
       s = input.open(open_options, &mesh);
       if (!s.ok()) return report_error(in, s);
+      if (target == 0) {
+        // --ratio of an input that declares no count: this pass counted
+        // it, and the trials start over from the grid the target implies.
+        target = std::max<uint64_t>(1, std::llround(ratio * static_cast<double>(filter.stats().triangles_in)));
+        options.grid = trial_grid[0] = first_grid_for_triangles(target);
+        t = -1;
+        continue;
+      }
       const double off = std::fabs(static_cast<double>(count.triangles) - static_cast<double>(target)) / static_cast<double>(target);
       if (off <= 0.02) {
         options.grid = trial_grid[t];
@@ -454,8 +478,8 @@ int cmd_simplify(int argc, char** argv) {
       if (t == 0) {
         options.grid = corrected_grid_for_triangles(target, trial_grid[0], trial_triangles[0]);
         // Close enough for the square law to hold: no second trial.
-        const double ratio = options.grid / trial_grid[0];
-        if (ratio > 0.8 && ratio < 1.25) break;
+        const double change = options.grid / trial_grid[0];
+        if (change > 0.8 && change < 1.25) break;
         trial_grid[1] = options.grid;
       } else if (trial_triangles[0] > 0 && trial_triangles[1] > 0 && trial_triangles[0] != trial_triangles[1]) {
         // Interpolated in log-log through both trials.
@@ -557,7 +581,9 @@ int cmd_simplify(int argc, char** argv) {
   if (st.triangles_in > 0 && st.triangles_out == 0)
     notes.push_back("no triangle has its corners in three cells: the output is empty (use a finer grid)");
   if (target > 0)
-    notes.push_back("--triangles " + std::to_string(target) + ": " + json_number(options.grid) +
+    notes.push_back((ratio > 0 ? "--ratio " + ratio_text + " (" + std::to_string(target) + " triangles)"
+                               : "--triangles " + std::to_string(target)) +
+                    ": " + json_number(options.grid) +
                     " cells along the longest side, " + std::to_string(st.triangles_out) + " triangles");
   if (!quiet)
     for (const std::string& n : notes) note(in, n);
