@@ -19,3 +19,12 @@ run(${CMAKE_COMMAND} -S "${CONSUMER_SOURCE}" -B "${WORK_DIR}/build"
 run(${CMAKE_COMMAND} --build "${WORK_DIR}/build")
 run("${WORK_DIR}/build/consumer" "${WORK_DIR}/triangle.ply")
 message(STATUS "consumer built against the installed psq and ran")
+
+# An application of the codec alone: find_package(psq COMPONENTS codec),
+# with libdraco made unfindable, as on a machine without libdraco-dev.
+run(${CMAKE_COMMAND} -S "${CONSUMER_SOURCE}/codec_only" -B "${WORK_DIR}/build_codec"
+    -DCMAKE_PREFIX_PATH=${WORK_DIR}/prefix -DCMAKE_DISABLE_FIND_PACKAGE_draco=ON -DCMAKE_BUILD_TYPE=${BUILD_TYPE}
+    -DCMAKE_CXX_FLAGS=${CONSUMER_CXX_FLAGS})
+run(${CMAKE_COMMAND} --build "${WORK_DIR}/build_codec")
+run("${WORK_DIR}/build_codec/codec_consumer")
+message(STATUS "codec-only consumer built with COMPONENTS codec and ran")
