@@ -108,3 +108,17 @@ def test_simplify_checks_its_options(tmp_path, ply):
         (tmp_path / "junk.ply").write_bytes(b"junk" * 30)
         psq.simplify(tmp_path / "junk.ply", tmp_path / "o.psq", grid=8)
     assert not (tmp_path / "o.psq").exists()
+
+
+def test_example_script_loads_a_psq(tmp_path):
+    import os
+    import sys
+    p, f = grid_mesh(8)
+    psq.write(tmp_path / "m.psq", p, f)
+    script = os.path.join(os.path.dirname(__file__), "..", "examples", "load_psq.py")
+    r = subprocess.run([sys.executable, script, str(tmp_path / "m.psq")], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert "psq.Mesh(64 vertices" in r.stdout
+    r = subprocess.run([sys.executable, script, str(tmp_path / "m.psq"), "--stream"], capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 0 and "98 triangles" in r.stdout, r.stderr
