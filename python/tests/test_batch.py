@@ -59,10 +59,15 @@ def test_batch_convert_on_a_local_cluster(scans, tmp_path):
     saved = json.loads(report.read_text())
     assert saved["files"] == rows
     assert saved["summary"]["ok"] == 5 and saved["summary"]["failed"] == 1
-    # The same outputs again: refused per file without overwrite.
-    again = psq.batch.convert(d, out, workers=2)
-    assert all(not r["ok"] for r in again)
-    assert {r["error_code"] for r in again} == {"usage", "truncated"}
+    # The same outputs again, on a running scheduler given by its address:
+    # refused per file without overwrite, converted with it.
+    from distributed import LocalCluster
+    with LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=None, silence_logs=40) as cluster:
+        again = psq.batch.convert(d, out, scheduler=cluster.scheduler_address)
+        assert all(not r["ok"] for r in again)
+        assert {r["error_code"] for r in again} == {"usage", "truncated"}
+        again = psq.batch.convert(d, out, scheduler=cluster.scheduler_address, overwrite=True, lossless=True)
+        check_rows(again, d, out, meshes)
 
 
 def test_batch_command_line(scans, tmp_path):
