@@ -390,14 +390,16 @@ const PsqHeader& StreamReader::header() const { return decoder_->header(); }
 const PsqStats& StreamReader::stats() const { return decoder_->stats(); }
 
 void StreamReader::close() {
-  decoder_.reset();
-  in_.reset();
+  // The input goes (its file is closed); the decoder stays, idle, for
+  // header() and stats(): next() never calls it again.
   done_ = true;
+  has_pending_ = false;
+  pending_ = SequenceEvent();
+  in_.reset();
 }
 
 void StreamReader::next(uint64_t max_triangles, Chunk* c) {
   *c = Chunk();
-  if (!decoder_) usage("the stream is closed");
   const MeshSchema& schema = decoder_->schema();
   const bool dbl = schema.position_type == ScalarType::kFloat64;
   c->vertex_properties = make_columns(schema.vertex_properties);

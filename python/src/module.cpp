@@ -265,8 +265,13 @@ class PyReader {
     return d;
   }
 
-  py::dict stats() const {
-    const PsqStats& s = reader_.stats();
+  py::dict stats() {
+    PsqStats s;
+    {
+      py::gil_scoped_release release;  // a next() on another thread may be filling them
+      std::lock_guard<std::mutex> lock(mutex_);
+      s = reader_.stats();
+    }
     py::dict d;
     d["vertices"] = s.vertices;
     d["triangles"] = s.triangles;

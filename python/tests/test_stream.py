@@ -112,3 +112,19 @@ def test_streams_a_mesh_larger_than_its_memory_budget(tmp_path):
     assert chunks >= len(f) // 2048
     assert largest * 20 < mesh_bytes  # each chunk is a small part of the mesh
     assert growth_kb * 1024 < mesh_bytes / 2, (growth_kb, mesh_bytes)
+
+
+def test_header_and_stats_stay_readable_after_close(tmp_path):
+    p, f = grid_mesh(8)
+    path = tmp_path / "m.psq"
+    psq.write(path, p, f)
+    stream = psq.open(path, chunk_triangles=10)
+    next(stream)
+    stream.close()
+    assert stream.header["bits"] == 16
+    assert 0 < stream.stats["triangles"] <= len(f)
+    assert list(stream) == []
+    stream.close()  # twice is fine
+    reader = psq._psq.Reader(str(path))
+    reader.close()
+    assert reader.next(10) is None and reader.stats()["triangles"] == 0
