@@ -132,10 +132,15 @@ def _mesh(d: Dict[str, Any]) -> Mesh:
                 d["format"], d["notes"])
 
 
-def _path(p) -> str:
+def _path(p) -> bytes:
+    """A path for the extension: the file system's bytes, so that any file name passes."""
     if isinstance(p, (str, _os.PathLike)):
-        return _os.fsdecode(_os.fspath(p))
+        return _os.fsencode(p)
     raise UsageError(f"expected a path, not {type(p).__name__}")
+
+
+def _dir(p) -> bytes:
+    return b"" if p is None else _path(p)
 
 
 def read(source: Union[PathLike, bytes, bytearray, memoryview]) -> Mesh:
@@ -240,7 +245,7 @@ def _size(v) -> int:
 def _write_options(bits, lossless, profile, chunk_bytes, zstd_level, format, ascii, overwrite, memory, tmpdir):
     return dict(bits=int(bits), lossless=bool(lossless), profile=str(profile), chunk_bytes=_size(chunk_bytes),
                 zstd_level=int(zstd_level), format=format, ascii=bool(ascii), overwrite=bool(overwrite),
-                memory=_size(memory), tmpdir=None if tmpdir is None else _os.fspath(tmpdir))
+                memory=_size(memory), tmpdir=None if tmpdir is None else _path(tmpdir))
 
 
 def write(path: PathLike, positions, faces=None, *, bits: int = 16, lossless: bool = False,
@@ -341,9 +346,9 @@ class StreamReader:
             raise UsageError("chunk_triangles must be at least 1")
         self.chunk_triangles = int(chunk_triangles)
         if isinstance(source, (bytes, bytearray, memoryview)):
-            self._reader = _psq.Reader(source)
+            self._reader = _psq.Reader(source, False)
         else:
-            self._reader = _psq.Reader(_path(source))
+            self._reader = _psq.Reader(_path(source), True)
         self._closed = False
 
     @property
@@ -438,7 +443,7 @@ def simplify(src: PathLike, dst: PathLike, *, method: str = "clustering", ratio:
                 border_weight=border_weight, max_error=max_error, buffer=buffer, candidates=candidates,
                 lock_border=lock_border, seed=seed, format=to, bits=bits, lossless=lossless, profile=profile,
                 ascii=ascii, overwrite=overwrite, memory=_size(memory),
-                tmpdir=None if tmpdir is None else _os.fspath(tmpdir))
+                tmpdir=None if tmpdir is None else _path(tmpdir))
     return _json(_psq.simplify(_path(src), _path(dst), opts))
 
 
@@ -449,7 +454,7 @@ def info(path: PathLike, *, memory: Union[int, str] = "512M", tmpdir: Optional[P
     sequence: components, border loops, handles, ops, the longest boundary;
     for a .psq also its version, quantization, size and bits per vertex.
     """
-    return _json(_psq.info(_path(path), _size(memory), "" if tmpdir is None else _os.fspath(tmpdir)))
+    return _json(_psq.info(_path(path), _size(memory), _dir(tmpdir)))
 
 
 def distance(a: PathLike, b: PathLike, *, samples: int = 0, seed: int = 1, threads: int = 0, hold: str = "auto",
@@ -461,7 +466,7 @@ def distance(a: PathLike, b: PathLike, *, samples: int = 0, seed: int = 1, threa
     processor. The numbers but 'timing' are the same for the same seed.
     """
     return _json(_psq.distance(_path(a), _path(b), int(samples), int(seed), int(threads), str(hold),
-                               "" if tmpdir is None else _os.fspath(tmpdir)))
+                               _dir(tmpdir)))
 
 for _cls in (Error, IoError, TruncatedError, BadHeaderError, BadValueError, BadIndexError, UnsupportedError, LimitError,
              UnknownFormatError, UsageError, InternalError, BadSequenceError, ChecksumError):

@@ -20,6 +20,30 @@ namespace py = pybind11;
 namespace psq::python {
 namespace {
 
+// ------------------------------------------------------------------- text
+
+// Text from the library as Python str. Messages, notes and property names
+// may quote bytes of a hostile input that are not UTF-8: they are replaced
+// (U+FFFD), so that reporting an error never fails itself. File names are
+// decoded as the file system's (surrogateescape), so that they round-trip.
+py::str text(const std::string& s) {
+  PyObject* o = PyUnicode_DecodeUTF8(s.data(), static_cast<Py_ssize_t>(s.size()), "replace");
+  if (o == nullptr) throw py::error_already_set();
+  return py::reinterpret_steal<py::str>(o);
+}
+
+py::str file_name(const std::string& s) {
+  PyObject* o = PyUnicode_DecodeFSDefaultAndSize(s.data(), static_cast<Py_ssize_t>(s.size()));
+  if (o == nullptr) throw py::error_already_set();
+  return py::reinterpret_steal<py::str>(o);
+}
+
+py::list texts(const std::vector<std::string>& v) {
+  py::list l;
+  for (const std::string& s : v) l.append(text(s));
+  return l;
+}
+
 // --------------------------------------------------------------- arrays out
 
 template <class V>
@@ -68,11 +92,11 @@ py::dict columns_out(std::vector<Column>& cols) {
     const auto values = static_cast<py::ssize_t>(c.values.size()) / width;
     py::array v = hand_over(std::move(c.values), {values}, dtype_of(c.prop.type));
     if (!c.prop.is_list) {
-      d[py::str(c.prop.name)] = v;
+      d[text(c.prop.name)] = v;
     } else {
       const auto count = static_cast<py::ssize_t>(c.counts.size());
       py::array counts = hand_over(std::move(c.counts), {count}, py::dtype::of<uint32_t>());
-      d[py::str(c.prop.name)] = py::make_tuple(counts, v, scalar_name(c.prop.count_type));
+      d[text(c.prop.name)] = py::make_tuple(counts, v, scalar_name(c.prop.count_type));
     }
   }
   return d;
@@ -90,7 +114,7 @@ py::dict mesh_out(MeshData& m) {
   d["vertex_properties"] = columns_out(m.vertex_properties);
   d["face_properties"] = columns_out(m.face_properties);
   d["format"] = m.format;
-  d["notes"] = m.notes;
+  d["notes"] = texts(m.notes);
   return d;
 }
 
@@ -199,8 +223,10 @@ void check_count_lengths(const py::list& cols, uint64_t elements, const char* wh
 
 class PyReader {
  public:
-  explicit PyReader(py::object source) {
-    if (py::isinstance<py::str>(source)) {
+  // A path (str or bytes, as os.fsencode gives it) when `is_path`, else a
+  // buffer of .psq bytes, read in place.
+  PyReader(py::object source, bool is_path) {
+    if (is_path) {
       const std::string path = source.cast<std::string>();
       py::gil_scoped_release release;
       reader_.open_path(path);
@@ -258,8 +284,8 @@ class PyReader {
     d["vertex_count"] = h.schema.vertex_count >= 0 ? py::int_(h.schema.vertex_count) : py::object(py::none());
     d["triangle_count"] = h.schema.triangle_count >= 0 ? py::int_(h.schema.triangle_count) : py::object(py::none());
     py::list vp, fp;
-    for (const Property& p : h.schema.vertex_properties) vp.append(py::make_tuple(p.name, scalar_name(p.type), p.is_list));
-    for (const Property& p : h.schema.face_properties) fp.append(py::make_tuple(p.name, scalar_name(p.type), p.is_list));
+    for (const Property& p : h.schema.vertex_properties) vp.append(py::make_tuple(text(p.name), scalar_name(p.type), p.is_list));
+    for (const Property& p : h.schema.face_properties) fp.append(py::make_tuple(text(p.name), scalar_name(p.type), p.is_list));
     d["vertex_properties"] = vp;
     d["face_properties"] = fp;
     return d;
@@ -309,9 +335,9 @@ PYBIND11_MODULE(_psq, m) {
       const psq::Status& s = e.status();
       py::object offset = s.offset() == psq::Status::kNoPlace ? py::object(py::none()) : py::int_(s.offset());
       py::object line = s.line() == psq::Status::kNoPlace ? py::object(py::none()) : py::int_(s.line());
-      py::object file = e.file().empty() ? py::object(py::none()) : py::str(e.file());
+      py::object file = e.file().empty() ? py::object(py::none()) : py::object(file_name(e.file()));
       py::object error = py::module_::import("psq._errors")
-                             .attr("_from_status")(static_cast<int>(s.code()), s.message(), offset, line, file);
+                             .attr("_from_status")(static_cast<int>(s.code()), text(s.message()), offset, line, file);
       PyErr_SetObject(reinterpret_cast<PyObject*>(Py_TYPE(error.ptr())), error.ptr());
     }
   });
@@ -358,7 +384,7 @@ PYBIND11_MODULE(_psq, m) {
   });
 
   py::class_<PyReader>(m, "Reader")
-      .def(py::init<py::object>())
+      .def(py::init<py::object, bool>())
       .def("next", &PyReader::next)
       .def("header", &PyReader::header)
       .def("stats", &PyReader::stats)
@@ -369,8 +395,12 @@ PYBIND11_MODULE(_psq, m) {
     p.write = write_params(o);
     if (o.contains("threads")) p.threads = o["threads"].cast<int>();
     if (o.contains("measure_costs")) p.measure_costs = o["measure_costs"].cast<bool>();
-    py::gil_scoped_release release;
-    return convert(in, out, p);
+    std::string json;
+    {
+      py::gil_scoped_release release;
+      json = convert(in, out, p);
+    }
+    return text(json);
   });
   m.def("simplify", [](const std::string& in, const std::string& out, py::dict o) {
     SimplifyParams p;
@@ -395,15 +425,23 @@ PYBIND11_MODULE(_psq, m) {
     if (get("overwrite")) p.overwrite = o["overwrite"].cast<bool>();
     if (get("memory")) p.memory = o["memory"].cast<uint64_t>();
     if (get("tmpdir")) p.tmpdir = o["tmpdir"].cast<std::string>();
-    py::gil_scoped_release release;
-    return simplify(in, out, p);
+    std::string json;
+    {
+      py::gil_scoped_release release;
+      json = simplify(in, out, p);
+    }
+    return text(json);
   });
   m.def("info", [](const std::string& path, uint64_t memory, const std::string& tmpdir) {
     InfoParams p;
     p.memory = memory;
     p.tmpdir = tmpdir;
-    py::gil_scoped_release release;
-    return info(path, p);
+    std::string json;
+    {
+      py::gil_scoped_release release;
+      json = info(path, p);
+    }
+    return text(json);
   });
   m.def("distance", [](const std::string& a, const std::string& b, uint64_t samples, uint64_t seed, int threads,
                        const std::string& hold, const std::string& tmpdir) {
@@ -413,8 +451,12 @@ PYBIND11_MODULE(_psq, m) {
     p.threads = threads;
     p.hold = hold;
     p.tmpdir = tmpdir;
-    py::gil_scoped_release release;
-    return distance(a, b, p);
+    std::string json;
+    {
+      py::gil_scoped_release release;
+      json = distance(a, b, p);
+    }
+    return text(json);
   });
   m.def("error_name", [](int code) { return psq::error_name(static_cast<psq::ErrorCode>(code)); });
   py::list ops;

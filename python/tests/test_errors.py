@@ -1,6 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """Hostile and wrong input: each psq.Error subclass, with its code and place."""
 
+import os
 import pickle
 
 import numpy as np
@@ -179,3 +180,53 @@ def test_every_code_has_its_class_and_errors_pickle():
         assert type(err) is cls and err.offset == 17
         again = pickle.loads(pickle.dumps(err))
         assert type(again) is cls and again.offset == 17 and str(again) == str(err) == "f: byte 17: message"
+
+
+@pytest.mark.parametrize("fmt", ["psq", "ply", "obj"])
+def test_mutated_input_raises_psq_errors_only(tmp_path, fmt):
+    """Truncations and byte flips of a valid file: a mesh or a psq.Error, never another exception or a crash."""
+    p, f = grid_mesh(12)
+    path = tmp_path / f"m.{fmt}"
+    psq.write(path, p, f, vertex_properties={"q": np.arange(len(p), dtype=np.uint8)},
+              **({"ascii": False} if fmt == "ply" else {}))
+    good = path.read_bytes()
+    rng = np.random.default_rng(7)
+    outcomes = set()
+    for i in range(150):
+        data = bytearray(good)
+        if i % 3 == 0:
+            data = data[: int(rng.integers(0, len(data)))]
+        else:
+            for _ in range(int(rng.integers(1, 4))):
+                at = int(rng.integers(0, len(data)))
+                data[at] ^= 1 << int(rng.integers(0, 8))
+        try:
+            m = psq.decode(bytes(data))
+            assert m.faces.shape[1] == 3 and (len(m.faces) == 0 or int(m.faces.max()) < len(m.positions))
+            outcomes.add("mesh")
+        except psq.Error as e:
+            assert e.code in range(1, 13)
+            outcomes.add(type(e).__name__)
+        if fmt == "psq":
+            try:
+                with psq.open(bytes(data), chunk_triangles=16) as s:
+                    for _ in s:
+                        pass
+            except psq.Error:
+                pass
+    assert len(outcomes) >= 2  # both meshes and errors came up
+
+
+def test_file_names_that_are_not_utf8(tmp_path):
+    p, f = grid_mesh(4)
+    name = os.fsdecode(b"m\xe9sh.psq")  # Latin-1 bytes: a surrogate escape in Python
+    path = os.path.join(str(tmp_path), name)
+    psq.write(path, p, f)
+    assert len(psq.read(path).faces) == len(f)
+    with psq.open(path) as s:
+        assert sum(len(c.faces) for c in s) == len(f)
+    assert psq.info(path)["triangles"] == len(f)
+    missing = os.path.join(str(tmp_path), os.fsdecode(b"n\xe9ant.ply"))
+    with pytest.raises(psq.IoError) as e:
+        psq.read(missing)
+    assert e.value.file == missing  # the name round-trips

@@ -125,6 +125,6 @@ def test_header_and_stats_stay_readable_after_close(tmp_path):
     assert 0 < stream.stats["triangles"] <= len(f)
     assert list(stream) == []
     stream.close()  # twice is fine
-    reader = psq._psq.Reader(str(path))
+    reader = psq._psq.Reader(str(path), True)
     reader.close()
     assert reader.next(10) is None and reader.stats()["triangles"] == 0
