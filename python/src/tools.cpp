@@ -374,13 +374,15 @@ std::string simplify(const std::string& in, const std::string& out, const Simpli
   open_input(in, oo, &mesh);
   const bool psq_in = static_cast<bool>(mesh.decoder);
   const MeshSchema in_schema = psq_in ? mesh.decoder->schema() : mesh.source->schema();
-  // The output keeps a quantized .psq input's bits; a lossless .psq input
-  // stays lossless (it has no bounding box to quantize on before its
-  // first vertex).
+  // The output keeps a quantized .psq input's bits. For qem, a lossless
+  // .psq input stays lossless: it has no bounding box to quantize on
+  // before its first vertex (as psq simplify --method qem); clustering
+  // measures the box in a first pass and passes it on.
+  const bool lossless_psq = psq_in && mesh.decoder->header().lossless;
   EncodeOptions e;
-  e.lossless = p.lossless || (psq_in && mesh.decoder->header().lossless);
-  e.bits = p.bits ? p.bits : (psq_in && !mesh.decoder->header().lossless) ? mesh.decoder->header().bits : 16;
-  if (p.bits && psq_in && mesh.decoder->header().lossless && p.method == "qem")
+  e.lossless = p.lossless || (lossless_psq && p.method == "qem");
+  e.bits = p.bits ? p.bits : (psq_in && !lossless_psq) ? mesh.decoder->header().bits : 16;
+  if (p.bits && lossless_psq && p.method == "qem")
     usage("bits: the input is a lossless .psq, which gives no bounding box to quantize on; use lossless=True");
   e.fast = p.profile == "fast" || (p.profile == "auto" && (psq_in ? mesh.decoder->header().fast : false)) ||
            (p.profile == "auto" && p.method == "clustering" && auto_fast(in_schema));

@@ -122,3 +122,16 @@ def test_example_script_loads_a_psq(tmp_path):
     r = subprocess.run([sys.executable, script, str(tmp_path / "m.psq"), "--stream"], capture_output=True, text=True,
                        timeout=300)
     assert r.returncode == 0 and "98 triangles" in r.stdout, r.stderr
+
+
+def test_simplify_of_a_lossless_psq(tmp_path, ply):
+    src = tmp_path / "l.psq"
+    psq.convert(ply, src, lossless=True)
+    r = psq.simplify(src, tmp_path / "c.psq", grid=12)  # clustering measures the box first
+    assert r["passes"] == 2 and r["lossless"] is False and r["bits"] == 16
+    r = psq.simplify(src, tmp_path / "q.psq", method="qem", ratio=0.5)
+    assert r["lossless"] is True  # no box before the first vertex: stays lossless
+    with pytest.raises(psq.UsageError):
+        psq.simplify(src, tmp_path / "q2.psq", method="qem", ratio=0.5, bits=12)
+    for out in ("c.psq", "q.psq"):
+        assert len(psq.read(tmp_path / out).faces) > 0
