@@ -24,6 +24,7 @@ releases the GIL, so threads decode, encode and convert in parallel.
 """
 
 import os as _os
+import warnings as _warnings
 from typing import Any, Dict, Iterator, List, Mapping, NamedTuple, Optional, Tuple, Union
 
 import numpy as _np
@@ -34,7 +35,7 @@ from ._errors import (BadHeaderError, BadIndexError, BadSequenceError, BadValueE
                       UsageError)
 
 __all__ = [
-    "Mesh", "ListProperty", "Chunk", "StreamReader", "OPS",
+    "Mesh", "ListProperty", "Chunk", "StreamReader", "OPS", "FormatWarning",
     "read", "decode", "write", "encode", "open", "convert", "simplify", "info", "distance",
     "Error", "IoError", "TruncatedError", "BadHeaderError", "BadValueError", "BadIndexError", "UnsupportedError",
     "LimitError", "UnknownFormatError", "UsageError", "InternalError", "BadSequenceError", "ChecksumError",
@@ -47,6 +48,10 @@ __version__ = "0.1.0"
 OPS: Tuple[str, ...] = tuple(_psq.OPS)
 
 PathLike = Union[str, "_os.PathLike[str]"]
+
+
+class FormatWarning(UserWarning):
+    """psq.write dropped something the output format cannot hold (a property OBJ or Draco has no place for)."""
 
 
 class ListProperty(NamedTuple):
@@ -264,14 +269,18 @@ def write(path: PathLike, positions, faces=None, *, bits: int = 16, lossless: bo
     lossless: keep positions bit-exact; profile: .psq "compact", "fast" or
     "auto" (fast from 131072 triangles); ascii: ascii PLY. The file is
     written to a temporary file and renamed on success; overwrite=False
-    refuses to replace an existing file (UsageError). The GIL is released
-    while encoding.
+    refuses to replace an existing file (UsageError). What the format
+    cannot hold (face properties in OBJ, lists in Draco) is dropped with a
+    psq.FormatWarning naming it. The GIL is released while encoding.
     """
     positions, faces, vp, fp = _geometry(positions, faces)
     p, f = _arrays(positions, faces)
     opts = _write_options(bits, lossless, profile, chunk_bytes, zstd_level, format, ascii, overwrite, memory, tmpdir)
-    _psq.write(_path(path), p, f, _columns(vertex_properties if vertex_properties is not None else vp, "vertex"),
-               _columns(face_properties if face_properties is not None else fp, "face"), opts)
+    notes = _psq.write(_path(path), p, f,
+                       _columns(vertex_properties if vertex_properties is not None else vp, "vertex"),
+                       _columns(face_properties if face_properties is not None else fp, "face"), opts)
+    for note in notes:
+        _warnings.warn(f"{_os.fsdecode(_path(path))}: {note}", FormatWarning, stacklevel=2)
 
 
 def encode(positions, faces=None, *, bits: int = 16, lossless: bool = False,

@@ -21,6 +21,9 @@ Buffer = Union[bytes, bytearray, memoryview]
 Size = Union[int, str]
 
 
+class FormatWarning(UserWarning): ...
+
+
 class ListProperty(NamedTuple):
     counts: npt.NDArray[np.uint32]
     values: np.ndarray

@@ -109,7 +109,9 @@ struct WriteParams {
 // Checks the columns against the element counts (kUsage).
 void check_in_mesh(const InMesh& mesh);
 // Writes `mesh` to `path` in the format of `params` or its extension.
-void write_path(const InMesh& mesh, const std::string& path, const WriteParams& params);
+// Returns notes on what the format could not hold (properties OBJ or
+// Draco drop), as psq convert prints them.
+std::vector<std::string> write_path(const InMesh& mesh, const std::string& path, const WriteParams& params);
 // Encodes `mesh` to .psq bytes.
 void encode_bytes(const InMesh& mesh, const WriteParams& params, std::vector<uint8_t>* out);
 

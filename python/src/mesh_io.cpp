@@ -8,7 +8,9 @@
 #include <limits>
 
 #include "binding.h"
+#include "psq/draco.h"
 #include "psq/mesh_formats.h"
+#include "psq/obj.h"
 #include "psq/sequence_builder.h"
 
 namespace psq::python {
@@ -312,7 +314,7 @@ void check_in_mesh(const InMesh& mesh) {
   check_columns(mesh.face_properties, mesh.triangles, "face");
 }
 
-void write_path(const InMesh& mesh, const std::string& path, const WriteParams& params) {
+std::vector<std::string> write_path(const InMesh& mesh, const std::string& path, const WriteParams& params) {
   check_in_mesh(mesh);
   const MeshFormat format = params.format.empty() ? format_from_extension(path) : format_from_name(params.format);
   if (format == MeshFormat::kUnknown) {
@@ -322,6 +324,7 @@ void write_path(const InMesh& mesh, const std::string& path, const WriteParams& 
   ArraySource source(mesh);
   OutputFile output;
   check(output.open(path, params.overwrite), path);
+  std::vector<std::string> notes;
   Status s;
   if (format == MeshFormat::kPsq) {
     FileWriter writer(&output);
@@ -331,6 +334,9 @@ void write_path(const InMesh& mesh, const std::string& path, const WriteParams& 
     build.tmpdir = params.tmpdir;
     BuildReport report;
     s = build_sequence(source, encoder, build, &report);
+    if (s.ok() && report.converter.degenerate_dropped)
+      notes.push_back(std::to_string(report.converter.degenerate_dropped) +
+                      " degenerate triangle(s) dropped (a repeated vertex index)");
   } else {
     if (format == MeshFormat::kDraco && !params.lossless && params.bits > 30) usage("bits must be 1..30 for Draco");
     WriteOptions w;
@@ -341,12 +347,21 @@ void write_path(const InMesh& mesh, const std::string& path, const WriteParams& 
     w.memory_budget = params.memory;
     std::unique_ptr<MeshSink> writer = make_mesh_writer(format, &output, w);
     s = pump(source, *writer);
+    if (s.ok() && format == MeshFormat::kObj)
+      for (const std::string& d : static_cast<ObjWriter*>(writer.get())->dropped())
+        notes.push_back("property '" + d + "' dropped: OBJ cannot hold it");
+    if (s.ok() && format == MeshFormat::kDraco) {
+      for (const std::string& d : static_cast<DracoWriter*>(writer.get())->dropped())
+        notes.push_back("property '" + d + "' dropped: Draco output keeps scalar vertex properties only");
+      for (const std::string& n : static_cast<DracoWriter*>(writer.get())->notes()) notes.push_back(n);
+    }
   }
   if (!s.ok()) {
     output.discard();
     check(s, path);
   }
   check(output.commit(), path);
+  return notes;
 }
 
 void encode_bytes(const InMesh& mesh, const WriteParams& params, std::vector<uint8_t>* out) {

@@ -367,8 +367,12 @@ PYBIND11_MODULE(_psq, m) {
     check_count_lengths(in.vertex_props, in.mesh.vertices, "vertex");
     check_count_lengths(in.face_props, in.mesh.triangles, "face");
     const WriteParams w = write_params(options);
-    py::gil_scoped_release release;
-    write_path(in.mesh, path, w);
+    std::vector<std::string> notes;
+    {
+      py::gil_scoped_release release;
+      notes = write_path(in.mesh, path, w);
+    }
+    return texts(notes);
   });
   m.def("encode", [](py::array positions, py::array faces, py::list vprops, py::list fprops, py::dict options) {
     InArrays in = arrays_in(std::move(positions), std::move(faces), std::move(vprops), std::move(fprops));

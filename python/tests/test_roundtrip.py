@@ -148,3 +148,19 @@ def test_faces_of_other_integer_types_and_python_lists_are_accepted(tmp_path):
     m = psq.decode(data)
     assert m.positions.dtype == np.float64  # a list of floats is float64
     assert len(m.faces) == len(f)
+
+
+def test_what_a_format_cannot_hold_is_dropped_with_a_warning(tmp_path):
+    p, f = grid_mesh(5)
+    fp = {"material": np.arange(len(f), dtype=np.uint8)}
+    with pytest.warns(psq.FormatWarning, match="material"):
+        psq.write(tmp_path / "m.obj", p, f, face_properties=fp)
+    f2 = f.copy()
+    f2[0] = [1, 1, 2]
+    with pytest.warns(psq.FormatWarning, match="1 degenerate"):
+        psq.write(tmp_path / "m.psq", p, f2)
+    assert len(psq.read(tmp_path / "m.psq").faces) == len(f) - 1
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        psq.write(tmp_path / "m.ply", p, f, face_properties=fp)  # PLY holds it: no warning
