@@ -13,7 +13,8 @@
 set -euo pipefail
 cd "$(dirname "$0")"
 
-PACKAGES=(cmake g++ make libzstd-dev libdraco-dev libgtest-dev libgmock-dev libbenchmark-dev libmeshoptimizer-dev python3 valgrind gnuplot-nox)
+PACKAGES=(cmake g++ make libzstd-dev libdraco-dev libgtest-dev libgmock-dev libbenchmark-dev libmeshoptimizer-dev python3 valgrind gnuplot-nox
+          pybind11-dev python3-dev python3-numpy python3-dask python3-distributed python3-pytest)
 JOBS=$(nproc 2>/dev/null || echo 2)
 
 install_deps() {
@@ -44,9 +45,12 @@ run_tests() {  # $1 build dir, rest: ctest options
   (cd "$dir" && ctest --output-on-failure --no-tests=error -j "$JOBS" "$@")
 }
 
-# Everything: the libraries, psq, the tests and the benchmarks (built so
-# that they keep compiling; bench/ runs them).
-ALL=(-DPSQ_LTO=ON -DPSQ_BUILD_TESTS=ON -DPSQ_BUILD_BENCH=ON -DPSQ_SANITIZE=OFF -DPSQ_FUZZ=OFF)
+# Everything: the libraries, psq, the Python module, the tests and the
+# benchmarks (built so that they keep compiling; bench/ runs them). The
+# Python module is built for Debian's /usr/bin/python3, whatever python3
+# comes first on PATH.
+ALL=(-DPSQ_LTO=ON -DPSQ_BUILD_TESTS=ON -DPSQ_BUILD_BENCH=ON -DPSQ_SANITIZE=OFF -DPSQ_FUZZ=OFF
+     -DPSQ_PYTHON=ON -DPython3_EXECUTABLE=/usr/bin/python3)
 
 cmd=${1:-test}
 case "$cmd" in
@@ -58,7 +62,8 @@ case "$cmd" in
   demo)
     install_deps
     # Only what the demo runs: the psq tool and the mesh generator.
-    configure build -DPSQ_LTO=ON -DPSQ_BUILD_TESTS=OFF -DPSQ_BUILD_BENCH=OFF -DPSQ_SANITIZE=OFF -DPSQ_FUZZ=OFF
+    configure build -DPSQ_LTO=ON -DPSQ_BUILD_TESTS=OFF -DPSQ_BUILD_BENCH=OFF -DPSQ_SANITIZE=OFF -DPSQ_FUZZ=OFF \
+      -DPSQ_PYTHON=OFF
     cmake --build build -j "$JOBS" --target psq psq-meshgen
     out=$(mktemp -d)
     trap 'rm -rf "$out"' EXIT
@@ -92,15 +97,21 @@ case "$cmd" in
   sanitize)
     install_deps
     # The benchmarks are built and checked by `test`; under the sanitizers
-    # only the suite runs, so they are left out (CI time).
-    configure build-sanitize -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPSQ_SANITIZE=ON -DPSQ_BUILD_TESTS=ON -DPSQ_BUILD_BENCH=OFF -DPSQ_FUZZ=OFF
+    # only the suite runs, so they are left out (CI time). So is the Python
+    # module: instrumented, it would need libasan preloaded into the
+    # interpreter, whose own leaks (and numpy's) LeakSanitizer would then
+    # report; the library code it calls is what the C++ suite checks here.
+    configure build-sanitize -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPSQ_SANITIZE=ON -DPSQ_BUILD_TESTS=ON -DPSQ_BUILD_BENCH=OFF -DPSQ_FUZZ=OFF \
+      -DPSQ_PYTHON=OFF
     cmake --build build-sanitize -j "$JOBS"
     ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 run_tests build-sanitize
     ;;
   fuzz)
     PACKAGES+=(clang libclang-rt-14-dev)
     install_deps
+    # (No Python module: the fuzz build instruments everything for libFuzzer.)
     CC=clang CXX=clang++ cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPSQ_FUZZ=ON -DPSQ_BUILD_TESTS=OFF -DPSQ_BUILD_BENCH=OFF \
+      -DPSQ_PYTHON=OFF \
       "-DPSQ_FUZZ_SECONDS=${PSQ_FUZZ_SECONDS:-20}" >/dev/null
     if [ -n "${PSQ_FUZZ_TARGETS:-}" ]; then
       # Only these targets (space-separated), e.g. PSQ_FUZZ_TARGETS=fuzz_psq.
