@@ -529,4 +529,34 @@ uint32_t TriangleBuffer::collapse(uint32_t h, bool keep_start) {
   return keep;
 }
 
+bool TriangleBuffer::can_discard(uint32_t t) const {
+  for (uint32_t k = 0; k < 3; ++k)
+    if (locked(corners_[3 * t + k].vertex)) return false;
+  return true;
+}
+
+void TriangleBuffer::discard(uint32_t t) {
+  uint32_t v[3];
+  for (uint32_t k = 0; k < 3; ++k) {
+    const uint32_t c = 3 * t + k;
+    v[k] = corners_[c].vertex;
+    const uint32_t o = corners_[c].opposite;
+    if (o < kOpen) {
+      // Unlocked ends: the edge is neither open nor written, so the
+      // triangle across is in the buffer; its edge is a border now.
+      corners_[o].opposite = kBorder;
+      verts_[corners_[o].vertex].flags |= kBorderVertex;
+      verts_[corners_[next(o)].vertex].flags |= kBorderVertex;
+    }
+  }
+  kill_triangle(t);
+  ++stats_.triangles_discarded;
+  // Unlocked vertices are input-final and unwritten: one left without
+  // triangles is dropped (nothing to finalize in the converter).
+  for (uint32_t k = 0; k < 3; ++k) {
+    const bool repeated = (k > 0 && v[k] == v[0]) || (k > 1 && v[k] == v[1]);
+    if (!repeated && verts_[v[k]].head == kNone) free_vertex_record(v[k]);
+  }
+}
+
 }  // namespace psq

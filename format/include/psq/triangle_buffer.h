@@ -80,6 +80,7 @@ struct TriangleBufferStats {
   uint64_t triangles_written = 0;
   uint64_t vertices_written = 0;
   uint64_t collapses = 0;
+  uint64_t triangles_discarded = 0;  // by discard()
   uint64_t starts_written = 0;      // triangles written that touched no written triangle
   uint64_t max_triangles = 0;       // most triangles in the buffer at once
   uint64_t max_vertices = 0;        // most vertices in the buffer at once
@@ -195,6 +196,14 @@ class TriangleBuffer {
   // (the start of h if keep_start, else its end), whose values stay and
   // whose position the client sets. Returns the kept vertex.
   uint32_t collapse(uint32_t h, bool keep_start);
+  // Whether triangle t may be discarded: its three vertices are unlocked
+  // (so every edge leads to a triangle in the buffer or is a border).
+  bool can_discard(uint32_t t) const;
+  // Removes triangle t (can_discard(t) must hold) without writing it: the
+  // edges of the triangles across become borders, and a vertex left
+  // without triangles goes. For a client that removes a whole component
+  // (a simplifier whose target cannot be met with it).
+  void discard(uint32_t t);
 
   const TriangleBufferStats& stats() const { return stats_; }
   const ConverterStats& converter_stats() const;
