@@ -268,6 +268,77 @@ TEST(TriangleBuffer, CollapseKeepsTheSurfaceManifold) {
   EXPECT_EQ(st.nonmanifold_vertices, 0u);
 }
 
+TEST(TriangleBuffer, DiscardLeavesBordersAndDropsBareVertices) {
+  const Mesh m = test::make_sphere(8, 10);
+  // One triangle discarded: the three across it get a border edge each.
+  {
+    Collected out;
+    Client client(&out, 1u << 30);
+    client.before_finish = [&] {
+      TriangleBuffer& b = client.buffer;
+      uint32_t t = 0;
+      while (!b.alive(t)) ++t;
+      ASSERT_TRUE(b.can_discard(t));
+      uint32_t across[3];
+      for (uint32_t k = 0; k < 3; ++k) {
+        across[k] = b.opposite(3 * t + k);
+        ASSERT_LT(across[k], TriangleBuffer::kOpen);
+      }
+      const uint32_t before = b.triangle_count(), vertices = b.vertex_count();
+      b.discard(t);
+      EXPECT_EQ(b.triangle_count(), before - 1);
+      EXPECT_EQ(b.vertex_count(), vertices);
+      EXPECT_EQ(b.stats().triangles_discarded, 1u);
+      for (uint32_t o : across) {
+        EXPECT_EQ(b.opposite(o), TriangleBuffer::kBorder);
+        EXPECT_TRUE(b.border(b.vertex_of(o)));
+        EXPECT_TRUE(b.border(b.vertex_of(TriangleBuffer::next(o))));
+      }
+      expect_consistent(b);
+    };
+    ASSERT_TRUE(run(m, client).ok());
+    EXPECT_EQ(out.triangles.size(), m.triangles.size() - 1);
+    const SequenceStats& st = out.checker.stats();
+    EXPECT_EQ(st.border_edges, 3u);
+    EXPECT_EQ(st.components, 1u);
+    EXPECT_EQ(st.nonmanifold_vertices, 0u);
+  }
+  // All of it discarded: its vertices go with their last triangle.
+  {
+    Collected out;
+    Client client(&out, 1u << 30);
+    client.before_finish = [&] {
+      TriangleBuffer& b = client.buffer;
+      for (uint32_t t = 0; t < b.triangle_capacity(); ++t)
+        if (b.alive(t)) b.discard(t);
+      EXPECT_EQ(b.triangle_count(), 0u);
+      EXPECT_EQ(b.vertex_count(), 0u);
+      EXPECT_EQ(b.stats().triangles_discarded, m.triangles.size());
+    };
+    ASSERT_TRUE(run(m, client).ok());
+    EXPECT_TRUE(out.finished);
+    EXPECT_EQ(out.triangles.size(), 0u);
+    EXPECT_EQ(out.positions.size(), 0u);
+  }
+  // A written neighbour locks a vertex: no discard there.
+  {
+    Collected out;
+    Client client(&out, 1u << 30);
+    client.before_finish = [&] {
+      TriangleBuffer& b = client.buffer;
+      const uint32_t w = b.pick_output(1, nullptr);
+      ASSERT_TRUE(b.write(w).ok());
+      for (uint32_t t = 0; t < b.triangle_capacity(); ++t) {
+        if (!b.alive(t)) continue;
+        bool locked = false;
+        for (uint32_t k = 0; k < 3; ++k) locked = locked || b.locked(b.vertex_of(3 * t + k));
+        EXPECT_EQ(b.can_discard(t), !locked);
+      }
+    };
+    ASSERT_TRUE(run(m, client).ok());
+  }
+}
+
 TEST(TriangleBuffer, CollapseOnBordersAndTheDummyVertex) {
   // A strip of two triangles: the interior edge joins two border vertices
   // (a pinch), the border edges leave the other triangle only.

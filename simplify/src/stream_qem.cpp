@@ -898,7 +898,10 @@ bool StreamQem::Impl::drop_components(double excess, bool final, double limit) {
     // at the end, when dropping it leaves the count nearer the target.
     const double n = f.size;
     if (final ? !(excess - n > -excess) : !(excess >= 0.5 * n)) continue;
-    for (uint32_t i = 0; i < f.size; ++i) buffer.discard(all[f.begin + i]);
+    // (Components are disjoint and were checked whole; can_discard()
+    // guards the buffer all the same.)
+    for (uint32_t i = 0; i < f.size; ++i)
+      if (buffer.can_discard(all[f.begin + i])) buffer.discard(all[f.begin + i]);
     excess -= n;
     max_cost = std::max(max_cost, f.cost);
     ++report.components_dropped;
