@@ -156,7 +156,7 @@ int cmd_simplify_qem(int argc, char** argv) {
                     (q.max_error >= 0 ? " within --max-error" : ""));
   if (r.components_dropped)
     notes.push_back(std::to_string(r.components_dropped) + " components that no collapse could reduce further (" +
-                    std::to_string(r.triangles_dropped) + " triangles) dropped to meet the target");
+                    std::to_string(r.triangles_dropped) + " triangles) dropped to come nearer the target");
   if (r.isolated_dropped) notes.push_back(std::to_string(r.isolated_dropped) + " isolated vertices dropped");
   char summary[256];
   std::snprintf(summary, sizeof summary, "%llu -> %llu triangles, largest error %.3g of the diagonal, %llu bytes",
