@@ -27,9 +27,9 @@ using detail::QemQuadric;
 // surface over the edge's neighbourhood (Garland and Heckbert, section 6.1).
 constexpr double kBorderWeight = 4.0;
 // Rounds of candidates in a row that yield no collapse before decimation
-// gives up for now (it resumes at the next step). At the end of the input,
-// and when the buffer is full, it gives up only after this many plus twice
-// the candidate vertices: each failed round takes a vertex out of the
+// gives up for now (it resumes at the next step). For a count target, at
+// the end of the input and when the buffer is full, it gives up only after
+// this many plus twice the candidate vertices: each failed round takes a vertex out of the
 // candidates or leaves it offering a collapse that passes, so a streak of
 // failures (many candidates that cannot collapse, a foam's tetrahedra,
 // among the cheapest) does not end decimation while collapses are left.
@@ -769,8 +769,8 @@ bool StreamQem::Impl::collapse_one(double limit) {
 void StreamQem::Impl::decimate(bool final, bool full) {
   const double limit = cost_limit();
   int failed = 0;
-  const bool thorough = final || full;
-  int max_failed = kMaxFailedRounds;
+  const bool thorough = count_target && (final || full);
+  int max_failed = final ? kMaxFailedRoundsFinal : kMaxFailedRounds;
   for (;;) {
     if (thorough) max_failed = kMaxFailedRoundsFinal + static_cast<int>(std::min<size_t>(2 * set.size(), 1u << 30));
     double excess = 0;
