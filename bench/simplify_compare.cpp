@@ -318,8 +318,8 @@ int run_quality(int argc, char** argv) {
       normals.push_back(n[k] / len);
     }
     const double w[3] = {c[0] - b[0], c[1] - b[1], c[2] - b[2]};
-    longest.push_back(std::sqrt(std::max({u[0] * u[0] + u[1] * u[1] + u[2] * u[2], v[0] * v[0] + v[1] * v[1] + v[2] * v[2],
-                                          w[0] * w[0] + w[1] * w[1] + w[2] * w[2]})));
+    const double uu = u[0] * u[0] + u[1] * u[1] + u[2] * u[2], vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+    longest.push_back(std::sqrt(std::max({uu, vv, w[0] * w[0] + w[1] * w[1] + w[2] * w[2]})));
   }
   for (bool u : used) vertices += u;
   uint64_t flipped = 0, opposed = 0;

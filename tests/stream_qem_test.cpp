@@ -210,7 +210,8 @@ TEST(StreamQem, BubblesGoWholeOnlyWhenTheTargetNeedsIt) {
     const double l = std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
     for (double& x : c) x *= 1.15 / l;
     const uint32_t base = static_cast<uint32_t>(positions.size());
-    for (const Pos& p : bubble.positions) positions.push_back({c[0] + 0.004 * p[0], c[1] + 0.004 * p[1], c[2] + 0.004 * p[2]});
+    for (const Pos& p : bubble.positions)
+      positions.push_back({c[0] + 0.004 * p[0], c[1] + 0.004 * p[1], c[2] + 0.004 * p[2]});
     for (const auto& t : bubble.triangles) triangles.push_back({base + t[0], base + t[1], base + t[2]});
   }
   const Mesh m = test::make_mesh(positions, triangles);

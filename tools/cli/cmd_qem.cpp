@@ -171,8 +171,10 @@ int cmd_simplify_qem(int argc, char** argv) {
                   ", \"output_vertices\": " + std::to_string(r.output_vertices) +
                   ", \"output_triangles\": " + std::to_string(r.output_triangles) +
                   ", \"target_triangles\": " + std::to_string(r.target_triangles) +
-                  ", \"collapses\": " + std::to_string(r.collapses) + ", \"components_dropped\": " + std::to_string(r.components_dropped) +
-                  ", \"triangles_dropped\": " + std::to_string(r.triangles_dropped) + ", \"max_error\": " + json_number(r.max_error) +
+                  ", \"collapses\": " + std::to_string(r.collapses) +
+                  ", \"components_dropped\": " + std::to_string(r.components_dropped) +
+                  ", \"triangles_dropped\": " + std::to_string(r.triangles_dropped) +
+                  ", \"max_error\": " + json_number(r.max_error) +
                   ", \"buffer_triangles\": " + std::to_string(r.buffer_triangles) +
                   ", \"max_buffer_triangles\": " + std::to_string(r.max_buffer_triangles) +
                   ", \"max_buffer_vertices\": " + std::to_string(r.max_buffer_vertices) +
