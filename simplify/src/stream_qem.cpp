@@ -343,6 +343,7 @@ struct StreamQem::Impl {
   bool collapse_one(double limit);
   void decimate(bool final, bool full = false);
   bool drop_components(double excess, bool final, double limit);
+  bool cut_cycles(double excess, double limit);
   bool component(uint32_t v, std::vector<uint32_t>* triangles, double* cost);
   Status write_until(uint32_t target);
   Status finish();
@@ -795,7 +796,7 @@ void StreamQem::Impl::decimate(bool final, bool full) {
       // be met otherwise. Not before the last moment a component can go:
       // when the buffer is full, before triangles leave it, or at the end
       // (collapses elsewhere may have made up for it by then).
-      if (count_target && thorough && drop_components(excess, final, limit)) {
+      if (count_target && thorough && (drop_components(excess, final, limit) || cut_cycles(excess, limit))) {
         failed = 0;
         continue;
       }
@@ -909,6 +910,93 @@ bool StreamQem::Impl::drop_components(double excess, bool final, double limit) {
     if (excess <= 0) break;
   }
   return dropped;
+}
+
+// Handles (and necks) that no collapse can reduce further, three edges
+// around: the link condition refuses each of their edges. When the count
+// target cannot be met otherwise, the cheapest of them (by their longest
+// edge, about the width of the tube the cut closes) are cut
+// (TriangleBuffer::cut: each side closed by a triangle), within the largest
+// collapse error so far and max_error, and collapses go on: a handle goes
+// ("genus kept unless the target cannot be met otherwise"), or a neck
+// splits its component. At most one cut per 8 triangles of excess a round.
+bool StreamQem::Impl::cut_cycles(double excess, double limit) {
+  struct Found {
+    double cost;
+    uint32_t h, c;
+  };
+  std::vector<Found> found;
+  for (uint32_t i = 0; i < buffer.free_vertex_count(); ++i) {
+    const uint32_t a = buffer.free_vertex(i);
+    if (buffer.border(a) || buffer.cut(a)) continue;
+    for (uint32_t h = buffer.first_corner(a); h != TriangleBuffer::kNone; h = buffer.next_corner(h)) {
+      const uint32_t b = buffer.vertex_of(TriangleBuffer::next(h));
+      if (b < a || buffer.locked(b)) continue;  // each edge once, from its smaller end
+      uint32_t c;
+      if (!buffer.cycle_of(h, &c)) continue;
+      double pa[3], pb[3], pc[3], e[3];
+      normalized(a, pa);
+      normalized(b, pb);
+      normalized(c, pc);
+      sub(pa, pb, e);
+      double longest = dot(e, e);
+      sub(pb, pc, e);
+      longest = std::max(longest, dot(e, e));
+      sub(pc, pa, e);
+      longest = std::max(longest, dot(e, e));
+      const double cost = longest / 3;  // squared circumradius of an equilateral one
+      if (cost > max_cost || (limit >= 0 && cost > limit)) continue;
+      found.push_back({cost, h, c});
+    }
+  }
+  if (found.empty()) return false;
+  std::sort(found.begin(), found.end(), [](const Found& x, const Found& y) {
+    return x.cost < y.cost || (x.cost == y.cost && x.h < y.h);
+  });
+  const size_t most = 1 + static_cast<size_t>(std::max(0.0, excess) / 8);
+  size_t done = 0;
+  for (const Found& f : found) {
+    if (done == most) break;
+    // Earlier cuts of this round may have changed the place.
+    uint32_t c;
+    if (!buffer.alive(f.h / 3) || !buffer.cycle_of(f.h, &c) || c != f.c) continue;
+    const uint32_t v[3] = {buffer.vertex_of(f.h), buffer.vertex_of(TriangleBuffer::next(f.h)), c};
+    uint32_t copies[3], caps[2];
+    if (!buffer.cut(f.h, c, copies, caps)) continue;
+    if (data.size() < buffer.vertex_capacity()) {
+      data.resize(buffer.vertex_capacity());
+      score.resize(buffer.vertex_capacity());
+    }
+    if (reference.size() < buffer.triangle_capacity()) reference.resize(buffer.triangle_capacity());
+    for (int k = 0; k < 3; ++k) {
+      leave_set(v[k]);
+      VertexData& d = data[copies[k]];
+      d = VertexData();
+      d.q = data[v[k]].q;
+      d.inverse_weight = data[v[k]].inverse_weight;
+      score[copies[k]] = score[v[k]];
+    }
+    for (uint32_t t : caps) {
+      double p[3][3];
+      for (int k = 0; k < 3; ++k) normalized(buffer.vertex_of(3 * t + k), p[k]);
+      double e1[3], e2[3], n[3];
+      sub(p[1], p[0], e1);
+      sub(p[2], p[0], e2);
+      cross(e1, e2, n);
+      const double len = std::sqrt(dot(n, n));
+      reference[t] = {0, 0, 0};
+      if (len > 0 && shape(n, e1, e2) >= kDegenerate)
+        for (int i = 0; i < 3; ++i) reference[t][i] = static_cast<float>(n[i] / len);
+    }
+    for (int k = 0; k < 3; ++k) {
+      refresh(v[k], true);
+      refresh(copies[k], true);
+    }
+    max_cost = std::max(max_cost, f.cost);
+    ++report.handles_cut;
+    ++done;
+  }
+  return done > 0;
 }
 
 Status StreamQem::Impl::write_until(uint32_t target) {

@@ -23,9 +23,9 @@ const char kHelp[] =
     "standard input); a .psq streams through its decoder, other meshes through\n"
     "the sequence builder. OUT is .psq, .ply, .obj or .drc ('-' with --to).\n"
     "Give at least one target; simplification stops at the first reached.\n"
-    "Components, handles and borders are kept, but for small components that\n"
-    "no collapse can reduce further: they go whole, smallest first, when a\n"
-    "count target cannot be met otherwise (reported).\n"
+    "Components, handles and borders are kept, unless a count target cannot\n"
+    "be met otherwise: then small components that no collapse can reduce\n"
+    "further go whole, and handles three edges around are cut (reported).\n"
     "The same input and options give the same output.\n"
     "\n"
     "Options:\n"
@@ -157,6 +157,9 @@ int cmd_simplify_qem(int argc, char** argv) {
   if (r.components_dropped)
     notes.push_back(std::to_string(r.components_dropped) + " components that no collapse could reduce further (" +
                     std::to_string(r.triangles_dropped) + " triangles) dropped to come nearer the target");
+  if (r.handles_cut)
+    notes.push_back(std::to_string(r.handles_cut) +
+                    " handles or necks that no collapse could reduce further cut to come nearer the target");
   if (r.isolated_dropped) notes.push_back(std::to_string(r.isolated_dropped) + " isolated vertices dropped");
   char summary[256];
   std::snprintf(summary, sizeof summary, "%llu -> %llu triangles, largest error %.3g of the diagonal, %llu bytes",
@@ -174,6 +177,7 @@ int cmd_simplify_qem(int argc, char** argv) {
                   ", \"collapses\": " + std::to_string(r.collapses) +
                   ", \"components_dropped\": " + std::to_string(r.components_dropped) +
                   ", \"triangles_dropped\": " + std::to_string(r.triangles_dropped) +
+                  ", \"handles_cut\": " + std::to_string(r.handles_cut) +
                   ", \"max_error\": " + json_number(r.max_error) +
                   ", \"buffer_triangles\": " + std::to_string(r.buffer_triangles) +
                   ", \"max_buffer_triangles\": " + std::to_string(r.max_buffer_triangles) +

@@ -45,16 +45,21 @@
 //
 // Targets: a ratio of the input's triangles, a triangle count (which needs
 // the input's count: the schema's, or QemOptions::input_triangles), and/or
-// a largest error; decimation stops at the first reached. Handles and
-// borders are kept, and so are components unless the count target cannot
-// be met otherwise: when no collapse is left and the count is still above
-// the target's share of what was read, components that no collapse can
-// reduce any more (every vertex of them refused), that lie wholly in the
-// buffer, that have at most 1024 triangles, and whose half box diagonal
-// (their error) is at most the largest error of a collapse so far and
-// max_error, go whole, the smallest first. Where the target needs handles or larger components gone, it
-// is not met (the report says what was achieved). The output is the same
-// for the same input events and options (seeded choices).
+// a largest error; decimation stops at the first reached. Components,
+// handles and borders are kept unless the count target cannot be met
+// otherwise: when no collapse is left and the count is still above the
+// target's share of what was read (at the end, or when the buffer is
+// full), first components that no collapse can reduce any more (every
+// vertex of them refused), wholly in the buffer, of at most 1024
+// triangles, go whole, the smallest first; then handles (or necks) that
+// three edges go round, where the link condition refuses every collapse,
+// are cut there and each side closed by a triangle (TriangleBuffer::cut),
+// the narrowest first, and collapses go on. Either only within the largest
+// error of a collapse so far and max_error (a dropped component's error is
+// its half box diagonal, a cut's the circumradius of the cycle's longest
+// edge). Borders are kept, and where the target needs them gone it is not
+// met (the report says what was achieved). The output is the same for the
+// same input events and options (seeded choices).
 //
 // Vertex properties: a merged vertex keeps the values of the end it kept
 // (the one nearer its new place); triangles keep theirs.
@@ -107,6 +112,9 @@ struct QemReport {
   // it) because the count target could not be met otherwise.
   uint64_t components_dropped = 0;
   uint64_t triangles_dropped = 0;
+  // Handles (or necks) cut where three edges went round them, for the
+  // same reason.
+  uint64_t handles_cut = 0;
   uint64_t isolated_dropped = 0;   // input vertices used by no triangle
   // Largest error of a collapse, relative to the box diagonal as max_error.
   double max_error = 0;
