@@ -16,7 +16,9 @@ output-count rows, marked "= METHOD"). Then measures each output:
     components;
   - psq_simplify_compare quality IN OUT: degenerate triangles (a repeated
     corner or zero area) and flipped ones (normal more than 90 degrees
-    from the nearest input triangle's).
+    from the nearest input triangle's, unless an input triangle facing
+    its way is about as near: between the sides of a thin wall; see
+    simplify_compare.cpp).
 
 psq's methods are found by `psq simplify --methods`, else by the
 "Methods (--method):" list of `psq simplify --help`, or given by --methods;
@@ -305,7 +307,10 @@ def section(data, command, plot_name, repo):
            "returned, over 3, checked against the file it wrote. Non-manifold vertices and edges, border edges "
            "and components are `psq info`'s; degenerate triangles repeat a corner or have zero area; flipped "
            "ones have a normal more than 90 degrees from that of the input triangle nearest to their "
-           "centroid. Targets: a share of the input's triangles, or \"= METHOD\": the count that psq METHOD "
+           "centroid, unless an input triangle facing within 90 degrees of theirs is within twice that "
+           "distance plus a tenth of their longest edge (between the two sides of a thin wall, both about "
+           "as near as the error, the nearest side does not tell which side a triangle stands for; a "
+           "triangle turned over on a side is still counted). Targets: a share of the input's triangles, or \"= METHOD\": the count that psq METHOD "
            "reached, for errors at equal output sizes.",
            "",
            "![Error against output size](%s)" % plot_name,

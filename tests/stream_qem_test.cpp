@@ -156,6 +156,164 @@ TEST(StreamQem, SphereToTenPercentBoundedAndWhole) {
   }
 }
 
+// The achieved count is the target's, rounded, within 1% (the issue's
+// check), streaming through a small buffer as through one holding the
+// whole mesh, on closed meshes of about 100k triangles of genus 0 and 1.
+TEST(StreamQem, CountWithinOnePercentOnAHundredThousandTriangles) {
+  const Mesh sphere = test::make_sphere(250, 200);
+  const Mesh torus = test::make_torus(400, 125);
+  for (const Mesh* m : {&sphere, &torus}) {
+    const uint64_t n = m->triangles.size();
+    ASSERT_GT(n, 95000u);
+    ASSERT_LT(n, 105000u);
+    for (double ratio : {0.1, 0.01}) {
+      for (uint32_t buffer : {0u, 4000u}) {
+        QemOptions o;
+        o.ratio = ratio;
+        o.buffer_triangles = buffer;
+        Collected out;
+        QemReport r;
+        ASSERT_TRUE(simplify(*m, o, &out, &r).ok());
+        const uint64_t want = static_cast<uint64_t>(std::llround(ratio * static_cast<double>(n)));
+        EXPECT_EQ(r.target_triangles, want);
+        EXPECT_EQ(r.output_triangles, out.triangles.size());
+        EXPECT_LE(std::fabs(static_cast<double>(out.triangles.size()) - static_cast<double>(want)), 0.01 * want)
+            << n << " triangles, ratio " << ratio << ", buffer " << buffer << ": " << out.triangles.size();
+        EXPECT_EQ(r.components_dropped, 0u);
+        expect_clean_closed(out, 1, m == &torus ? 1 : 0);
+      }
+    }
+    // A count target, not a multiple of the ratio's steps.
+    QemOptions o;
+    o.target_triangles = 1234;
+    o.input_triangles = n;
+    Collected out;
+    ASSERT_TRUE(simplify(*m, o, &out).ok());
+    EXPECT_LE(std::fabs(static_cast<double>(out.triangles.size()) - 1234), 12.34) << out.triangles.size();
+  }
+}
+
+// A sphere with many small bubbles around it (a foam's small components):
+// each bubble can shrink only to a tetrahedron. At 10% the target is met
+// with every bubble kept; at 1% it cannot be, so bubbles go whole,
+// no more than needed, and the sphere stays.
+TEST(StreamQem, BubblesGoWholeOnlyWhenTheTargetNeedsIt) {
+  const Mesh sphere = test::make_sphere(100, 120);
+  const Mesh bubble = test::make_sphere(5, 8);
+  std::vector<Pos> positions = sphere.positions;
+  std::vector<std::array<uint32_t, 3>> triangles = sphere.triangles;
+  std::mt19937 rng(5);
+  std::normal_distribution<double> gauss;
+  const int kBubbles = 200;
+  for (int i = 0; i < kBubbles; ++i) {
+    Pos c = {gauss(rng), gauss(rng), gauss(rng)};
+    const double l = std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+    for (double& x : c) x *= 1.15 / l;
+    const uint32_t base = static_cast<uint32_t>(positions.size());
+    for (const Pos& p : bubble.positions)
+      positions.push_back({c[0] + 0.004 * p[0], c[1] + 0.004 * p[1], c[2] + 0.004 * p[2]});
+    for (const auto& t : bubble.triangles) triangles.push_back({base + t[0], base + t[1], base + t[2]});
+  }
+  const Mesh m = test::make_mesh(positions, triangles);
+  const uint64_t n = m.triangles.size();
+  for (uint32_t buffer : {0u, 6000u}) {
+    for (double ratio : {0.1, 0.01}) {
+      QemOptions o;
+      o.ratio = ratio;
+      o.buffer_triangles = buffer;
+      Collected out;
+      QemReport r;
+      ASSERT_TRUE(simplify(m, o, &out, &r).ok());
+      const double want = std::round(ratio * static_cast<double>(n));
+      EXPECT_LE(std::fabs(static_cast<double>(out.triangles.size()) - want), 0.01 * want)
+          << "ratio " << ratio << ", buffer " << buffer << ": " << out.triangles.size() << " for " << want
+          << ", dropped " << r.components_dropped << ", components " << out.checker.stats().components << ", max error "
+          << r.max_error;
+      const SequenceStats& st = out.checker.stats();
+      EXPECT_EQ(st.nonmanifold_vertices, 0u);
+      EXPECT_EQ(st.nonmanifold_edges, 0u);
+      EXPECT_EQ(st.border_edges, 0u);
+      EXPECT_EQ(st.handles, 0);
+      EXPECT_EQ(st.components + r.components_dropped, kBubbles + 1u);
+      if (ratio == 0.1) {
+        EXPECT_EQ(r.components_dropped, 0u);
+      } else {
+        // Even as tetrahedra the bubbles are more than the target.
+        EXPECT_GT(r.components_dropped, 0u);
+        EXPECT_EQ(r.triangles_dropped, 4 * r.components_dropped);
+        // What stays is near the sphere or a bubble: the sphere kept.
+        size_t on_sphere = 0;
+        for (const auto& t : out.triangles) {
+          const Pos& p = out.positions[t[0]];
+          if (std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]) < 1.05) ++on_sphere;
+        }
+        EXPECT_GT(on_sphere, 100u);
+      }
+    }
+  }
+}
+
+// A torus keeps its handle while the target allows (at 10%); for a target
+// below what a torus can have (a closed surface of genus 1 needs 14
+// triangles) the tube is cut where three edges go round it, each side
+// closed by a triangle, and the sphere left simplifies to the target.
+TEST(StreamQem, HandlesAreCutOnlyWhenTheTargetNeedsIt) {
+  const Mesh m = test::make_torus(120, 40);
+  for (uint32_t buffer : {0u, 2000u}) {
+    QemOptions o;
+    o.ratio = 0.1;
+    o.buffer_triangles = buffer;
+    Collected kept;
+    QemReport r;
+    ASSERT_TRUE(simplify(m, o, &kept, &r).ok());
+    EXPECT_EQ(r.handles_cut, 0u);
+    expect_clean_closed(kept, 1, 1);
+    QemOptions tiny;
+    tiny.target_triangles = 8;
+    tiny.input_triangles = m.triangles.size();
+    tiny.buffer_triangles = buffer;
+    Collected cut;
+    ASSERT_TRUE(simplify(m, tiny, &cut, &r).ok());
+    EXPECT_EQ(cut.triangles.size(), 8u);
+    EXPECT_GE(r.handles_cut, 1u);
+    EXPECT_EQ(r.components_dropped, 0u);
+    expect_clean_closed(cut, 1, 0);
+  }
+}
+
+// Every output triangle faces within 90 degrees of the input triangle it
+// descends from (the collapse's flip test; triangles keep their face
+// values, here their input numbers), on a folded, noisy surface.
+TEST(StreamQem, NoTriangleTurnsAwayFromItsInputTriangle) {
+  Mesh m = test::make_torus(300, 80, 0.08);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> noise(-0.004, 0.004);
+  for (auto& p : m.positions)
+    for (double& x : p) x += noise(rng);
+  m.schema.face_properties.push_back({"id", ScalarType::kUInt32});
+  for (size_t t = 0; t < m.triangles.size(); ++t) m.face_values[t] = {static_cast<double>(t)};
+  auto normal = [](const Pos& a, const Pos& b, const Pos& c) {
+    const Pos e1 = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2 = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    return Pos{e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+  };
+  for (double ratio : {0.1, 0.01}) {
+    QemOptions o;
+    o.ratio = ratio;
+    o.buffer_triangles = 3000;
+    Collected out;
+    ASSERT_TRUE(simplify(m, o, &out).ok());
+    ASSERT_EQ(out.face_values.size(), out.triangles.size());
+    for (size_t t = 0; t < out.triangles.size(); ++t) {
+      const size_t id = static_cast<size_t>(out.face_values[t].at(0));
+      ASSERT_LT(id, m.triangles.size());
+      const auto& f = m.triangles[id];
+      const Pos a = normal(m.positions[f[0]], m.positions[f[1]], m.positions[f[2]]);
+      const Pos b = out.normal(t);
+      EXPECT_GT(a[0] * b[0] + a[1] * b[1] + a[2] * b[2], 0) << "ratio " << ratio << ", triangle " << t;
+    }
+  }
+}
+
 TEST(StreamQem, WholeBufferIsNoWorseThanABoundedOne) {
   const Mesh m = test::make_sphere(80, 100);
   double whole = 0, bounded = 0;

@@ -516,4 +516,191 @@ uint32_t TriangleBuffer::collapse(uint32_t h, bool keep_start) {
   return keep;
 }
 
+bool TriangleBuffer::can_discard(uint32_t t) const {
+  for (uint32_t k = 0; k < 3; ++k)
+    if (locked(corners_[3 * t + k].vertex)) return false;
+  return true;
+}
+
+void TriangleBuffer::discard(uint32_t t) {
+  uint32_t v[3];
+  for (uint32_t k = 0; k < 3; ++k) {
+    const uint32_t c = 3 * t + k;
+    v[k] = corners_[c].vertex;
+    const uint32_t o = corners_[c].opposite;
+    if (o < kOpen) {
+      // Unlocked ends: the edge is neither open nor written, so the
+      // triangle across is in the buffer; its edge is a border now.
+      corners_[o].opposite = kBorder;
+      verts_[corners_[o].vertex].flags |= kBorderVertex;
+      verts_[corners_[next(o)].vertex].flags |= kBorderVertex;
+    }
+  }
+  kill_triangle(t);
+  ++stats_.triangles_discarded;
+  // Unlocked vertices are input-final and unwritten: one left without
+  // triangles is dropped (nothing to finalize in the converter).
+  for (uint32_t k = 0; k < 3; ++k) {
+    const bool repeated = (k > 0 && v[k] == v[0]) || (k > 1 && v[k] == v[1]);
+    if (!repeated && verts_[v[k]].head == kNone) free_vertex_record(v[k]);
+  }
+}
+
+bool TriangleBuffer::cycle_of(uint32_t h, uint32_t* third) {
+  const uint32_t a = corners_[h].vertex, b = corners_[next(h)].vertex;
+  const uint32_t o = corners_[h].opposite;
+  if (o >= kOpen) return false;
+  for (uint32_t v : {a, b})
+    if (locked(v) || border(v) || cut(v)) return false;
+  if (epoch_ > 0xfffffff0u) {
+    for (Vertex& r : verts_) r.mark = 0;
+    epoch_ = 0;
+  }
+  epoch_ += 2;
+  for (uint32_t c = verts_[a].head; c != kNone; c = corners_[c].next) {
+    verts_[corners_[next(c)].vertex].mark = epoch_;
+    verts_[corners_[prev(c)].vertex].mark = epoch_;
+  }
+  const uint32_t x = corners_[prev(h)].vertex, y = corners_[prev(o)].vertex;
+  for (uint32_t c = verts_[b].head; c != kNone; c = corners_[c].next) {
+    for (uint32_t u : {corners_[next(c)].vertex, corners_[prev(c)].vertex}) {
+      if (u == a || u == x || u == y || verts_[u].mark != epoch_) continue;
+      if (locked(u) || border(u) || cut(u)) continue;
+      *third = u;
+      return true;
+    }
+  }
+  return false;
+}
+
+// The corners of v on the left of the path from -> v -> to... going round
+// v from its corner whose edge runs to `to` until the one whose previous
+// corner is `from`; false if the fan does not close that way.
+bool TriangleBuffer::left_fan(uint32_t v, uint32_t from, uint32_t to, std::vector<uint32_t>* out) const {
+  out->clear();
+  uint32_t start = kNone, fan = 0;
+  for (uint32_t c = verts_[v].head; c != kNone; c = corners_[c].next) {
+    ++fan;
+    if (corners_[next(c)].vertex == to) start = c;
+  }
+  if (start == kNone) return false;
+  uint32_t c = start;
+  for (uint32_t i = 0; i < fan; ++i) {
+    out->push_back(c);
+    if (corners_[prev(c)].vertex == from) return out->size() < fan;
+    const uint32_t o = corners_[prev(c)].opposite;
+    if (o >= kOpen || corners_[o].vertex != v) return false;
+    c = o;
+  }
+  return false;
+}
+
+uint32_t TriangleBuffer::clone_vertex(uint32_t v) {
+  uint32_t w;
+  if (!free_vertices_.empty()) {
+    w = free_vertices_.back();
+    free_vertices_.pop_back();
+  } else {
+    w = static_cast<uint32_t>(verts_.size());
+    verts_.emplace_back();
+    if (has_vertex_values_) vertex_values_.emplace_back();
+  }
+  Vertex& r = verts_[w];
+  for (int i = 0; i < 3; ++i) r.p[i] = verts_[v].p[i];
+  r.head = kNone;
+  r.out_id = kNone;
+  r.dense = kNone;  // no input slot refers to it
+  r.free_pos = kNone;
+  r.mark = 0;
+  r.flags = kInputFinal;
+  if (has_vertex_values_) vertex_values_[w] = vertex_values_[v];
+  ++vertices_;
+  stats_.max_vertices = std::max<uint64_t>(stats_.max_vertices, vertices_);
+  free_insert(w);
+  return w;
+}
+
+uint32_t TriangleBuffer::new_cap(uint32_t v0, uint32_t v1, uint32_t v2, uint32_t values_from) {
+  uint32_t tri;
+  if (!free_triangles_.empty()) {
+    tri = free_triangles_.back();
+    free_triangles_.pop_back();
+  } else {
+    tri = static_cast<uint32_t>(alive_flag_.size());
+    corners_.resize(corners_.size() + 3);
+    alive_flag_.push_back(0);
+    out_count_.push_back(0);
+    open_count_.push_back(0);
+    out_pos_.push_back(0);
+    arrival_when_.push_back(0);
+    if (has_face_values_) face_values_.emplace_back();
+  }
+  alive_flag_[tri] = 1;
+  out_count_[tri] = 0;
+  open_count_[tri] = 0;
+  ++alive_;
+  if (has_face_values_) face_values_[tri] = face_values_[values_from];
+  const uint32_t vs[3] = {v0, v1, v2};
+  for (uint32_t k = 0; k < 3; ++k) {
+    corners_[3 * tri + k].vertex = vs[k];
+    corners_[3 * tri + k].opposite = kBorder;  // paired by the caller
+    add_corner(vs[k], 3 * tri + k);
+  }
+  const uint32_t when = static_cast<uint32_t>(stats_.triangles_read);
+  arrival_when_[tri] = when;
+  arrival_.push_back({tri, when});
+  stats_.max_triangles = std::max<uint64_t>(stats_.max_triangles, alive_);
+  return tri;
+}
+
+bool TriangleBuffer::cut(uint32_t h, uint32_t c, uint32_t new_vertices[3], uint32_t caps[2]) {
+  const uint32_t a = corners_[h].vertex, b = corners_[next(h)].vertex;
+  if (alive_ + 2 > kMaxTriangles) return false;
+  // The left side of a -> b -> c -> a, around each vertex of the cycle.
+  std::vector<uint32_t> fan_a, fan_b, fan_c;
+  if (!left_fan(a, c, b, &fan_a) || !left_fan(b, a, c, &fan_b) || !left_fan(c, b, a, &fan_c)) return false;
+  // The corners along the cycle: on the left (their edges run with it) and
+  // across them on the right.
+  const uint32_t left[3] = {fan_a.front(), fan_b.front(), fan_c.front()};  // a->b, b->c, c->a
+  uint32_t right[3];
+  for (int k = 0; k < 3; ++k) {
+    right[k] = corners_[left[k]].opposite;
+    if (right[k] >= kOpen) return false;
+  }
+  if (fan_a.back() / 3 != left[2] / 3 || fan_b.back() / 3 != left[0] / 3 || fan_c.back() / 3 != left[1] / 3)
+    return false;
+  const uint32_t v[3] = {a, b, c};
+  const std::vector<uint32_t>* fans[3] = {&fan_a, &fan_b, &fan_c};
+  for (int k = 0; k < 3; ++k) {
+    const uint32_t w = clone_vertex(v[k]);
+    new_vertices[k] = w;
+    for (uint32_t corner : *fans[k]) {
+      remove_corner(v[k], corner);
+      corners_[corner].vertex = w;
+      add_corner(w, corner);
+    }
+  }
+  const uint32_t a2 = new_vertices[0], b2 = new_vertices[1], c2 = new_vertices[2];
+  // Right: (a, b, c), edges a->b, b->c, c->a against the right corners
+  // (b->a, c->b, a->c). Left: (a', c', b'), edges a'->c', c'->b', b'->a'
+  // against the left corners (c'->a', b'->c', a'->b').
+  const uint32_t r = new_cap(a, b, c, right[0] / 3);
+  const uint32_t l = new_cap(a2, c2, b2, left[0] / 3);
+  const uint32_t pair_right[3] = {3 * r, 3 * r + 1, 3 * r + 2};
+  for (int k = 0; k < 3; ++k) {
+    corners_[pair_right[k]].opposite = right[k];
+    corners_[right[k]].opposite = pair_right[k];
+  }
+  const uint32_t pair_left[3] = {3 * l + 2, 3 * l + 1, 3 * l};  // b'->a', c'->b', a'->c'
+  for (int k = 0; k < 3; ++k) {
+    corners_[pair_left[k]].opposite = left[k];
+    corners_[left[k]].opposite = pair_left[k];
+  }
+  caps[0] = r;
+  caps[1] = l;
+  ++stats_.cuts;
+  return true;
+}
+
 }  // namespace psq
+

@@ -27,8 +27,12 @@ using detail::QemQuadric;
 // surface over the edge's neighbourhood (Garland and Heckbert, section 6.1).
 constexpr double kBorderWeight = 4.0;
 // Rounds of candidates in a row that yield no collapse before decimation
-// gives up for now (it resumes at the next step, or, at the end of the
-// input, for good).
+// gives up for now (it resumes at the next step). For a count target, at
+// the end of the input and when the buffer is full, it gives up only after
+// this many plus twice the candidate vertices: each failed round takes a vertex out of the
+// candidates or leaves it offering a collapse that passes, so a streak of
+// failures (many candidates that cannot collapse, a foam's tetrahedra,
+// among the cheapest) does not end decimation while collapses are left.
 constexpr int kMaxFailedRounds = 16;
 constexpr int kMaxFailedRoundsFinal = 64;
 // Decimation runs every this many triangles read, while what it works on
@@ -49,6 +53,10 @@ constexpr double kVerticesPerTriangle = 0.85;
 constexpr double kVertexQemBytes = 112 + 4 + 8;
 constexpr double kBytesPerTriangle =
     TriangleBuffer::kTriangleBytes + 12 + kVerticesPerTriangle * (TriangleBuffer::kVertexBytes + kVertexQemBytes);
+// A component is dropped whole only when it has at most this many
+// triangles (a search for one stops there), and its half box diagonal is
+// at most the largest error of a collapse so far.
+constexpr uint32_t kMaxDropTriangles = 1024;
 // Below this shape() a triangle is a sliver (its smallest angle under
 // about 0.06 degrees): no collapse may make one of a sound triangle.
 constexpr double kSliver = 1e-6;
@@ -118,6 +126,7 @@ class CostBands {
     return static_cast<uint16_t>(bits >> 21);  // costs are not negative
   }
   bool empty() const { return size_ == 0; }
+  size_t size() const { return size_; }
   // Puts vertex v at `cost`; *band and *slot are where it is kept (slot
   // kNone: not kept). Returns the vertex whose slot became *slot's old
   // value when v left its band, or kNone.
@@ -189,8 +198,8 @@ struct StreamQem::Impl {
     double inverse_weight = 1;  // of q, once the vertex is complete
     float cost = kInfinity;  // of its cheapest edge; infinite: none
     uint32_t target = TriangleBuffer::kNone;  // the other end of that edge
-    uint32_t slot = TriangleBuffer::kNone;    // its place in its band of `set`
-    uint16_t band = 0;
+    uint32_t slot = TriangleBuffer::kNone;    // its place in the band of `cost` in `set`
+    uint32_t visit = 0;  // the component search that last reached it
   };
   static constexpr float kInfinity = std::numeric_limits<float>::infinity();
 
@@ -205,8 +214,15 @@ struct StreamQem::Impl {
   std::vector<float> score;
   // Per triangle: its unit normal when it was read (zero if degenerate).
   std::vector<std::array<float, 3>> reference;
+  std::vector<uint32_t> search_queue;  // of component()
   // Unlocked vertices that have an edge to offer.
   CostBands set;
+  // Component searches: VertexData::visit marks above visit_base are this
+  // round's, visit_epoch the current search's.
+  uint32_t visit_epoch = 0;
+  uint32_t visit_base = 0;
+  // The target count at the end, once the input's count is known.
+  uint64_t final_target = 0;
   // Normalized coordinates: (p - origin) * scale, the box diagonal 1 when
   // the schema gives the box.
   double origin[3] = {0, 0, 0};
@@ -269,17 +285,19 @@ struct StreamQem::Impl {
       leave_set(v);
       return;
     }
+    uint16_t band = CostBands::band_of(d.cost);  // where v is kept, if it is
     d.cost = cost;
     d.target = target;
-    const uint32_t moved = set.put(v, cost, &d.band, &d.slot);
+    const uint32_t moved = set.put(v, cost, &band, &d.slot);
     if (moved != TriangleBuffer::kNone) data[moved].slot = set.last_moved_slot();
   }
   void leave_set(uint32_t v) {
     VertexData& d = data[v];
+    const uint16_t band = CostBands::band_of(d.cost);
     d.cost = kInfinity;
     d.target = TriangleBuffer::kNone;
     if (d.slot == TriangleBuffer::kNone) return;
-    const uint32_t moved = set.remove(d.band, d.slot);
+    const uint32_t moved = set.remove(band, d.slot);
     if (moved != TriangleBuffer::kNone) data[moved].slot = d.slot;
     d.slot = TriangleBuffer::kNone;
   }
@@ -323,7 +341,10 @@ struct StreamQem::Impl {
   void fan_normal(uint32_t a, uint32_t b, double n[3]);
   void refuse(uint32_t v);
   bool collapse_one(double limit);
-  void decimate(bool final);
+  void decimate(bool final, bool full = false);
+  bool drop_components(double excess, bool final, double limit);
+  bool cut_cycles(double excess, double limit);
+  bool component(uint32_t v, std::vector<uint32_t>* triangles, double* cost);
   Status write_until(uint32_t target);
   Status finish();
 };
@@ -451,7 +472,7 @@ Status StreamQem::Impl::triangle(const SequenceTriangle& t) {
   }
   if (++since_decimation >= kDecimationStep || buffer.triangle_count() >= capacity) {
     since_decimation = 0;
-    decimate(false);
+    decimate(false, buffer.triangle_count() >= capacity);
     if (buffer.triangle_count() >= capacity) return write_until(low);
   }
   return Status();
@@ -746,27 +767,236 @@ bool StreamQem::Impl::collapse_one(double limit) {
   return true;
 }
 
-void StreamQem::Impl::decimate(bool final) {
+void StreamQem::Impl::decimate(bool final, bool full) {
   const double limit = cost_limit();
   int failed = 0;
-  const int max_failed = final ? kMaxFailedRoundsFinal : kMaxFailedRounds;
+  const bool thorough = count_target && (final || full);
+  int max_failed = final ? kMaxFailedRoundsFinal : kMaxFailedRounds;
   for (;;) {
+    if (thorough) max_failed = kMaxFailedRoundsFinal + static_cast<int>(std::min<size_t>(2 * set.size(), 1u << 30));
+    double excess = 0;
     if (count_target) {
       const TriangleBufferStats& st = buffer.stats();
       const double total = static_cast<double>(st.triangles_written + buffer.triangle_count());
-      double goal = ratio * static_cast<double>(st.triangles_read);
-      // The band along the input boundary, which nothing may change yet,
-      // counts as it will be once simplified: the rest is not
-      // over-simplified to make room for it.
-      if (!final) goal += (1 - ratio) * buffer.input_band();
-      if (total <= goal) return;
+      // At the end, the count the report promises; before, the share of
+      // what was read, with the band along the input boundary, which
+      // nothing may change yet, counted as it will be once simplified (the
+      // rest is not over-simplified to make room for it).
+      const double goal = final ? static_cast<double>(final_target)
+                                : ratio * static_cast<double>(st.triangles_read) + (1 - ratio) * buffer.input_band();
+      excess = total - goal;
+      if (excess <= 0) return;
     }
     if (collapse_one(limit)) {
       failed = 0;
     } else if (++failed >= max_failed) {
+      // No collapse is left (for now): where components that no collapse
+      // can reduce any more hold the count above the target, the cheapest
+      // of them go whole, components being kept unless the target cannot
+      // be met otherwise. Not before the last moment a component can go:
+      // when the buffer is full, before triangles leave it, or at the end
+      // (collapses elsewhere may have made up for it by then).
+      if (count_target && thorough && (drop_components(excess, final, limit) || cut_cycles(excess, limit))) {
+        failed = 0;
+        continue;
+      }
       return;
     }
   }
+}
+
+// The component of vertex v, if it may go whole: every triangle of it in
+// the buffer (none written, none still to be read: every vertex unlocked),
+// at most kMaxDropTriangles of them, and no vertex with a collapse to
+// offer (the component is at its floor), nor one locked by lock_border.
+// Its triangles go to *triangles; *cost is the squared half diagonal of its
+// box (normalized), about the distance its surface is from what stays.
+bool StreamQem::Impl::component(uint32_t v, std::vector<uint32_t>* triangles, double* cost) {
+  triangles->clear();
+  if (data[v].visit > visit_base || buffer.first_corner(v) == TriangleBuffer::kNone) return false;
+  const uint32_t search = ++visit_epoch;
+  std::vector<uint32_t>& queue = search_queue;
+  queue.assign(1, v);
+  data[v].visit = search;
+  double lo3[3], hi3[3];
+  normalized(v, lo3);
+  std::copy(lo3, lo3 + 3, hi3);
+  bool ok = true;
+  for (size_t i = 0; i < queue.size() && ok; ++i) {
+    const uint32_t u = queue[i];
+    if (buffer.locked(u) || (opt.lock_border && pinned(u))) ok = false;
+    double x[3];
+    normalized(u, x);
+    for (int j = 0; j < 3; ++j) {
+      lo3[j] = std::min(lo3[j], x[j]);
+      hi3[j] = std::max(hi3[j], x[j]);
+    }
+    for (uint32_t c = buffer.first_corner(u); c != TriangleBuffer::kNone && ok; c = buffer.next_corner(c)) {
+      // Each triangle once: from the vertex of its first corner.
+      if (c % 3 == 0) triangles->push_back(c / 3);
+      for (uint32_t w : {buffer.vertex_of(TriangleBuffer::next(c)), buffer.vertex_of(TriangleBuffer::prev(c))}) {
+        const uint32_t mark = data[w].visit;
+        if (mark == search) continue;
+        // Reached by an earlier search of this round, which stopped early
+        // in this component: it is not one to drop.
+        if (mark > visit_base) ok = false;
+        data[w].visit = search;
+        queue.push_back(w);
+      }
+      // An edge open or written: not all of the component is here.
+      const uint32_t o = buffer.opposite(c);
+      if (o >= TriangleBuffer::kOpen && o != TriangleBuffer::kBorder) ok = false;
+    }
+    if (triangles->size() > kMaxDropTriangles) ok = false;
+  }
+  if (!ok) return false;
+  // A vertex may still offer an edge that cannot collapse (a
+  // tetrahedron's; the cached cost does not know): it offers its best
+  // allowed collapse now, if any.
+  for (const uint32_t u : queue) {
+    if (data[u].slot == TriangleBuffer::kNone) continue;
+    refuse(u);
+    if (data[u].slot != TriangleBuffer::kNone) return false;
+  }
+  double d[3];
+  sub(hi3, lo3, d);
+  *cost = 0.25 * dot(d, d);
+  return true;
+}
+
+bool StreamQem::Impl::drop_components(double excess, bool final, double limit) {
+  if (visit_epoch > 0xf0000000u) {
+    for (VertexData& d : data) d.visit = 0;
+    visit_epoch = 0;
+  }
+  visit_base = visit_epoch;
+  struct Found {
+    double cost;
+    uint32_t begin, size;
+  };
+  std::vector<Found> found;
+  std::vector<uint32_t> all, tris;
+  // A component at its floor has only unlocked vertices, none of which
+  // has a collapse to offer.
+  for (uint32_t i = 0; i < buffer.free_vertex_count(); ++i) {
+    const uint32_t v = buffer.free_vertex(i);
+    double cost;
+    if (!component(v, &tris, &cost)) continue;
+    if (limit >= 0 && cost > limit) continue;
+    // Nor farther than the collapses have moved the surface so far: a
+    // small part goes, never one whose loss would dominate the error.
+    if (cost > max_cost) continue;
+    found.push_back({cost, static_cast<uint32_t>(all.size()), static_cast<uint32_t>(tris.size())});
+    all.insert(all.end(), tris.begin(), tris.end());
+  }
+  if (found.empty()) return false;
+  std::sort(found.begin(), found.end(), [](const Found& a, const Found& b) {
+    return a.cost < b.cost || (a.cost == b.cost && a.begin < b.begin);
+  });
+  bool dropped = false;
+  for (const Found& f : found) {
+    // Mid-stream, a component goes when the excess is at least half of it;
+    // at the end, when dropping it leaves the count nearer the target.
+    const double n = f.size;
+    if (final ? !(excess - n > -excess) : !(excess >= 0.5 * n)) continue;
+    // (Components are disjoint and were checked whole; can_discard()
+    // guards the buffer all the same.)
+    for (uint32_t i = 0; i < f.size; ++i)
+      if (buffer.can_discard(all[f.begin + i])) buffer.discard(all[f.begin + i]);
+    excess -= n;
+    max_cost = std::max(max_cost, f.cost);
+    ++report.components_dropped;
+    dropped = true;
+    if (excess <= 0) break;
+  }
+  return dropped;
+}
+
+// Handles (and necks) that no collapse can reduce further, three edges
+// around: the link condition refuses each of their edges. When the count
+// target cannot be met otherwise, the cheapest of them (by their longest
+// edge, about the width of the tube the cut closes) are cut
+// (TriangleBuffer::cut: each side closed by a triangle), within the largest
+// collapse error so far and max_error, and collapses go on: a handle goes
+// ("genus kept unless the target cannot be met otherwise"), or a neck
+// splits its component. At most one cut per 8 triangles of excess a round.
+bool StreamQem::Impl::cut_cycles(double excess, double limit) {
+  struct Found {
+    double cost;
+    uint32_t h, c;
+  };
+  std::vector<Found> found;
+  for (uint32_t i = 0; i < buffer.free_vertex_count(); ++i) {
+    const uint32_t a = buffer.free_vertex(i);
+    if (buffer.border(a) || buffer.cut(a)) continue;
+    for (uint32_t h = buffer.first_corner(a); h != TriangleBuffer::kNone; h = buffer.next_corner(h)) {
+      const uint32_t b = buffer.vertex_of(TriangleBuffer::next(h));
+      if (b < a || buffer.locked(b)) continue;  // each edge once, from its smaller end
+      uint32_t c;
+      if (!buffer.cycle_of(h, &c)) continue;
+      double pa[3], pb[3], pc[3], e[3];
+      normalized(a, pa);
+      normalized(b, pb);
+      normalized(c, pc);
+      sub(pa, pb, e);
+      double longest = dot(e, e);
+      sub(pb, pc, e);
+      longest = std::max(longest, dot(e, e));
+      sub(pc, pa, e);
+      longest = std::max(longest, dot(e, e));
+      const double cost = longest / 3;  // squared circumradius of an equilateral one
+      if (cost > max_cost || (limit >= 0 && cost > limit)) continue;
+      found.push_back({cost, h, c});
+    }
+  }
+  if (found.empty()) return false;
+  std::sort(found.begin(), found.end(), [](const Found& x, const Found& y) {
+    return x.cost < y.cost || (x.cost == y.cost && x.h < y.h);
+  });
+  const size_t most = 1 + static_cast<size_t>(std::max(0.0, excess) / 8);
+  size_t done = 0;
+  for (const Found& f : found) {
+    if (done == most) break;
+    // Earlier cuts of this round may have changed the place.
+    uint32_t c;
+    if (!buffer.alive(f.h / 3) || !buffer.cycle_of(f.h, &c) || c != f.c) continue;
+    const uint32_t v[3] = {buffer.vertex_of(f.h), buffer.vertex_of(TriangleBuffer::next(f.h)), c};
+    uint32_t copies[3], caps[2];
+    if (!buffer.cut(f.h, c, copies, caps)) continue;
+    if (data.size() < buffer.vertex_capacity()) {
+      data.resize(buffer.vertex_capacity());
+      score.resize(buffer.vertex_capacity());
+    }
+    if (reference.size() < buffer.triangle_capacity()) reference.resize(buffer.triangle_capacity());
+    for (int k = 0; k < 3; ++k) {
+      leave_set(v[k]);
+      VertexData& d = data[copies[k]];
+      d = VertexData();
+      d.q = data[v[k]].q;
+      d.inverse_weight = data[v[k]].inverse_weight;
+      score[copies[k]] = score[v[k]];
+    }
+    for (uint32_t t : caps) {
+      double p[3][3];
+      for (int k = 0; k < 3; ++k) normalized(buffer.vertex_of(3 * t + k), p[k]);
+      double e1[3], e2[3], n[3];
+      sub(p[1], p[0], e1);
+      sub(p[2], p[0], e2);
+      cross(e1, e2, n);
+      const double len = std::sqrt(dot(n, n));
+      reference[t] = {0, 0, 0};
+      if (len > 0 && shape(n, e1, e2) >= kDegenerate)
+        for (int i = 0; i < 3; ++i) reference[t][i] = static_cast<float>(n[i] / len);
+    }
+    for (int k = 0; k < 3; ++k) {
+      refresh(v[k], true);
+      refresh(copies[k], true);
+    }
+    max_cost = std::max(max_cost, f.cost);
+    ++report.handles_cut;
+    ++done;
+  }
+  return done > 0;
 }
 
 Status StreamQem::Impl::write_until(uint32_t target) {
@@ -792,11 +1022,11 @@ Status StreamQem::Impl::write_until(uint32_t target) {
 
 Status StreamQem::Impl::finish() {
   PSQ_RETURN_IF_ERROR(buffer.end_input());
-  decimate(true);
   if (count_target) {
-    report.target_triangles =
-        static_cast<uint64_t>(std::llround(ratio * static_cast<double>(buffer.stats().triangles_read)));
+    final_target = static_cast<uint64_t>(std::llround(ratio * static_cast<double>(buffer.stats().triangles_read)));
+    report.target_triangles = final_target;
   }
+  decimate(true);
   PSQ_RETURN_IF_ERROR(buffer.finish());
   const TriangleBufferStats& st = buffer.stats();
   report.input_vertices = st.vertices_read;
@@ -804,6 +1034,7 @@ Status StreamQem::Impl::finish() {
   report.output_vertices = st.vertices_written;
   report.output_triangles = st.triangles_written;
   report.collapses = st.collapses;
+  report.triangles_dropped = st.triangles_discarded;
   report.isolated_dropped = st.isolated_dropped;
   report.max_buffer_triangles = st.max_triangles;
   report.max_buffer_vertices = st.max_vertices;

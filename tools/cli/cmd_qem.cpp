@@ -23,6 +23,9 @@ const char kHelp[] =
     "standard input); a .psq streams through its decoder, other meshes through\n"
     "the sequence builder. OUT is .psq, .ply, .obj or .drc ('-' with --to).\n"
     "Give at least one target; simplification stops at the first reached.\n"
+    "Components, handles and borders are kept, unless a count target cannot\n"
+    "be met otherwise: then small components that no collapse can reduce\n"
+    "further go whole, and handles three edges around are cut (reported).\n"
     "The same input and options give the same output.\n"
     "\n"
     "Options:\n"
@@ -151,6 +154,12 @@ int cmd_simplify_qem(int argc, char** argv) {
     notes.push_back("the target of " + std::to_string(r.target_triangles) + " triangles was not met (" +
                     std::to_string(r.output_triangles) + "): no more edges could be collapsed" +
                     (q.max_error >= 0 ? " within --max-error" : ""));
+  if (r.components_dropped)
+    notes.push_back(std::to_string(r.components_dropped) + " components that no collapse could reduce further (" +
+                    std::to_string(r.triangles_dropped) + " triangles) dropped to come nearer the target");
+  if (r.handles_cut)
+    notes.push_back(std::to_string(r.handles_cut) +
+                    " handles or necks that no collapse could reduce further cut to come nearer the target");
   if (r.isolated_dropped) notes.push_back(std::to_string(r.isolated_dropped) + " isolated vertices dropped");
   char summary[256];
   std::snprintf(summary, sizeof summary, "%llu -> %llu triangles, largest error %.3g of the diagonal, %llu bytes",
@@ -165,7 +174,11 @@ int cmd_simplify_qem(int argc, char** argv) {
                   ", \"output_vertices\": " + std::to_string(r.output_vertices) +
                   ", \"output_triangles\": " + std::to_string(r.output_triangles) +
                   ", \"target_triangles\": " + std::to_string(r.target_triangles) +
-                  ", \"collapses\": " + std::to_string(r.collapses) + ", \"max_error\": " + json_number(r.max_error) +
+                  ", \"collapses\": " + std::to_string(r.collapses) +
+                  ", \"components_dropped\": " + std::to_string(r.components_dropped) +
+                  ", \"triangles_dropped\": " + std::to_string(r.triangles_dropped) +
+                  ", \"handles_cut\": " + std::to_string(r.handles_cut) +
+                  ", \"max_error\": " + json_number(r.max_error) +
                   ", \"buffer_triangles\": " + std::to_string(r.buffer_triangles) +
                   ", \"max_buffer_triangles\": " + std::to_string(r.max_buffer_triangles) +
                   ", \"max_buffer_vertices\": " + std::to_string(r.max_buffer_vertices) +

@@ -80,6 +80,8 @@ struct TriangleBufferStats {
   uint64_t triangles_written = 0;
   uint64_t vertices_written = 0;
   uint64_t collapses = 0;
+  uint64_t triangles_discarded = 0;  // by discard()
+  uint64_t cuts = 0;                 // by cut()
   uint64_t starts_written = 0;      // triangles written that touched no written triangle
   uint64_t max_triangles = 0;       // most triangles in the buffer at once
   uint64_t max_vertices = 0;        // most vertices in the buffer at once
@@ -195,6 +197,29 @@ class TriangleBuffer {
   // (the start of h if keep_start, else its end), whose values stay and
   // whose position the client sets. Returns the kept vertex.
   uint32_t collapse(uint32_t h, bool keep_start);
+  // Whether triangle t may be discarded: its three vertices are unlocked
+  // (so every edge leads to a triangle in the buffer or is a border).
+  bool can_discard(uint32_t t) const;
+  // Removes triangle t (can_discard(t) must hold) without writing it: the
+  // edges of the triangles across become borders, and a vertex left
+  // without triangles goes. For a client that removes a whole component
+  // (a simplifier whose target cannot be met with it).
+  void discard(uint32_t t);
+  // Whether the edge of corner h, from a to b, fails the link condition
+  // through a vertex c besides the two across it: a, b and c are joined
+  // pairwise by edges but bound no triangle (a handle, or a neck, three
+  // edges around). Then *c is such a vertex (the first found), and
+  // cut(h, *c) may run: a, b and c are unlocked, on no border, not cut.
+  bool cycle_of(uint32_t h, uint32_t* c);
+  // Cuts the surface along the cycle a -> b -> c of cycle_of(h, c): the
+  // triangles on its left get copies a', b', c' of its vertices (position,
+  // values), and each side is closed by a new triangle, (a, b, c) on the
+  // right, (a', c', b') on the left, with the face values of the triangle
+  // across its first edge. A handle goes (genus one less), or a neck
+  // splits its component in two. new_vertices[] are a', b', c'; caps[] the
+  // triangles (a, b, c) and (a', c', b'). Returns false, changing nothing,
+  // when the fans around the cycle are not as cycle_of() found them.
+  bool cut(uint32_t h, uint32_t c, uint32_t new_vertices[3], uint32_t caps[2]);
 
   const TriangleBufferStats& stats() const { return stats_; }
   const ConverterStats& converter_stats() const;
@@ -203,6 +228,9 @@ class TriangleBuffer {
   static constexpr uint8_t kInputFinal = 1, kHasOutput = 2, kCut = 4, kBorderVertex = 8;
 
   uint32_t new_vertex(const SequenceVertex& v);
+  uint32_t clone_vertex(uint32_t v);
+  uint32_t new_cap(uint32_t v0, uint32_t v1, uint32_t v2, uint32_t values_from);
+  bool left_fan(uint32_t v, uint32_t from, uint32_t to, std::vector<uint32_t>* corners) const;
   void free_vertex_record(uint32_t v);
   void add_corner(uint32_t v, uint32_t c);
   void remove_corner(uint32_t v, uint32_t c);

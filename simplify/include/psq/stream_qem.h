@@ -40,14 +40,26 @@
 // - WRITE: when the buffer is full, triangles leave it across the output
 //   boundary (TriangleBuffer::pick_output: end, fill, join, then the add
 //   whose free vertex carries the largest error) until it is 7/8 full.
-// At the end of the input, the rest is decimated to the target and written.
+// At the end of the input, the rest is decimated to the target count
+// (rounded to the nearest triangle) and written.
 //
 // Targets: a ratio of the input's triangles, a triangle count (which needs
 // the input's count: the schema's, or QemOptions::input_triangles), and/or
 // a largest error; decimation stops at the first reached. Components,
-// handles and borders are kept: where the target needs them gone, it is
-// not met (the report says what was achieved). The output is the same for
-// the same input events and options (seeded choices).
+// handles and borders are kept unless the count target cannot be met
+// otherwise: when no collapse is left and the count is still above the
+// target's share of what was read (at the end, or when the buffer is
+// full), first components that no collapse can reduce any more (every
+// vertex of them refused), wholly in the buffer, of at most 1024
+// triangles, go whole, the smallest first; then handles (or necks) that
+// three edges go round, where the link condition refuses every collapse,
+// are cut there and each side closed by a triangle (TriangleBuffer::cut),
+// the narrowest first, and collapses go on. Either only within the largest
+// error of a collapse so far and max_error (a dropped component's error is
+// its half box diagonal, a cut's the circumradius of the cycle's longest
+// edge). Borders are kept, and where the target needs them gone it is not
+// met (the report says what was achieved). The output is the same for the
+// same input events and options (seeded choices).
 //
 // Vertex properties: a merged vertex keeps the values of the end it kept
 // (the one nearer its new place); triangles keep theirs.
@@ -96,6 +108,13 @@ struct QemReport {
   uint64_t output_triangles = 0;
   uint64_t target_triangles = 0;   // what the ratio or count asked for; 0 without
   uint64_t collapses = 0;
+  // Components removed whole (each at the least size collapses could give
+  // it) because the count target could not be met otherwise.
+  uint64_t components_dropped = 0;
+  uint64_t triangles_dropped = 0;
+  // Handles (or necks) cut where three edges went round them, for the
+  // same reason.
+  uint64_t handles_cut = 0;
   uint64_t isolated_dropped = 0;   // input vertices used by no triangle
   // Largest error of a collapse, relative to the box diagonal as max_error.
   double max_error = 0;
