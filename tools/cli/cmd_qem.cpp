@@ -85,19 +85,8 @@ int cmd_simplify_qem(int argc, char** argv) {
 
   QemOptions q;
   q.lock_border = lock_border;
-  if (!ratio_text.empty()) {
-    std::string t = ratio_text;
-    double scale = 1;
-    if (t.back() == '%') {
-      t.pop_back();
-      scale = 0.01;
-    }
-    char* end = nullptr;
-    const double r = std::strtod(t.c_str(), &end) * scale;
-    if (t.empty() || *end != 0 || !(r > 0 && r <= 1))
-      return usage_error("simplify", "bad --ratio '" + ratio_text + "' (a fraction in (0, 1] or a percentage)");
-    q.ratio = r;
-  }
+  if (!ratio_text.empty() && !parse_ratio(ratio_text, &q.ratio))
+    return usage_error("simplify", "bad --ratio '" + ratio_text + "' (a fraction in (0, 1] or a percentage)");
   if (!triangles_text.empty() && !parse_count(triangles_text, &q.target_triangles))
     return usage_error("simplify", "bad --triangles '" + triangles_text + "' (a positive count)");
   if (!error_text.empty()) {
