@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "qem_quadric.h"
+#include "sink_state.h"
 
 namespace psq {
 namespace {
@@ -206,8 +207,7 @@ struct StreamQem::Impl {
   TriangleBuffer buffer;
   QemOptions opt;
   QemReport report;
-  Status error;
-  bool begun = false, finished = false;
+  detail::SinkState state;
 
   std::vector<VertexData> data;
   // The error at each vertex's place (the output's add preference).
@@ -242,10 +242,7 @@ struct StreamQem::Impl {
   uint32_t since_decimation = 0;
   uint64_t rng = 0;
 
-  Status fail(Status s) {
-    if (error.ok()) error = s;
-    return error;
-  }
+  Status fail(Status s) { return state.fail(std::move(s)); }
 
   uint64_t random() {
     uint64_t z = (rng += 0x9e3779b97f4a7c15ull);
@@ -402,7 +399,6 @@ Status StreamQem::Impl::begin(const MeshSchema& schema) {
   data.reserve(vertices);
   score.reserve(vertices);
   reference.reserve(room);
-  begun = true;
   return buffer.begin(schema);
 }
 
@@ -1055,18 +1051,16 @@ void StreamQem::set_input_triangles(uint64_t count) { impl_->opt.input_triangles
 
 Status StreamQem::begin(const MeshSchema& schema) {
   Impl& m = *impl_;
-  if (!m.error.ok()) return m.error;
-  if (m.begun) return m.fail(Status(ErrorCode::kUsage, "begin() called twice"));
-  return m.fail(m.begin(schema));
+  Status s = m.state.begin();
+  return s.ok() ? m.fail(m.begin(schema)) : s;
 }
 
 Status StreamQem::vertex(const SequenceVertex& v) {
   Impl& m = *impl_;
-  if (!m.error.ok()) return m.error;
-  if (!m.begun || m.finished) return m.fail(Status(ErrorCode::kUsage, "vertex event outside begin()..finish()"));
+  Status s = m.state.event("vertex event");
+  if (s.ok()) s = detail::check_finite(v);
+  if (!s.ok()) return m.fail(std::move(s));
   for (int i = 0; i < 3; ++i) {
-    if (!std::isfinite(v.position[i]))
-      return m.fail(Status(ErrorCode::kBadValue, "vertex " + std::to_string(v.index) + ": position is not finite"));
     if (!m.seen_vertex || v.position[i] < m.lo[i]) m.lo[i] = v.position[i];
     if (!m.seen_vertex || v.position[i] > m.hi[i]) m.hi[i] = v.position[i];
   }
@@ -1074,27 +1068,22 @@ Status StreamQem::vertex(const SequenceVertex& v) {
   m.seen_vertex = true;
   return m.fail(m.buffer.vertex(v));
 }
-
 Status StreamQem::triangle(const SequenceTriangle& t) {
   Impl& m = *impl_;
-  if (!m.error.ok()) return m.error;
-  if (!m.begun || m.finished) return m.fail(Status(ErrorCode::kUsage, "triangle event outside begin()..finish()"));
-  return m.fail(m.triangle(t));
+  Status s = m.state.event("triangle event");
+  return s.ok() ? m.fail(m.triangle(t)) : s;
 }
 
 Status StreamQem::finalize(uint32_t index) {
   Impl& m = *impl_;
-  if (!m.error.ok()) return m.error;
-  if (!m.begun || m.finished) return m.fail(Status(ErrorCode::kUsage, "finalize event outside begin()..finish()"));
-  return m.fail(m.buffer.finalize(index));
+  Status s = m.state.event("finalize event");
+  return s.ok() ? m.fail(m.buffer.finalize(index)) : s;
 }
 
 Status StreamQem::finish() {
   Impl& m = *impl_;
-  if (!m.error.ok()) return m.error;
-  if (!m.begun || m.finished) return m.fail(Status(ErrorCode::kUsage, "finish() outside begin()..finish()"));
-  m.finished = true;
-  return m.fail(m.finish());
+  Status s = m.state.finish();
+  return s.ok() ? m.fail(m.finish()) : s;
 }
 
 const QemReport& StreamQem::report() const { return impl_->report; }

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "psq/triangle_buffer.h"
+#include "sink_state.h"
 
 namespace psq {
 namespace {
@@ -44,8 +45,7 @@ struct TaubinSmoother::Impl {
   TriangleBuffer buffer;
   SmoothOptions opt;
   SmoothReport report;
-  Status error;
-  bool begun = false, finished = false;
+  detail::SinkState state;
   uint32_t capacity = 0, low = 0;
 
   // Per vertex: the steps taken, whether it stopped for good, and its
@@ -56,10 +56,7 @@ struct TaubinSmoother::Impl {
   std::vector<uint8_t> queued;
   std::vector<uint32_t> work, ready;
 
-  Status fail(Status s) {
-    if (error.ok()) error = s;
-    return error;
-  }
+  Status fail(Status s) { return state.fail(std::move(s)); }
 
   bool fixed(uint32_t v) const { return stopped[v] || buffer.border(v) || buffer.cut(v); }
   bool done(uint32_t v) const { return fixed(v) || level[v] >= opt.iterations; }
@@ -105,7 +102,6 @@ Status TaubinSmoother::Impl::begin(const MeshSchema& schema) {
   stopped.reserve(vertices);
   before.reserve(vertices);
   queued.reserve(room);
-  begun = true;
   return buffer.begin(schema);
 }
 
@@ -252,41 +248,32 @@ TaubinSmoother::~TaubinSmoother() = default;
 
 Status TaubinSmoother::begin(const MeshSchema& schema) {
   Impl& m = *impl_;
-  if (!m.error.ok()) return m.error;
-  if (m.begun) return m.fail(Status(ErrorCode::kUsage, "begin() called twice"));
-  return m.fail(m.begin(schema));
+  Status s = m.state.begin();
+  return s.ok() ? m.fail(m.begin(schema)) : s;
 }
 
 Status TaubinSmoother::vertex(const SequenceVertex& v) {
   Impl& m = *impl_;
-  if (!m.error.ok()) return m.error;
-  if (!m.begun || m.finished) return m.fail(Status(ErrorCode::kUsage, "vertex event outside begin()..finish()"));
-  for (double c : v.position)
-    if (!std::isfinite(c))
-      return m.fail(Status(ErrorCode::kBadValue, "vertex " + std::to_string(v.index) + ": position is not finite"));
-  return m.fail(m.buffer.vertex(v));
+  Status s = m.state.event("vertex event");
+  if (s.ok()) s = detail::check_finite(v);
+  return m.fail(s.ok() ? m.buffer.vertex(v) : std::move(s));
 }
-
 Status TaubinSmoother::triangle(const SequenceTriangle& t) {
   Impl& m = *impl_;
-  if (!m.error.ok()) return m.error;
-  if (!m.begun || m.finished) return m.fail(Status(ErrorCode::kUsage, "triangle event outside begin()..finish()"));
-  return m.fail(m.triangle(t));
+  Status s = m.state.event("triangle event");
+  return s.ok() ? m.fail(m.triangle(t)) : s;
 }
 
 Status TaubinSmoother::finalize(uint32_t index) {
   Impl& m = *impl_;
-  if (!m.error.ok()) return m.error;
-  if (!m.begun || m.finished) return m.fail(Status(ErrorCode::kUsage, "finalize event outside begin()..finish()"));
-  return m.fail(m.buffer.finalize(index));
+  Status s = m.state.event("finalize event");
+  return s.ok() ? m.fail(m.buffer.finalize(index)) : s;
 }
 
 Status TaubinSmoother::finish() {
   Impl& m = *impl_;
-  if (!m.error.ok()) return m.error;
-  if (!m.begun || m.finished) return m.fail(Status(ErrorCode::kUsage, "finish() outside begin()..finish()"));
-  m.finished = true;
-  return m.fail(m.finish());
+  Status s = m.state.finish();
+  return s.ok() ? m.fail(m.finish()) : s;
 }
 
 const SmoothReport& TaubinSmoother::report() const { return impl_->report; }
