@@ -228,6 +228,10 @@ AttributeCoder::AttributeCoder(const std::vector<Property>& vertex, const std::v
 }
 
 int32_t* AttributeCoder::grow(std::vector<int32_t>* a, uint32_t slot) {
+  // Slots stay below the boundary limit (spec 6.1.1); none other is ever
+  // asked for, and none may make the arrays grow beyond it.
+  static int32_t none[kMaxAttributeComponents] = {};
+  if (slot >= (1u << 28)) return none;
   const size_t need = (static_cast<size_t>(slot) + 1) * static_cast<size_t>(dims_);
   if (a->size() < need) a->resize(std::max(need, 2 * a->size()), 0);
   return a->data() + static_cast<size_t>(slot) * static_cast<size_t>(dims_);
