@@ -42,10 +42,6 @@ bool find_all(const std::vector<Property>& props, std::initializer_list<const ch
   return true;
 }
 
-// The weight of the new triangle's unit normal beside the two gate
-// vertices' normals in a normal's prediction (spec 8.3).
-constexpr double kFaceWeight = 4.0;
-
 int64_t mid(int64_t a, int64_t b) { return (a >> 1) + (b >> 1) + (a & b & 1); }
 
 // The distance of two values, modulo `mod` when it is not 0.
@@ -230,7 +226,7 @@ AttributeCoder::AttributeCoder(const std::vector<Property>& vertex, const std::v
 int32_t* AttributeCoder::grow(std::vector<int32_t>* a, uint32_t slot) {
   // Slots stay below the boundary limit (spec 6.1.1); none other is ever
   // asked for, and none may make the arrays grow beyond it.
-  static int32_t none[kMaxAttributeComponents] = {};
+  thread_local int32_t none[kMaxAttributeComponents] = {};
   if (slot >= (1u << 28)) return none;
   const size_t need = (static_cast<size_t>(slot) + 1) * static_cast<size_t>(dims_);
   if (a->size() < need) a->resize(std::max(need, 2 * a->size()), 0);
@@ -356,9 +352,9 @@ bool AttributeCoder::walk(const AttributeRecord& r, int32_t* q, Code&& code) {
         extent[d] = bit_length64(spread);
       }
       for (int d = 0; d < D; ++d) {
-        if (!comp_[d].first || r.pos[0] == nullptr) continue;
-        if (comp_[d].bits != 0) predict_normal(r, j, d, a, b, pred);
-        if (comp_[d].parallelogram) predict_texcoord(r, j, d, a, b, o, pred);
+        if (!comp_[d].first) continue;
+        if (comp_[d].bits != 0) predict_normal(d, a, b, o, pred);
+        if (comp_[d].parallelogram && r.pos[0] != nullptr) predict_texcoord(r, j, d, a, b, o, pred);
       }
     } else {
       for (int d = 0; d < D; ++d) {
@@ -384,32 +380,20 @@ bool AttributeCoder::walk(const AttributeRecord& r, int32_t* q, Code&& code) {
   return true;
 }
 
-// Spec 8.3: a normal predicted by the sum of the gate vertices' normals
-// and the new triangle's unit normal, turned towards them, taken back to
-// the grid; the mean of the two on the grid when that sum is zero.
-void AttributeCoder::predict_normal(const AttributeRecord& r, int j, int d, const int32_t* a, const int32_t* b,
+// Spec 8.3: a normal predicted by the parallelogram of the gate's
+// normals as vectors (the ends' sum less the gate triangle's third
+// vertex's), taken back to the grid; the mean of the ends on the grid when
+// that vector is zero. Vectors, not grid points: the octahedral map folds
+// the lower half of the sphere, where neighbouring normals can lie on
+// opposite sides of the square.
+void AttributeCoder::predict_normal(int d, const int32_t* a, const int32_t* b, const int32_t* o,
                                     int64_t* pred) const {
   const int32_t c = (int32_t{1} << (comp_[d].bits - 1)) - 1;
-  double na[3], nb[3];
+  double na[3], nb[3], no[3], sum[3];
   octahedral_decode(a[d], a[d + 1], c, na);
   octahedral_decode(b[d], b[d + 1], c, nb);
-  const int64_t* x = r.pos[j];
-  const int64_t* p = r.pos[(j + 1) % 3];
-  const int64_t* q = r.pos[(j + 2) % 3];
-  double u[3], v[3];
-  for (int i = 0; i < 3; ++i) {
-    u[i] = static_cast<double>(p[i] - x[i]);
-    v[i] = static_cast<double>(q[i] - x[i]);
-  }
-  double f[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
-  const double fl = std::sqrt((f[0] * f[0] + f[1] * f[1]) + f[2] * f[2]);
-  double sum[3];
-  for (int i = 0; i < 3; ++i) sum[i] = na[i] + nb[i];
-  if (fl > 0) {
-    const double side = (sum[0] * f[0] + sum[1] * f[1]) + sum[2] * f[2];
-    const double w = (side < 0 ? -kFaceWeight : kFaceWeight) / fl;
-    for (int i = 0; i < 3; ++i) sum[i] = sum[i] + f[i] * w;
-  }
+  octahedral_decode(o[d], o[d + 1], c, no);
+  for (int i = 0; i < 3; ++i) sum[i] = (na[i] + nb[i]) - no[i];
   int64_t s, t;
   if (octahedral_round(sum, c, &s, &t)) {
     pred[d] = s;

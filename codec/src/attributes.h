@@ -42,8 +42,8 @@ struct AttributeRecord {
   bool triangle = false;
   uint32_t v[3] = {0, 0, 0}, c[3] = {0, 0, 0}, e[3] = {0, 0, 0};
   uint8_t new_mask = 0, entering_mask = 0;
-  // The corners' coded coordinates (spec 7.1; a quantized stream's normals
-  // are predicted with the new triangle's orientation).
+  // The corners' coded coordinates in a quantized stream (spec 7.1: texture
+  // coordinates are predicted from the new triangle's shape), else null.
   const int64_t* pos[3] = {nullptr, nullptr, nullptr};
 };
 
@@ -78,7 +78,7 @@ class AttributeCoder {
   };
   template <class Code>
   bool walk(const AttributeRecord& r, int32_t* q, Code&& code);
-  void predict_normal(const AttributeRecord& r, int j, int d, const int32_t* a, const int32_t* b, int64_t* pred) const;
+  void predict_normal(int d, const int32_t* a, const int32_t* b, const int32_t* o, int64_t* pred) const;
   void predict_texcoord(const AttributeRecord& r, int j, int d, const int32_t* a, const int32_t* b, const int32_t* o,
                         int64_t* pred) const;
   int32_t* vertex_values(uint32_t slot) { return grow(&vattr_, slot); }
