@@ -221,6 +221,10 @@ AttributeCoder::AttributeCoder(const std::vector<Property>& vertex, const std::v
   for (size_t i = 0; i < vertex.size(); ++i)
     if (role_[i] < 0) columns_.push_back(vertex[i]);
   models_.resize(static_cast<size_t>(2 * dims_ * kLengthContexts));
+  // Spec 8.3: the length trees start as those of positions (7.4.1).
+  for (int kind = 0; kind < 2; ++kind)
+      for (int d = 0; d < dims_; ++d)
+        for (int c = 0; c < kLengthContexts; ++c) init_length_prior(model(kind, d, c), c);
 }
 
 int32_t* AttributeCoder::grow(std::vector<int32_t>* a, uint32_t slot) {

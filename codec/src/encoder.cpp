@@ -707,8 +707,10 @@ Status PsqEncoder::Impl::after_record() {
     const size_t bound = fast_raw.bits() / 8 + fast_symbols.size() * kRansScaleBits / 8 + 8 + kTableBound;
     full = bound + kRecordBound >= kMaxRecordBytes;
   }
+  // The attribute section is closed at the property target too, far
+  // below its limit (spec 4.4): a record adds at most a few hundred bytes.
   if (coded >= opt.chunk_bytes || full || props->raw_size() >= kChunkPropertyTarget ||
-      chunk_records >= kMaxChunkRecords)
+      attr_bytes.size() >= kChunkPropertyTarget || chunk_records >= kMaxChunkRecords)
     return close_chunk();
   return Status();
 }
