@@ -378,6 +378,17 @@ TEST(Attributes, EncoderRefusesBadValuesAndOptions) {
     Status st = encode(sequence_of(bad), options(true, 8, 10), &bytes);
     EXPECT_EQ(st.code(), ErrorCode::kBadValue) << st.to_string();
   }
+  {
+    Spec c;
+    c.colors = true;
+    for (double v : {256.0, -1.0, 1.5, std::nan("")}) {
+      Mesh bad = attributed_torus(c);
+      bad.vertex_values[5][1] = v;
+      std::vector<uint8_t> bytes;
+      Status st = encode(sequence_of(bad), options(false, 8, 10), &bytes);
+      EXPECT_EQ(st.code(), ErrorCode::kBadValue) << v << ": " << st.to_string();
+    }
+  }
   for (auto [nb, ub] : {std::pair<int, int>{1, 10}, {17, 10}, {-1, 10}, {8, 25}, {8, -2}}) {
     std::vector<uint8_t> bytes;
     EXPECT_EQ(encode(sequence_of(m), options(false, nb, ub), &bytes).code(), ErrorCode::kUsage) << nb << " " << ub;

@@ -2,15 +2,20 @@
 // codec/src/attributes.cpp: see attributes.h and spec/psq-format.md 8.3.
 // Normals on the octahedron as in Meyer, Sherman and Strzodka, "On
 // floating-point normal vectors" (EGSR 2010) and Cigolle et al., "A survey
-// of efficient representations for independent unit vectors" (JCGT 2014);
-// texture coordinates predicted by the parallelogram of Touma and Gotsman,
-// "Triangle mesh compression" (GI 1998), in texture space as in Isenburg
-// and Snoeyink, "Compressing texture coordinates with selective linear
-// predictions" (CGI 2003); residuals coded as positions are (spec 5.6, 7.4).
+// of efficient representations for independent unit vectors" (JCGT 2014),
+// predicted by the parallelogram rule of Touma and Gotsman, "Triangle mesh
+// compression" (GI 1998) on the normals as vectors; texture coordinates
+// predicted by the new vertex's place beside the gate edge in space,
+// carried into the texture (as Draco's texture coordinate predictor does),
+// else by the parallelogram in texture space as in Isenburg and Snoeyink,
+// "Compressing texture coordinates with selective linear predictions" (CGI
+// 2003); residuals coded as positions are (spec 5.6, 7.4).
 #include "attributes.h"
 
 #include <algorithm>
 #include <cmath>
+#include <initializer_list>
+#include <string>
 
 #include "geometry.h"
 
@@ -223,8 +228,8 @@ AttributeCoder::AttributeCoder(const std::vector<Property>& vertex, const std::v
   models_.resize(static_cast<size_t>(2 * dims_ * kLengthContexts));
   // Spec 8.3: the length trees start as those of positions (7.4.1).
   for (int kind = 0; kind < 2; ++kind)
-      for (int d = 0; d < dims_; ++d)
-        for (int c = 0; c < kLengthContexts; ++c) init_length_prior(model(kind, d, c), c);
+    for (int d = 0; d < dims_; ++d)
+      for (int c = 0; c < kLengthContexts; ++c) init_length_prior(model(kind, d, c), c);
 }
 
 int32_t* AttributeCoder::grow(std::vector<int32_t>* a, uint32_t slot) {
@@ -244,6 +249,9 @@ Status AttributeCoder::split(const PropertyValues& in, uint64_t vertex, Property
   for (size_t i = 0; i < vertex_.size(); ++i) {
     if (at >= in.size()) return Status(ErrorCode::kBadValue, "vertex property values do not match the schema");
     if (role_[i] >= 0) {
+      if (!scalar_holds(vertex_[i].type, in[at]))
+        return Status(ErrorCode::kBadValue,
+                      "vertex " + std::to_string(vertex) + ": a property value does not fit its type");
       value[role_[i]] = in[at++];
       continue;
     }
