@@ -17,6 +17,8 @@
 #include <initializer_list>
 #include <string>
 
+#include "container.h"
+#include "fast_coding.h"
 #include "geometry.h"
 
 namespace psq {
@@ -489,6 +491,154 @@ const char* AttributeCoder::decode(BasicDecoder<false>& dec, const AttributeReco
       int length;
       if (!dec.residual(model(kind, d, ctx), &res, &length, kCostGeometry)) return why = "attribute residual longer than 64 bits", false;
       longest = std::max(longest, length);
+      int64_t value;
+      if (c.mod != 0) {
+        const int64_t lo = -(c.mod / 2);
+        if (res < lo || res > lo + c.mod - 1) return why = "attribute residual beyond its modulus", false;
+        value = pred[d] + res;
+        if (value < 0) value += c.mod;
+        if (value >= c.mod) value -= c.mod;
+      } else {
+        if (res < -(int64_t{1} << 40) || res > (int64_t{1} << 40)) return why = "texture coordinate outside its grid", false;
+        value = pred[d] + res;
+        if (value < c.lo || value > c.hi) return why = "texture coordinate outside its grid", false;
+      }
+      x[d] = static_cast<int32_t>(value);
+    }
+    return true;
+  });
+  return why;
+}
+
+void AttributeCoder::encode_fast(FastAttributeWriter& w, const AttributeRecord& r, const int32_t* q) {
+  if (w.counts.empty()) w.counts.assign(static_cast<size_t>(fast_tables()) * kFastLengthSymbols, 0);
+  int32_t* v = const_cast<int32_t*>(q);  // walk() only reads the values it is given
+  walk(r, v, [&](int kind, const int64_t* pred, const int* extent, int32_t* x) {
+    int longest = 0;
+    for (int d = 0; d < dims_; ++d) {
+      const Component& c = comp_[d];
+      if (c.first) longest = 0;
+      int64_t res = x[d] - pred[d];
+      if (c.mod != 0) {
+        const int64_t lo = -(c.mod / 2);
+        if (res < lo) res += c.mod;
+        if (res > lo + c.mod - 1) res -= c.mod;
+      }
+      const int table = fast_table(kind, d, attribute_context(kind, c.first, extent[d], longest));
+      // Spec 13.8.3: the length symbol, then the raw bits.
+      const uint64_t mag = res < 0 ? 0 - static_cast<uint64_t>(res) : static_cast<uint64_t>(res);
+      const int k = bit_length64(mag);
+      const int sym = fast_length_symbol(k, mag);
+      w.symbols.push_back(RansSymbol{static_cast<uint16_t>(table), static_cast<uint8_t>(sym)});
+      ++w.counts[static_cast<size_t>(table) * kFastLengthSymbols + static_cast<size_t>(sym)];
+      if (sym == kFastLengthEscape) {
+        w.raw.put(static_cast<uint32_t>(k - 33), 5);
+        w.raw.put(static_cast<uint32_t>((mag >> (k - 2)) & 1), 1);
+      }
+      const int nbits = fast_raw_bit_count(k);
+      const int low_bits = nbits - static_cast<int>(k != 0);
+      const uint64_t value = (static_cast<uint64_t>(res < 0) << low_bits) | (mag & ((uint64_t{1} << low_bits) - 1));
+      if (nbits > 32) {
+        w.raw.put(static_cast<uint32_t>(value), 32);
+        w.raw.put(static_cast<uint32_t>(value >> 32), nbits - 32);
+      } else {
+        w.raw.put(static_cast<uint32_t>(value), nbits);
+      }
+      longest = std::max(longest, k);
+    }
+    return true;
+  });
+}
+
+void AttributeCoder::finish_fast(FastAttributeWriter& w, std::vector<uint8_t>* out) const {
+  // Spec 13.12: as a fast record section (13.2): the table block, the
+  // rANS block and the raw block, the first two with their lengths.
+  const int n = fast_tables();
+  if (w.counts.empty()) w.counts.assign(static_cast<size_t>(n) * kFastLengthSymbols, 0);
+  std::vector<RansTable> tables(static_cast<size_t>(n));
+  RawWriter tw;
+  for (int i = 0; i < n; ++i) {
+    const uint64_t* c = &w.counts[static_cast<size_t>(i) * kFastLengthSymbols];
+    bool present = false;
+    for (int sym = 0; sym < kFastLengthSymbols; ++sym) present = present || c[sym] != 0;
+    tw.put(present, 1);
+    if (present) tables[static_cast<size_t>(i)].build(c, kFastLengthSymbols);
+  }
+  for (const RansTable& t : tables)
+    if (!t.empty()) t.write(tw);
+  const std::vector<uint8_t> table_bytes = tw.finish();
+  std::vector<uint8_t> rans_bytes;
+  rans_encode(w.symbols.data(), w.symbols.size(), tables.data(), tables.size(), &rans_bytes);
+  const std::vector<uint8_t> raw_bytes = w.raw.finish();
+  Put put(out);
+  put.varint(table_bytes.size());
+  put.varint(rans_bytes.size());
+  put.bytes(table_bytes.data(), table_bytes.size());
+  put.bytes(rans_bytes.data(), rans_bytes.size());
+  put.bytes(raw_bytes.data(), raw_bytes.size());
+  w.symbols.clear();
+  std::fill(w.counts.begin(), w.counts.end(), 0);
+}
+
+const char* AttributeCoder::open_fast(FastAttributeReader& rd, const uint8_t* data, size_t size) const {
+  uint64_t table_bytes = 0, rans_bytes = 0;
+  const int n1 = parse_varint(data, size, &table_bytes);
+  if (n1 <= 0) return "malformed table block length";
+  const int n2 = parse_varint(data + n1, size - static_cast<size_t>(n1), &rans_bytes);
+  if (n2 <= 0) return "malformed rANS block length";
+  const size_t at = static_cast<size_t>(n1 + n2);
+  if (table_bytes > size - at || rans_bytes > size - at - table_bytes) return "block lengths exceed the section";
+  RawReader tables(data + at, table_bytes);
+  const int n = fast_tables();
+  rd.tables.resize(static_cast<size_t>(n));
+  std::vector<bool> present(static_cast<size_t>(n));
+  for (int i = 0; i < n; ++i) present[static_cast<size_t>(i)] = tables.get(1) != 0;
+  for (int i = 0; i < n; ++i) {
+    RansTable& t = rd.tables[static_cast<size_t>(i)];
+    if (!present[static_cast<size_t>(i)]) {
+      t.set_absent();
+    } else if (!t.read(tables, kFastLengthSymbols)) {
+      return "an attribute table is invalid";
+    }
+  }
+  if (!tables.at_clean_end()) return "the table block does not end with its last table";
+  rd.rans = std::make_unique<RansDecoder>(data + at + table_bytes, rans_bytes);
+  const size_t raw_at = at + table_bytes + rans_bytes;
+  rd.raw = std::make_unique<RawReader>(data + raw_at, size - raw_at);
+  return nullptr;
+}
+
+const char* AttributeCoder::decode_fast(FastAttributeReader& rd, const AttributeRecord& r, int32_t* q) {
+  const char* why = nullptr;
+  RansDecoder& dec = *rd.rans;
+  RawReader& raw = *rd.raw;
+  walk(r, q, [&](int kind, const int64_t* pred, const int* extent, int32_t* x) {
+    int longest = 0;
+    for (int d = 0; d < dims_; ++d) {
+      const Component& c = comp_[d];
+      if (c.first) longest = 0;
+      const int table = fast_table(kind, d, attribute_context(kind, c.first, extent[d], longest));
+      const int s = dec.decode(rd.tables[static_cast<size_t>(table)]);
+      // Spec 13.8.3: a length symbol's residual from the raw bits.
+      uint64_t mag;
+      int len;
+      if (s < kFastLengthEscape) {
+        len = s < 2 ? s : (s + 2) >> 1;
+        const int low_bits = len >= 2 ? len - 2 : 0;
+        const uint64_t lead = len == 0 ? 0 : len == 1 ? 1 : (uint64_t{2} | static_cast<uint64_t>(s & 1)) << (len - 2);
+        mag = lead | (len == 0 ? 0 : raw.get(low_bits));
+      } else if (s == kFastLengthEscape) {
+        len = 33 + static_cast<int>(raw.get(5));
+        mag = uint64_t{1} << (len - 1) | static_cast<uint64_t>(raw.get(1)) << (len - 2);
+        const int low_bits = len - 2;
+        mag |= low_bits > 32 ? raw.get(32) | static_cast<uint64_t>(raw.get(low_bits - 32)) << 32 : raw.get(low_bits);
+      } else {
+        return why = "attribute symbol of an absent table", false;
+      }
+      const bool negative = len != 0 && raw.get(1) != 0;
+      if (!negative && mag >= (uint64_t{1} << 63)) return why = "attribute residual longer than 64 bits", false;
+      int64_t res = negative ? static_cast<int64_t>(0 - mag) : static_cast<int64_t>(mag);
+      longest = std::max(longest, len);
       int64_t value;
       if (c.mod != 0) {
         const int64_t lo = -(c.mod / 2);

@@ -10,10 +10,12 @@
 #define PSQ_CODEC_ATTRIBUTES_H_
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "coding.h"
+#include "rans.h"
 #include "psq/psq_codec.h"
 #include "psq/status.h"
 
@@ -47,6 +49,21 @@ struct AttributeRecord {
   const int64_t* pos[3] = {nullptr, nullptr, nullptr};
 };
 
+// The attribute section of a fast chunk (spec 13.12): the residuals'
+// length symbols with static tables and rANS, their low bits and signs raw.
+struct FastAttributeWriter {
+  std::vector<RansSymbol> symbols;
+  std::vector<uint64_t> counts;  // [table][symbol], this chunk's
+  RawWriter raw;
+  // Roughly the section's size so far (the encoder's chunk target).
+  size_t size_estimate() const { return static_cast<size_t>(raw.bits() / 8) + symbols.size(); }
+};
+struct FastAttributeReader {
+  std::vector<RansTable> tables;
+  std::unique_ptr<RansDecoder> rans;
+  std::unique_ptr<RawReader> raw;
+};
+
 class AttributeCoder {
  public:
   AttributeCoder(const std::vector<Property>& vertex, const std::vector<CodedAttribute>& attrs);
@@ -67,6 +84,18 @@ class AttributeCoder {
   void encode(Encoder& enc, const AttributeRecord& r, const int32_t* q);
   // Decodes one record into q; nullptr, or why the stream is corrupt.
   const char* decode(BasicDecoder<false>& dec, const AttributeRecord& r, int32_t* q);
+
+  // The fast profile's back-end (spec 13.12): the same predictions and
+  // contexts, the residuals as length symbols of static tables.
+  void encode_fast(FastAttributeWriter& w, const AttributeRecord& r, const int32_t* q);
+  // Appends a chunk's section and starts the next.
+  void finish_fast(FastAttributeWriter& w, std::vector<uint8_t>* out) const;
+  // Reads a chunk's tables; nullptr, or why the section is corrupt.
+  const char* open_fast(FastAttributeReader& rd, const uint8_t* data, size_t size) const;
+  const char* decode_fast(FastAttributeReader& rd, const AttributeRecord& r, int32_t* q);
+  // The table of a residual (spec 13.12).
+  int fast_table(int kind, int d, int ctx) const { return (kind * dims_ + d) * 3 + (ctx < 4 ? 0 : ctx < 8 ? 1 : 2); }
+  int fast_tables() const { return 6 * dims_; }
 
  private:
   struct Component {

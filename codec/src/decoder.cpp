@@ -135,7 +135,12 @@ Status PsqDecoder::Impl::next_chunk() {
   }
   if (fast) PSQ_RETURN_IF_ERROR(fast_open_chunk());
   else rc = std::make_unique<RangeDecoder>(cdata, csize);
-  if (!attrs->empty()) attr_rc = std::make_unique<RangeDecoder>(attr_bytes.data(), attr_bytes.size());
+  if (!attrs->empty() && fast) {
+    if (const char* why = attrs->open_fast(attr_fast, attr_bytes.data(), attr_bytes.size()))
+      return Status(ErrorCode::kBadValue, std::string("fast attribute section: ") + why, attr_offset);
+  } else if (!attrs->empty()) {
+    attr_rc = std::make_unique<RangeDecoder>(attr_bytes.data(), attr_bytes.size());
+  }
   records_left = static_cast<uint32_t>(records);
   chunk_vertices = static_cast<uint32_t>(vertices);
   chunk_triangles = static_cast<uint32_t>(triangles);
@@ -169,11 +174,17 @@ Status PsqDecoder::Impl::decode_attributes() {
       r.entering_mask = t.entering_mask;
     }
   }
-  BasicDecoder<false> dec(attr_rc.get(), nullptr);
-  if (const char* why = attrs->decode(dec, r, attr_q.data()))
+  const char* why;
+  if (fast) {
+    why = attrs->decode_fast(attr_fast, r, attr_q.data());
+  } else {
+    BasicDecoder<false> dec(attr_rc.get(), nullptr);
+    why = attrs->decode(dec, r, attr_q.data());
+  }
+  if (why)
     return Status(ErrorCode::kBadValue, "record " + std::to_string(record_no) + ": " + why,
-                  attr_offset + attr_rc->consumed());
-  if (attr_rc->overran())
+                  attr_offset + (fast ? 0 : attr_rc->consumed()));
+  if (fast ? attr_fast.rans->overran() || attr_fast.raw->overran() : attr_rc->overran())
     return Status(ErrorCode::kTruncated, "record " + std::to_string(record_no) + ": attribute data ends early",
                   attr_offset + attr_bytes.size());
   for (int i = 0; i < r.nnew; ++i) {
@@ -503,10 +514,18 @@ Status PsqDecoder::Impl::advance() {
         return Status(ErrorCode::kBadValue, std::to_string(csize - rc->consumed()) +
                                                 " unused bytes after the chunk's records", conn_offset + rc->consumed());
     }
-    if (!attrs->empty() && attr_rc->consumed() != attr_bytes.size())
+    if (!attrs->empty() && fast) {
+      // Spec 13.12: both blocks end where the chunk's attributes do.
+      if (attr_fast.rans->overran() || attr_fast.raw->overran())
+        return Status(ErrorCode::kTruncated, "attribute data ends early", attr_offset + attr_bytes.size());
+      if (!attr_fast.rans->at_clean_end() || !attr_fast.raw->at_clean_end())
+        return Status(ErrorCode::kBadValue, "the attribute blocks do not end where the chunk's attributes do",
+                      attr_offset);
+    } else if (!attrs->empty() && attr_rc->consumed() != attr_bytes.size()) {
       return Status(ErrorCode::kBadValue, std::to_string(attr_bytes.size() - attr_rc->consumed()) +
                                               " unused bytes after the chunk's attributes",
                     attr_offset + attr_rc->consumed());
+    }
     if (seen_vertices != chunk_vertices || seen_triangles != chunk_triangles)
       return Status(ErrorCode::kBadHeader, "chunk declares other vertex or triangle counts than it holds", chunk_offset);
   }

@@ -60,7 +60,8 @@ struct PsqDecoder::Impl {
   // the chunk's attribute section with its range decoder.
   std::unique_ptr<AttributeCoder> attrs;
   std::vector<uint8_t> attr_bytes;
-  std::unique_ptr<RangeDecoder> attr_rc;
+  std::unique_ptr<RangeDecoder> attr_rc;  // compact profile
+  FastAttributeReader attr_fast;          // fast profile
   uint64_t attr_offset = 0;
   std::vector<int32_t> attr_q;
   PropertyValues attr_columns;

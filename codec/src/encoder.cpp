@@ -102,7 +102,7 @@ Status PsqEncoder::Impl::begin(const MeshSchema& schema) {
   attrs = std::make_unique<AttributeCoder>(schema.vertex_properties, header.attributes);
   props = std::make_unique<PropertyPacker>(attrs->column_properties(), schema.face_properties);
   if (!attrs->empty()) {
-    attr_rc = std::make_unique<RangeEncoder>(&attr_bytes);
+    if (!opt.fast) attr_rc = std::make_unique<RangeEncoder>(&attr_bytes);
     attr_q.resize(3 * static_cast<size_t>(attrs->dims()));
   }
   if (opt.chunk_bytes < 1 || opt.chunk_bytes > kMaxRecordBytes / 2)
@@ -684,8 +684,12 @@ void PsqEncoder::Impl::code_attributes(const uint32_t* corner, const uint32_t* e
     r.new_mask = fresh;
     r.entering_mask = entering;
   }
-  Encoder enc(attr_rc.get(), nullptr);
-  attrs->encode(enc, r, attr_q.data());
+  if (fast) {
+    attrs->encode_fast(attr_fast, r, attr_q.data());
+  } else {
+    Encoder enc(attr_rc.get(), nullptr);
+    attrs->encode(enc, r, attr_q.data());
+  }
   r = AttributeRecord();
 }
 
@@ -710,7 +714,8 @@ Status PsqEncoder::Impl::after_record() {
   // The attribute section is closed at the property target too, far
   // below its limit (spec 4.4): a record adds at most a few hundred bytes.
   if (coded >= opt.chunk_bytes || full || props->raw_size() >= kChunkPropertyTarget ||
-      attr_bytes.size() >= kChunkPropertyTarget || chunk_records >= kMaxChunkRecords)
+      std::max(attr_bytes.size(), attr_fast.size_estimate()) >= kChunkPropertyTarget ||
+      chunk_records >= kMaxChunkRecords)
     return close_chunk();
   return Status();
 }
@@ -725,6 +730,7 @@ Status PsqEncoder::Impl::close_chunk() {
     zstd_compress(raw, opt.zstd_level, &packed);
   }
   if (attr_rc) attr_rc->finish();
+  if (fast && !attrs->empty()) attrs->finish_fast(attr_fast, &attr_bytes);
   std::vector<uint8_t> chunk;
   Put put(&chunk);
   put.u8(kChunkTag);

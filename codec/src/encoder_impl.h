@@ -63,7 +63,8 @@ struct PsqEncoder::Impl {
   // order of introduction).
   std::unique_ptr<AttributeCoder> attrs;
   std::vector<uint8_t> attr_bytes;
-  std::unique_ptr<RangeEncoder> attr_rc;
+  std::unique_ptr<RangeEncoder> attr_rc;  // compact profile
+  FastAttributeWriter attr_fast;          // fast profile
   AttributeRecord attr_rec;
   std::vector<int32_t> attr_q;
   PropertyValues attr_columns;
