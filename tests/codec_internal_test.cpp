@@ -11,7 +11,9 @@
 #include <random>
 #include <vector>
 
+#include "attributes.h"
 #include "coding.h"
+#include "container.h"
 #include "crc32c.h"
 #include "neighbors.h"
 
@@ -149,4 +151,93 @@ TEST(Neighbors, AddVertexIsBeginAndTwoInserts) {
 }
 
 }  // namespace codec
+
+// Spec 4.2: a header's attribute table is checked against its vertex
+// properties; every bad entry is refused as bad_header.
+TEST(AttributeTable, BadEntriesAreRefused) {
+  PsqHeader h;
+  h.version_major = codec::kVersionMajor;
+  h.bits = 12;
+  h.step = 1;
+  h.boundary_limit = 64;
+  h.schema.position_type = ScalarType::kFloat32;
+  for (const char* n : {"nx", "ny", "nz", "u", "v", "red", "green", "blue", "i"}) {
+    Property p;
+    p.name = n;
+    p.type = n[0] == 'n' || n[1] == 0 ? ScalarType::kFloat32 : ScalarType::kUInt8;
+    if (std::string(n) == "i") p.type = ScalarType::kInt32;
+    h.schema.vertex_properties.push_back(p);
+  }
+  using K = CodedAttribute::Kind;
+  auto attr = [](K kind, int bits, std::vector<uint32_t> props) {
+    CodedAttribute a;
+    a.kind = kind;
+    a.bits = bits;
+    a.properties = std::move(props);
+    return a;
+  };
+  auto parse = [&](const std::vector<CodedAttribute>& table) {
+    PsqHeader w = h;
+    w.attributes = table;
+    const std::vector<uint8_t> bytes = codec::write_header(w);
+    uint64_t n = 0;
+    const int len = codec::parse_varint(bytes.data() + 12, bytes.size() - 12, &n);
+    PsqHeader out;
+    out.version_major = codec::kVersionMajor;
+    return codec::parse_header_payload(bytes.data() + 12 + len, static_cast<size_t>(n), 0, &out);
+  };
+  const CodedAttribute normal = attr(K::kNormal, 8, {0, 1, 2});
+  const CodedAttribute uv = attr(K::kTexcoord, 10, {3, 4});
+  const CodedAttribute color = attr(K::kColor, 8, {5, 6, 7});
+  EXPECT_TRUE(parse({normal, uv, color}).ok());
+  EXPECT_TRUE(parse({}).ok());
+  const std::vector<std::vector<CodedAttribute>> bad = {
+      {attr(static_cast<K>(4), 8, {0, 1, 2})},                  // unknown kind
+      {attr(static_cast<K>(0), 8, {0, 1, 2})},
+      {normal, attr(K::kNormal, 8, {3, 4, 8})},                  // a kind twice
+      {attr(K::kNormal, 1, {0, 1, 2})},                          // bits out of range
+      {attr(K::kNormal, 17, {0, 1, 2})},
+      {attr(K::kTexcoord, 0, {3, 4})},
+      {attr(K::kTexcoord, 25, {3, 4})},
+      {attr(K::kColor, 7, {5, 6, 7})},
+      {attr(K::kNormal, 8, {0, 1})},                             // component counts
+      {attr(K::kTexcoord, 10, {3, 4, 0})},
+      {attr(K::kColor, 8, {5, 6})},
+      {attr(K::kNormal, 8, {0, 1, 9})},                          // not a property
+      {attr(K::kNormal, 8, {0, 1, 0xffffffffu})},
+      {normal, attr(K::kTexcoord, 10, {2, 3})},                  // a property twice
+      {attr(K::kNormal, 8, {0, 1, 8})},                          // wrong types
+      {attr(K::kTexcoord, 10, {3, 5})},
+      {attr(K::kColor, 8, {5, 6, 0})},
+      {normal, uv, color, attr(K::kColor, 8, {5, 6, 7})},        // more than 3
+  };
+  for (size_t i = 0; i < bad.size(); ++i) {
+    const Status s = parse(bad[i]);
+    EXPECT_EQ(s.code(), ErrorCode::kBadHeader) << "case " << i << ": " << s.to_string();
+  }
+}
+
+// Spec 8.3: the octahedral grid's points decode to unit vectors, and
+// encoding a decoded point gives it back.
+TEST(AttributeTable, OctahedralPointsRoundTrip) {
+  for (int bits : {2, 5, 8}) {
+    const int32_t c = (1 << (bits - 1)) - 1;
+    for (int32_t s = 0; s <= 2 * c; ++s)
+      for (int32_t t = 0; t <= 2 * c; ++t) {
+        double n[3];
+        codec::octahedral_decode(s, t, c, n);
+        EXPECT_NEAR(n[0] * n[0] + n[1] * n[1] + n[2] * n[2], 1.0, 1e-12);
+        int32_t s2, t2;
+        ASSERT_TRUE(codec::octahedral_encode(n, c, &s2, &t2));
+        double m[3];
+        codec::octahedral_decode(s2, t2, c, m);
+        // Points on the square's rim that fold onto the same normal may
+        // come back as their twin.
+        EXPECT_NEAR(n[0], m[0], 1e-12) << s << " " << t;
+        EXPECT_NEAR(n[1], m[1], 1e-12) << s << " " << t;
+        EXPECT_NEAR(n[2], m[2], 1e-12) << s << " " << t;
+      }
+  }
+}
+
 }  // namespace psq

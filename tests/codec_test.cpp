@@ -932,10 +932,10 @@ TEST(CodecHostile, BadHeaders) {
   b = bytes;
   // The message names the version found and the ones this psq reads.
   Status s;
-  b[8] = 11;  // a later major version
+  b[8] = 12;  // a later major version
   s = decode_all(b);
   EXPECT_EQ(s.code(), ErrorCode::kUnsupported);
-  EXPECT_NE(s.message().find("format version 11.0; this psq reads 7.x to " + std::to_string(bytes[8]) + ".x"),
+  EXPECT_NE(s.message().find("format version 12.0; this psq reads 7.x to " + std::to_string(bytes[8]) + ".x"),
             std::string::npos)
       << s.message();
 

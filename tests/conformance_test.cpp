@@ -165,20 +165,45 @@ TEST(Conformance, DoublesVectorNeedsMeansBeyond64Bits) {
   EXPECT_GT(st.gates[3], 0u) << "no start";
 }
 
+// Spec 8.3: the attribute vectors cover every kind of coded attribute in
+// both profiles, quantized and lossless.
+TEST(Conformance, AttributeVectorsCoverEveryKind) {
+  for (const char* name : {"attributes_8bit.psq", "fast_attributes_8bit.psq"}) {
+    PsqDecoder dec;
+    decode_vector(name, &dec, [](const SequenceEvent&) {});
+    const PsqHeader& h = dec.header();
+    ASSERT_EQ(h.attributes.size(), 3u) << name;
+    EXPECT_EQ(h.attributes[0].kind, CodedAttribute::Kind::kNormal);
+    EXPECT_EQ(h.attributes[0].bits, 8);
+    EXPECT_EQ(h.attributes[1].kind, CodedAttribute::Kind::kTexcoord);
+    EXPECT_EQ(h.attributes[1].bits, 10);
+    EXPECT_EQ(h.attributes[2].kind, CodedAttribute::Kind::kColor);
+    EXPECT_EQ(h.attributes[2].properties.size(), 4u);
+    EXPECT_GT(dec.stats().attribute_bytes, 0u);
+  }
+  for (const char* name : {"attributes_lossless.psq", "fast_attributes_lossless.psq"}) {
+    PsqDecoder dec;
+    decode_vector(name, &dec, [](const SequenceEvent&) {});
+    ASSERT_EQ(dec.header().attributes.size(), 1u) << name;
+    EXPECT_EQ(dec.header().attributes[0].kind, CodedAttribute::Kind::kColor);
+  }
+}
+
 // The fast profile's vectors decode to the same sequences as the compact
 // ones made from the same input: their dumps are identical.
 TEST(Conformance, FastVectorsDecodeLikeTheirCompactTwins) {
   for (const char* name : {"spider_16bit", "spider_lossless", "grid_borders", "nonmanifold_wrap", "max_export_chunks",
-                           "properties_lossless"}) {
+                           "properties_lossless", "attributes_8bit", "attributes_lossless", "spider_attributes"}) {
     EXPECT_EQ(test::read_file(kDir + "fast_" + name + ".dump"), test::read_file(kDir + name + ".dump")) << name;
     PsqDecoder dec;
     decode_vector(std::string("fast_") + name + ".psq", &dec, [](const SequenceEvent&) {});
     EXPECT_TRUE(dec.header().fast) << name;
   }
-  // A format 7.0 stream decodes like the 10.0 compact stream of its input,
-  // and a format 9.0 fast stream (with prediction choices) like the 10.0
-  // fast stream.
+  // Format 7.0 and 10.0 streams decode like the 11.0 compact stream of
+  // their input, and a format 9.0 fast stream (with prediction choices)
+  // like the 11.0 fast stream.
   EXPECT_EQ(test::read_file(kDir + "format7_spider_16bit.dump"), test::read_file(kDir + "spider_16bit.dump"));
+  EXPECT_EQ(test::read_file(kDir + "format10_spider_16bit.dump"), test::read_file(kDir + "spider_16bit.dump"));
   EXPECT_EQ(test::read_file(kDir + "format9_fast_spider_16bit.dump"), test::read_file(kDir + "fast_spider_16bit.dump"));
 }
 
@@ -199,6 +224,12 @@ TEST(Conformance, EncoderReproducesTheVectors) {
       {"fast_spider_lossless.psq", "spider.ply", "--lossless --profile fast"},
       {"fast_nonmanifold_wrap.psq", "nonmanifold_wrap.ply", "--bits 12 --profile fast"},
       {"fast_max_export_chunks.psq", "max_export_nm.ply", "--bits 14 --chunk 256 --profile fast"},
+      {"attributes_8bit.psq", "attributes.ply", "--bits 12 --normal-bits 8 --uv-bits 10"},
+      {"attributes_lossless.psq", "attributes.ply", "--lossless"},
+      {"fast_attributes_8bit.psq", "attributes.ply", "--bits 12 --normal-bits 8 --uv-bits 10 --profile fast"},
+      {"fast_attributes_lossless.psq", "attributes.ply", "--lossless --profile fast"},
+      {"spider_attributes.psq", "spider_attributes.ply", "--bits 14 --normal-bits 10 --uv-bits 12"},
+      {"fast_spider_attributes.psq", "spider_attributes.ply", "--bits 14 --normal-bits 10 --uv-bits 12 --profile fast"},
   };
   for (const Case& c : cases) {
     std::string out, err;

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <set>
 
+#include "attributes.h"
 #include "crc32c.h"
 
 namespace psq {
@@ -87,6 +88,14 @@ std::vector<uint8_t> write_header(const PsqHeader& h) {
   put.varint(static_cast<uint64_t>(h.schema.triangle_count) + 1);
   put_properties(put, h.schema.vertex_properties);
   put_properties(put, h.schema.face_properties);
+  // Spec 4.2: the attribute table.
+  put.varint(h.attributes.size());
+  for (const CodedAttribute& a : h.attributes) {
+    put.u8(static_cast<uint8_t>(a.kind));
+    put.u8(static_cast<uint8_t>(a.bits));
+    put.u8(static_cast<uint8_t>(a.properties.size()));
+    for (uint32_t i : a.properties) put.varint(i);
+  }
   put.varint(h.schema.comments.size());
   for (const std::string& c : h.schema.comments) {
     put.varint(c.size());
@@ -165,6 +174,27 @@ Status parse_header_payload(const uint8_t* p, size_t n, uint64_t base, PsqHeader
   for (const Property& pr : h->schema.vertex_properties)
     if (pr.name == "x" || pr.name == "y" || pr.name == "z")
       return bad("vertex property named '" + pr.name + "' clashes with the position", 0);
+  at = get.pos();
+  // Spec 4.2: the attribute table, from format 11.0 on.
+  const uint64_t na = h->version_major >= 11 ? get.varint() : 0;
+  if (get.malformed()) return bad("malformed varint", at);
+  if (na > 3) return bad("attribute table of " + std::to_string(na) + " entries (at most 3)", at);
+  h->attributes.clear();
+  for (uint64_t i = 0; i < na && !get.short_read(); ++i) {
+    CodedAttribute a;
+    a.kind = static_cast<CodedAttribute::Kind>(get.u8());
+    a.bits = get.u8();
+    const uint8_t count = get.u8();
+    for (uint8_t j = 0; j < count && !get.short_read() && !get.malformed(); ++j) {
+      const uint64_t index = get.varint();
+      a.properties.push_back(index > 0xffffffffu ? 0xffffffffu : static_cast<uint32_t>(index));
+    }
+    if (get.malformed()) return bad("malformed varint", at);
+    h->attributes.push_back(std::move(a));
+  }
+  if (get.short_read()) return bad("header payload too short", at);
+  const std::string attr_error = attribute_table_error(h->schema.vertex_properties, h->attributes);
+  if (!attr_error.empty()) return bad(attr_error, at);
   at = get.pos();
   const uint64_t nc = get.varint();
   for (uint64_t i = 0; i < nc && !get.short_read() && !get.malformed(); ++i) {

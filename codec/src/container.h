@@ -16,10 +16,11 @@
 namespace psq {
 namespace codec {
 
-constexpr int kVersionMajor = 10;
-// The oldest major version still read: 7.0, 8.0 and 9.0 streams are 10.0
-// compact streams, 9.0 fast streams are 10.0 fast streams with prediction
-// choices (spec 13.8.2), and 8.0 fast streams are no longer read (spec 11).
+constexpr int kVersionMajor = 11;
+// The oldest major version still read: 7.0 to 10.0 streams are 11.0
+// streams without the attribute table and attribute sections (spec 8.3),
+// 9.0 fast streams also code prediction choices (spec 13.8.2), and 8.0
+// fast streams are no longer read (spec 11).
 constexpr int kOldestVersionMajor = 7;
 constexpr int kVersionMinor = 0;
 constexpr uint16_t kFlagLossless = 1u << 0;

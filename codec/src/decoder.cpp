@@ -71,7 +71,9 @@ Status PsqDecoder::Impl::open(InputStream* stream) {
     boundary = Boundary(header.boundary_limit);
     models = std::make_unique<Models>();
   }
-  props = std::make_unique<PropertyUnpacker>(header.schema.vertex_properties, header.schema.face_properties);
+  attrs = std::make_unique<AttributeCoder>(header.schema.vertex_properties, header.attributes);
+  attr_q.resize(3 * static_cast<size_t>(attrs->dims()));
+  props = std::make_unique<PropertyUnpacker>(attrs->column_properties(), header.schema.face_properties);
   if (!header.lossless) {
     grid_max = static_cast<int64_t>((uint64_t{1} << header.bits) - 1);
     for (int i = 0; i < 3; ++i) last_pos[i] = grid_max / 2;
@@ -87,17 +89,20 @@ Status PsqDecoder::Impl::next_chunk() {
   if (tag == kEndTag) return read_end();
   if (tag != kChunkTag)
     return Status(ErrorCode::kBadHeader, "unknown chunk tag " + std::to_string(tag), chunk_offset);
-  // Spec 4.3: six varint fields.
+  // Spec 4.3: seven varint fields (six before format 11.0).
   std::vector<uint8_t> f;
-  uint64_t records, vertices, triangles, conn_size, prop_size, prop_raw;
+  uint64_t records, vertices, triangles, conn_size, prop_size, prop_raw, attr_size = 0;
   for (uint64_t* field : {&records, &vertices, &triangles, &conn_size, &prop_size, &prop_raw})
     PSQ_RETURN_IF_ERROR(read_varint(field, &f));
+  if (header.version_major >= 11) PSQ_RETURN_IF_ERROR(read_varint(&attr_size, &f));  // from format 11.0 on
   auto bad = [&](const std::string& what) { return Status(ErrorCode::kBadHeader, "chunk: " + what, chunk_offset); };
   if (records == 0 || records > kMaxChunkRecords) return bad("record count " + std::to_string(records) + " not in 1..2^24");
   if (triangles > records || vertices > 3ull * records) return bad("more vertices or triangles than its records hold");
-  if (conn_size > kMaxRecordBytes || prop_size > kMaxPropertyBytes || prop_raw > kMaxPropertyRaw)
+  if (conn_size > kMaxRecordBytes || prop_size > kMaxPropertyBytes || prop_raw > kMaxPropertyRaw ||
+      attr_size > kMaxAttributeBytes)
     return bad("a section is larger than the limits of spec 4.4");
-  const bool has_props = !header.schema.vertex_properties.empty() || !header.schema.face_properties.empty();
+  if (attrs->empty() && attr_size != 0) return bad("attribute section without attributes");
+  const bool has_props = !attrs->column_properties().empty() || !header.schema.face_properties.empty();
   if (!has_props && (prop_size != 0 || prop_raw != 0)) return bad("property section without properties");
   if (has_props && prop_size == 0) return bad("no property section");
   uint32_t crc = crc32c_update(0, &tag, 1);
@@ -112,6 +117,9 @@ Status PsqDecoder::Impl::next_chunk() {
   crc = crc32c_update(crc, cdata, csize);
   PSQ_RETURN_IF_ERROR(read_block(prop_size, &packed));
   crc = crc32c_update(crc, packed.data(), packed.size());
+  attr_offset = in->offset();
+  PSQ_RETURN_IF_ERROR(read_block(attr_size, &attr_bytes));
+  crc = crc32c_update(crc, attr_bytes.data(), attr_bytes.size());
   uint8_t c[4];
   uint64_t crc_at = in->offset();
   PSQ_RETURN_IF_ERROR(read(c, 4));
@@ -127,6 +135,12 @@ Status PsqDecoder::Impl::next_chunk() {
   }
   if (fast) PSQ_RETURN_IF_ERROR(fast_open_chunk());
   else rc = std::make_unique<RangeDecoder>(cdata, csize);
+  if (!attrs->empty() && fast) {
+    if (const char* why = attrs->open_fast(attr_fast, attr_bytes.data(), attr_bytes.size()))
+      return Status(ErrorCode::kBadValue, std::string("fast attribute section: ") + why, attr_offset);
+  } else if (!attrs->empty()) {
+    attr_rc = std::make_unique<RangeDecoder>(attr_bytes.data(), attr_bytes.size());
+  }
   records_left = static_cast<uint32_t>(records);
   chunk_vertices = static_cast<uint32_t>(vertices);
   chunk_triangles = static_cast<uint32_t>(triangles);
@@ -134,7 +148,49 @@ Status PsqDecoder::Impl::next_chunk() {
   ++stats.chunks;
   stats.record_bytes += conn_size;
   stats.property_bytes += prop_size;
+  stats.attribute_bytes += attr_size;
   stats.chunk_overhead_bytes += 1 + f.size() + 4;
+  return Status();
+}
+
+Status PsqDecoder::Impl::decode_attributes() {
+  AttributeRecord r;
+  SequenceVertex* fresh[3] = {nullptr, nullptr, nullptr};
+  for (int i = 0; i < qcount; ++i) {
+    SequenceEvent& e = queue[i];
+    if (e.kind == SequenceEvent::Kind::kVertex) {
+      fresh[r.nnew] = &e.vertex;
+      r.index[r.nnew++] = e.vertex.index;
+    } else if (e.kind == SequenceEvent::Kind::kTriangle) {
+      const SequenceTriangle& t = e.triangle;
+      r.triangle = true;
+      for (int k = 0; k < 3; ++k) {
+        r.v[k] = t.v[k];
+        r.c[k] = t.vslot[k];
+        r.e[k] = t.eslot[k];
+        if (!header.lossless) r.pos[k] = fast ? fboundary.vertex(t.vslot[k]).pos : boundary.vertex(t.vslot[k]).pos;
+      }
+      r.new_mask = t.new_mask;
+      r.entering_mask = t.entering_mask;
+    }
+  }
+  const char* why;
+  if (fast) {
+    why = attrs->decode_fast(attr_fast, r, attr_q.data());
+  } else {
+    BasicDecoder<false> dec(attr_rc.get(), nullptr);
+    why = attrs->decode(dec, r, attr_q.data());
+  }
+  if (why)
+    return Status(ErrorCode::kBadValue, "record " + std::to_string(record_no) + ": " + why,
+                  attr_offset + (fast ? 0 : attr_rc->consumed()));
+  if (fast ? attr_fast.rans->overran() || attr_fast.raw->overran() : attr_rc->overran())
+    return Status(ErrorCode::kTruncated, "record " + std::to_string(record_no) + ": attribute data ends early",
+                  attr_offset + attr_bytes.size());
+  for (int i = 0; i < r.nnew; ++i) {
+    attr_columns.swap(fresh[i]->values);
+    attrs->merge(attr_columns, attr_q.data() + i * attrs->dims(), &fresh[i]->values);
+  }
   return Status();
 }
 
@@ -443,6 +499,7 @@ Status PsqDecoder::Impl::advance() {
   qhead = qcount = 0;
   if (records_left == 0) return next_chunk();
   PSQ_RETURN_IF_ERROR(fast ? decode_record_fast() : decode_record());
+  if (!attrs->empty()) PSQ_RETURN_IF_ERROR(decode_attributes());
   ++record_no;
   stats.max_active_vertices = std::max(stats.max_active_vertices, active_vertices());
   stats.max_open_edges = std::max(stats.max_open_edges, open_edges());
@@ -457,6 +514,18 @@ Status PsqDecoder::Impl::advance() {
         return Status(ErrorCode::kBadValue, std::to_string(csize - rc->consumed()) +
                                                 " unused bytes after the chunk's records", conn_offset + rc->consumed());
     }
+    if (!attrs->empty() && fast) {
+      // Spec 13.12: both blocks end where the chunk's attributes do.
+      if (attr_fast.rans->overran() || attr_fast.raw->overran())
+        return Status(ErrorCode::kTruncated, "attribute data ends early", attr_offset + attr_bytes.size());
+      if (!attr_fast.rans->at_clean_end() || !attr_fast.raw->at_clean_end())
+        return Status(ErrorCode::kBadValue, "the attribute blocks do not end where the chunk's attributes do",
+                      attr_offset);
+    } else if (!attrs->empty() && attr_rc->consumed() != attr_bytes.size()) {
+      return Status(ErrorCode::kBadValue, std::to_string(attr_bytes.size() - attr_rc->consumed()) +
+                                              " unused bytes after the chunk's attributes",
+                    attr_offset + attr_rc->consumed());
+    }
     if (seen_vertices != chunk_vertices || seen_triangles != chunk_triangles)
       return Status(ErrorCode::kBadHeader, "chunk declares other vertex or triangle counts than it holds", chunk_offset);
   }
@@ -470,20 +539,21 @@ namespace {
 // by their section lengths, with no other check: decode_into()'s hint for
 // the arrays' capacity. It stops at the first tag or field that does not
 // parse; the decoder reports what is wrong when it gets there.
-void declared_totals(const uint8_t* data, size_t size, size_t at, uint64_t* vertices, uint64_t* triangles) {
+void declared_totals(const uint8_t* data, size_t size, size_t at, bool fields7, uint64_t* vertices,
+                     uint64_t* triangles) {
   *vertices = *triangles = 0;
   while (at < size && data[at] == kChunkTag) {
     ++at;
-    uint64_t f[6];  // records, vertices, triangles, R, Z, U
-    for (uint64_t& v : f) {
-      const int n = parse_varint(data + at, size - at, &v);
+    uint64_t f[7] = {0, 0, 0, 0, 0, 0, 0};  // records, vertices, triangles, R, Z, U, A (from 11.0)
+    for (int i = 0; i < (fields7 ? 7 : 6); ++i) {
+      const int n = parse_varint(data + at, size - at, &f[i]);
       if (n <= 0) return;
       at += static_cast<size_t>(n);
     }
-    if (f[3] > kMaxRecordBytes || f[4] > kMaxPropertyBytes || f[2] > f[0] || f[1] > 3 * f[0] ||
-        f[0] > kMaxChunkRecords)
+    if (f[3] > kMaxRecordBytes || f[4] > kMaxPropertyBytes || f[6] > kMaxAttributeBytes || f[2] > f[0] ||
+        f[1] > 3 * f[0] || f[0] > kMaxChunkRecords)
       return;
-    const uint64_t skip = f[3] + f[4] + 4;
+    const uint64_t skip = f[3] + f[4] + f[6] + 4;
     if (skip > size - at) return;
     at += static_cast<size_t>(skip);
     *vertices += f[1];
@@ -504,7 +574,7 @@ Status PsqDecoder::Impl::decode_into(MeshBuffers* mesh, const uint8_t* data, siz
   // fast_direct_records() caps a chunk's room; the capacity is address
   // space, which stays untouched until records write it (direct_room()).
   uint64_t vertices = 0, triangles = 0;
-  declared_totals(data, size, static_cast<size_t>(in->offset()), &vertices, &triangles);
+  declared_totals(data, size, static_cast<size_t>(in->offset()), header.version_major >= 11, &vertices, &triangles);
   // A reservation the system refuses is no error: the arrays then grow.
   const uint64_t cap = 4 * static_cast<uint64_t>(size) + 64;
   try {
@@ -513,7 +583,7 @@ Status PsqDecoder::Impl::decode_into(MeshBuffers* mesh, const uint8_t* data, siz
   } catch (const std::bad_alloc&) {
   }
   while (!ended) {
-    if (fast && records_left > 0 && props->empty()) {
+    if (fast && records_left > 0 && props->empty() && attrs->empty()) {
       PSQ_RETURN_IF_ERROR(fast_direct_records());
       continue;
     }

@@ -18,6 +18,7 @@
 #include "crc32c.h"
 #include "neighbors.h"
 #include "fast_coding.h"
+#include "attributes.h"
 #include "properties.h"
 #include "psq/io.h"
 #include "psq/psq_codec.h"
@@ -55,6 +56,15 @@ struct PsqDecoder::Impl {
   std::unique_ptr<Models> models;
   Boundary boundary{1};
   std::unique_ptr<PropertyUnpacker> props;
+  // Normals, texture coordinates and colours (spec 8.3): the coder and
+  // the chunk's attribute section with its range decoder.
+  std::unique_ptr<AttributeCoder> attrs;
+  std::vector<uint8_t> attr_bytes;
+  std::unique_ptr<RangeDecoder> attr_rc;  // compact profile
+  FastAttributeReader attr_fast;          // fast profile
+  uint64_t attr_offset = 0;
+  std::vector<int32_t> attr_q;
+  PropertyValues attr_columns;
   PsqStats stats;
   double cost[kCostCount] = {0, 0};
   uint32_t file_crc = 0;     // of the header's bytes (spec 4.2)
@@ -131,6 +141,9 @@ struct PsqDecoder::Impl {
 
   Status open(InputStream* stream);
   Status next_chunk();
+  // The attributes of the record in the queue (spec 8.3), into its vertex
+  // events' values.
+  Status decode_attributes();
   Status read_end();
   Status decode_record() {
     if (measure) {

@@ -12,6 +12,7 @@
 #include "crc32c.h"
 #include "geometry.h"
 #include "properties.h"
+#include "attributes.h"
 #include "psq/psq_codec.h"
 
 namespace psq {
@@ -90,7 +91,20 @@ Status PsqEncoder::Impl::begin(const MeshSchema& schema) {
     for (int i = 0; i < 3; ++i) last_pos[i] = static_cast<int64_t>(((uint64_t{1} << opt.bits) - 1) / 2);
   }
   boundary = Boundary(opt.boundary_limit);
-  props = std::make_unique<PropertyPacker>(schema.vertex_properties, schema.face_properties);
+  // Spec 8.3: normals and texture coordinates quantized only when asked
+  // (and never in a lossless stream), colours always (they stay exact).
+  if (!opt.lossless && (opt.normal_bits < 0 || opt.normal_bits == 1 || opt.normal_bits > 16))
+    return Status(ErrorCode::kUsage, "normal bits must be 0 (exact) or 2..16");
+  if (!opt.lossless && (opt.uv_bits < 0 || opt.uv_bits > 24))
+    return Status(ErrorCode::kUsage, "texture coordinate bits must be 0 (exact) or 1..24");
+  header.attributes = recognize_attributes(schema.vertex_properties, opt.lossless ? 0 : opt.normal_bits,
+                                           opt.lossless ? 0 : opt.uv_bits);
+  attrs = std::make_unique<AttributeCoder>(schema.vertex_properties, header.attributes);
+  props = std::make_unique<PropertyPacker>(attrs->column_properties(), schema.face_properties);
+  if (!attrs->empty()) {
+    if (!opt.fast) attr_rc = std::make_unique<RangeEncoder>(&attr_bytes);
+    attr_q.resize(3 * static_cast<size_t>(attrs->dims()));
+  }
   if (opt.chunk_bytes < 1 || opt.chunk_bytes > kMaxRecordBytes / 2)
     return Status(ErrorCode::kUsage, "chunk size must be 1.." + std::to_string(kMaxRecordBytes / 2) + " bytes");
   std::vector<uint8_t> h = write_header(header);
@@ -101,6 +115,7 @@ Status PsqEncoder::Impl::begin(const MeshSchema& schema) {
   if (length_bytes <= 0 || payload_size > kMaxHeaderPayload)
     return Status(ErrorCode::kLimit, "header larger than " + std::to_string(kMaxHeaderPayload) + " bytes");
   PsqHeader check;
+  check.version_major = kVersionMajor;
   check.lossless = header.lossless;
   check.rotation = header.rotation;
   Status hs = parse_header_payload(h.data() + kFixedHeaderBytes + length_bytes, payload_size, 0, &check);
@@ -172,7 +187,13 @@ double PsqEncoder::Impl::round_trip_bound(double p, double x, double origin, boo
 // Gives the next decoded index to `v`, remembering it when it differs from
 // the input's (spec 2.3).
 Status PsqEncoder::Impl::introduce(const PendingVertex& v) {
-  if (!props->add_vertex(v.values))
+  if (!attrs->empty()) {
+    if (attr_rec.nnew == 3) return bad_sequence("more than three new vertices in one record");
+    PSQ_RETURN_IF_ERROR(attrs->split(v.values, v.in_index, &attr_columns,
+                                     attr_q.data() + attr_rec.nnew * attrs->dims()));
+    attr_rec.index[attr_rec.nnew++] = static_cast<uint32_t>(next_out);
+  }
+  if (!props->add_vertex(attrs->empty() ? v.values : attr_columns))
     return Status(ErrorCode::kBadValue, "vertex " + std::to_string(v.in_index) +
                                             ": a property value does not fit its type");
   uint32_t out_index = static_cast<uint32_t>(next_out++);
@@ -600,6 +621,13 @@ Status PsqEncoder::Impl::close_triangle(const SequenceTriangle& t, BTriangle& bt
   if (fast)  // spec 13.6.2: entering edges join the ring, in edge order
     for (int k = 0; k < 3; ++k)
       if (bt.state[k] == EdgeState::kEnters) ring.push(boundary, bt.eslot[k]);
+  if (!attrs->empty()) {
+    uint8_t entering = 0;
+    for (int k = 0; k < 3; ++k) entering |= static_cast<uint8_t>((bt.state[k] == EdgeState::kEnters) << k);
+    uint8_t fresh = 0;
+    for (int k = 0; k < 3; ++k) fresh |= static_cast<uint8_t>(bt.is_new[k] << k);
+    code_attributes(bt.c, bt.eslot, fresh, entering);
+  }
   pending.clear();
   last_op = static_cast<int>(op);
   // Spec 6.4: vertices left with no open edge are finalized, in canonical
@@ -624,6 +652,7 @@ Status PsqEncoder::Impl::isolated(size_t at) {
     pending.erase(pending.begin() + static_cast<std::ptrdiff_t>(at));
     PSQ_RETURN_IF_ERROR(introduce(v));
     PSQ_RETURN_IF_ERROR(isolated_fast(v));
+    code_attributes(nullptr, nullptr, 0, 0);
     return after_record();
   }
   Encoder enc(rc.get(), opt.measure_costs ? cost : nullptr);
@@ -636,7 +665,32 @@ Status PsqEncoder::Impl::isolated(size_t at) {
   PSQ_RETURN_IF_ERROR(introduce(v));
   const int no_extent[3] = {0, 0, 0};
   code_new_vertex(enc, v, last_pos, kPredOther, no_extent);
+  code_attributes(nullptr, nullptr, 0, 0);
   return after_record();
+}
+
+void PsqEncoder::Impl::code_attributes(const uint32_t* corner, const uint32_t* eslot, uint8_t fresh,
+                                       uint8_t entering) {
+  if (attrs->empty()) return;
+  AttributeRecord& r = attr_rec;
+  r.triangle = corner != nullptr;
+  if (r.triangle) {
+    for (int k = 0; k < 3; ++k) {
+      r.c[k] = corner[k];
+      r.e[k] = eslot[k];
+      r.v[k] = boundary.vertex(corner[k]).index;
+      r.pos[k] = header.lossless ? nullptr : boundary.vertex(corner[k]).pos;
+    }
+    r.new_mask = fresh;
+    r.entering_mask = entering;
+  }
+  if (fast) {
+    attrs->encode_fast(attr_fast, r, attr_q.data());
+  } else {
+    Encoder enc(attr_rc.get(), nullptr);
+    attrs->encode(enc, r, attr_q.data());
+  }
+  r = AttributeRecord();
 }
 
 Status PsqEncoder::Impl::after_record() {
@@ -657,7 +711,10 @@ Status PsqEncoder::Impl::after_record() {
     const size_t bound = fast_raw.bits() / 8 + fast_symbols.size() * kRansScaleBits / 8 + 8 + kTableBound;
     full = bound + kRecordBound >= kMaxRecordBytes;
   }
+  // The attribute section is closed at the property target too, far
+  // below its limit (spec 4.4): a record adds at most a few hundred bytes.
   if (coded >= opt.chunk_bytes || full || props->raw_size() >= kChunkPropertyTarget ||
+      std::max(attr_bytes.size(), attr_fast.size_estimate()) >= kChunkPropertyTarget ||
       chunk_records >= kMaxChunkRecords)
     return close_chunk();
   return Status();
@@ -672,6 +729,8 @@ Status PsqEncoder::Impl::close_chunk() {
     props->take(&raw);
     zstd_compress(raw, opt.zstd_level, &packed);
   }
+  if (attr_rc) attr_rc->finish();
+  if (fast && !attrs->empty()) attrs->finish_fast(attr_fast, &attr_bytes);
   std::vector<uint8_t> chunk;
   Put put(&chunk);
   put.u8(kChunkTag);
@@ -681,9 +740,14 @@ Status PsqEncoder::Impl::close_chunk() {
   put.varint(records.size());
   put.varint(packed.size());
   put.varint(raw.size());
+  put.varint(attr_bytes.size());
   const size_t fields = chunk.size();
   put.bytes(records.data(), records.size());
   put.bytes(packed.data(), packed.size());
+  put.bytes(attr_bytes.data(), attr_bytes.size());
+  stats.attribute_bytes += attr_bytes.size();
+  attr_bytes.clear();
+  if (attr_rc) attr_rc = std::make_unique<RangeEncoder>(&attr_bytes);
   put.u32(crc32c_update(0, chunk.data(), chunk.size()));
   stats.record_bytes += records.size();
   stats.property_bytes += packed.size();

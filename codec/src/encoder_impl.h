@@ -13,6 +13,7 @@
 #include "boundary.h"
 #include "coding.h"
 #include "fast_coding.h"
+#include "attributes.h"
 #include "properties.h"
 #include "psq/psq_codec.h"
 #include "psq/range_coder.h"
@@ -57,6 +58,16 @@ struct PsqEncoder::Impl {
   std::unique_ptr<Models> models;
   Boundary boundary{1};
   std::unique_ptr<PropertyPacker> props;
+  // Normals, texture coordinates and colours (spec 8.3): the coder, its
+  // chunk section, and the record being coded (new vertices' values, in
+  // order of introduction).
+  std::unique_ptr<AttributeCoder> attrs;
+  std::vector<uint8_t> attr_bytes;
+  std::unique_ptr<RangeEncoder> attr_rc;  // compact profile
+  FastAttributeWriter attr_fast;          // fast profile
+  AttributeRecord attr_rec;
+  std::vector<int32_t> attr_q;
+  PropertyValues attr_columns;
   PsqStats stats;
   double cost[kCostCount] = {0, 0};
 
@@ -103,6 +114,10 @@ struct PsqEncoder::Impl {
   }
 
   Status begin(const MeshSchema& schema);
+  // Codes the record's attributes (spec 8.3): a triangle's corners (vertex
+  // slots) and edge slots, which corners are new and which edges enter;
+  // an isolated vertex without corners.
+  void code_attributes(const uint32_t* corner, const uint32_t* eslot, uint8_t fresh, uint8_t entering);
   // The coded coordinates of vertex `index` at `p` (spec 7.1, 7.2). Errors:
   // kBadValue (not finite, not a float for a float position type, outside
   // the grid), kLimit (would not decode within half a step).

@@ -525,6 +525,8 @@ bool PsqEncoder::Impl::fast_direct(const SequenceTriangle& t, Status* status) {
     note_input_edge(t.eslot[in1], f1);
     note_input_edge(t.eslot[in2], f2);
     last_op = static_cast<int>(Op::kAdd);
+    const uint32_t corner[3] = {q, p, x}, eslot[3] = {gate, f1, f2};
+    code_attributes(corner, eslot, 4, 6);
   } else {
     const bool left = third == kFastLeft;
     const uint32_t x = slots[in2];
@@ -541,6 +543,12 @@ bool PsqEncoder::Impl::fast_direct(const SequenceTriangle& t, Status* status) {
     last_op = static_cast<int>(Op::kFill);
     // Spec 6.4: finalized in canonical corner order (close_triangle()).
     const uint32_t corner[3] = {q, p, x};
+    if (!attrs->empty()) {
+      const int enters = left ? 2 : 1;
+      uint32_t eslot[3] = {gate, gate, gate};  // only the entering edge's slot is used
+      eslot[enters] = f;
+      code_attributes(corner, eslot, 0, static_cast<uint8_t>(1 << enters));
+    }
     for (int k = 0; k < 3; ++k)
       if (final >> k & 1) {
         const BVertex& v = boundary.vertex(corner[k]);

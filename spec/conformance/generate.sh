@@ -143,13 +143,27 @@ valid fast_grid_borders "$tmp/grid.ply" --bits 8 --profile fast
 valid fast_nonmanifold_wrap "$data/nonmanifold_wrap.ply" --bits 12 --profile fast
 valid fast_max_export_chunks "$data/max_export_nm.ply" --bits 14 --chunk 256 --profile fast
 valid fast_properties_lossless "$tmp/props.ply" --lossless --profile fast
+# Coded attributes (spec 8.3): normals (one of them zero), texture
+# coordinates named s t with a seam, and RGBA colours, quantized and
+# lossless, in both profiles; and a real model's normals and texture
+# coordinates.
+valid attributes_8bit "$data/attributes.ply" --bits 12 --normal-bits 8 --uv-bits 10
+valid attributes_lossless "$data/attributes.ply" --lossless
+valid fast_attributes_8bit "$data/attributes.ply" --bits 12 --normal-bits 8 --uv-bits 10 --profile fast
+valid fast_attributes_lossless "$data/attributes.ply" --lossless --profile fast
+valid spider_attributes "$data/spider_attributes.ply" --bits 14 --normal-bits 10 --uv-bits 12
+valid fast_spider_attributes "$data/spider_attributes.ply" --bits 14 --normal-bits 10 --uv-bits 12 --profile fast
 # A format 7.0 stream, as psq wrote it before 8.0 (tests/data): decoders of
-# 10.0 read it (spec 11).
+# 11.0 read it (spec 11).
 cp "$data/format7_spider_16bit.psq" format7_spider_16bit.psq
 "$psq" dump format7_spider_16bit.psq -o format7_spider_16bit.dump
 echo "valid format7_spider_16bit.psq $(sha256sum < format7_spider_16bit.dump | cut -d' ' -f1)" >> MANIFEST
+# A format 10.0 stream (tests/data): decoders of 11.0 read it (spec 11).
+cp "$data/format10_spider_16bit.psq" format10_spider_16bit.psq
+"$psq" dump format10_spider_16bit.psq -o format10_spider_16bit.dump
+echo "valid format10_spider_16bit.psq $(sha256sum < format10_spider_16bit.dump | cut -d' ' -f1)" >> MANIFEST
 # A format 9.0 fast stream, whose gate records code a prediction choice
-# (tests/data): decoders of 10.0 read it (spec 13.8.2, 11).
+# (tests/data): decoders of 11.0 read it (spec 13.8.2, 11).
 cp "$data/format9_fast_spider_16bit.psq" format9_fast_spider_16bit.psq
 "$psq" dump format9_fast_spider_16bit.psq -o format9_fast_spider_16bit.dump
 echo "valid format9_fast_spider_16bit.psq $(sha256sum < format9_fast_spider_16bit.dump | cut -d' ' -f1)" >> MANIFEST
@@ -186,8 +200,8 @@ payload=$((12 + hvar))     # where the header payload starts
 chunk=$((payload + hlen + 4))  # the first chunk's tag
 # Not .psq at all.
 printf 'PLY\n' > bad_magic.psq; invalid bad_magic unknown_format 0
-# A major version this decoder does not know (11).
-{ head -c 8 "$src"; printf '\x0b'; tail -c +10 "$src"; } > bad_version.psq; invalid bad_version unsupported 8
+# A major version this decoder does not know (12).
+{ head -c 8 "$src"; printf '\x0c'; tail -c +10 "$src"; } > bad_version.psq; invalid bad_version unsupported 8
 # A fast-profile stream that claims format 7, which had no fast profile.
 { head -c 8 fast_spider_16bit.psq; printf '\x07'; tail -c +10 fast_spider_16bit.psq; } > bad_fast_version.psq
 invalid bad_fast_version unsupported 10
@@ -218,12 +232,12 @@ head -c $((size - 2)) "$src" > truncated_end.psq
 invalid truncated_end truncated $((size - 2))
 # A flipped bit in the first chunk's records: its checksum fails.
 at=$((chunk + 1))
-for field in records vertices triangles conn prop raw; do
+for field in records vertices triangles conn prop raw attr; do
   read -r value len < <(varint "$src" $at)
   declare "$field=$value"
   at=$((at + len))
 done
-crc_at=$((at + conn + prop))
+crc_at=$((at + conn + prop + attr))
 { head -c $((at + 1)) "$src"; printf '\xff'; tail -c +$((at + 3)) "$src"; } > bad_chunk_checksum.psq
 invalid bad_chunk_checksum checksum $crc_at
 # An unknown chunk tag.

@@ -84,6 +84,13 @@ class SoupSource : public MeshSource {
       q.name = "quality";
       q.type = ScalarType::kUInt8;
       schema_.vertex_properties.push_back(q);
+      // Attributes the encoder codes by prediction (spec 8.3), when asked.
+      for (const char* name : {"nx", "ny", "nz", "u", "v", "red", "green", "blue"}) {
+        Property a;
+        a.name = name;
+        a.type = name[0] == 'n' || name[1] == 0 ? ScalarType::kFloat32 : ScalarType::kUInt8;
+        schema_.vertex_properties.push_back(a);
+      }
       Property id;
       id.name = "face_id";
       id.type = ScalarType::kInt32;
@@ -110,7 +117,14 @@ class SoupSource : public MeshSource {
       item->position[0] = i;
       item->position[1] = (i * i) % 7;
       item->position[2] = i % 3;
-      if (soup_.with_values) item->values.push_back(i % 256);
+      if (soup_.with_values) {
+        item->values.push_back(i % 256);
+        const double n[3] = {static_cast<double>(i % 3) - 1, static_cast<double>((i * i) % 5) - 2, 1};
+        item->values.insert(item->values.end(), n, n + 3);
+        item->values.push_back(0.125 * (i % 7));
+        item->values.push_back(0.25 * (i % 11) - 1);
+        for (uint32_t m : {37u, 11u, 5u}) item->values.push_back((i * m) % 256);
+      }
     } else {
       const size_t t = soup_.faces_first ? k : k - nv;
       item->kind = MeshItem::Kind::kTriangle;

@@ -15,7 +15,8 @@
 // mutations of the sequence that build_sequence makes of it:
 //   byte 0: bits 0-5: vertex count n - 1 (n in [1, 64]); bit 6: the soup
 //           lists its triangles before its vertices; bit 7: vertices carry
-//           a uchar property and triangles an int one;
+//           a uchar property, a normal, a texture coordinate and a colour
+//           (attributes, spec 8.3), and triangles an int property;
 //   byte 1: bits 0-1: chunk size (2^14, 64, 256 or 4096 bytes); bits 2-3:
 //           positions (14 bits, 4 bits, 21 bits, lossless); bits 4-7: the
 //           boundary limit (0: the default, else 2 * value + 1);
@@ -218,6 +219,9 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   o.lossless = o.bits == 0;
   if (o.lossless) o.bits = 16;
   if (opt >> 4) o.boundary_limit = 2u * (opt >> 4) + 1;
+  // Normals and texture coordinates quantized (spec 8.3; colours always).
+  o.normal_bits = 8;
+  o.uv_bits = 10;
   // The compact profile shares the code that reads the hints, and its
   // encoder and decoder build their adaptive models first (most of a run
   // here, under coverage instrumentation): it is checked on one input in

@@ -47,7 +47,12 @@ const char kHelp[] =
     "  --to FORMAT    output format: ply, obj, psq or drc (needed when OUT is '-')\n"
     "  --bits N       quantize positions to N bits: .psq 1..31 (default 16), .drc 1..30\n"
     "  --lossless     .psq, .drc: keep positions bit-exact instead of quantizing\n"
-    "                 (Draco stores unquantized floats raw)\n"
+    "                 (Draco stores unquantized floats raw); .psq: normals and\n"
+    "                 texture coordinates too\n"
+    "  --normal-bits N  .psq: normals (nx ny nz) on an octahedral grid of N bits\n"
+    "                 a coordinate, 2..16, or 0 to keep them exact (default 10)\n"
+    "  --uv-bits N    .psq: texture coordinates (u v, s t, ...) on a grid of step\n"
+    "                 2^-N, 1..24, or 0 to keep them exact (default 12)\n"
     "  --memory SIZE  memory budget of the external sort, of the converter's\n"
     "                 lookahead (a quarter) and of Draco input or output\n"
     "                 (default 512M)\n"
@@ -158,6 +163,8 @@ int cmd_convert(int argc, char** argv) {
   std::string out_option = args.option("--output", args.option("-o"));
   std::string tmpdir = args.option("--tmpdir");
   std::string bits_text = args.option("--bits", "16");
+  std::string normal_bits_text = args.option("--normal-bits", "10");
+  std::string uv_bits_text = args.option("--uv-bits", "12");
   std::string memory = args.option("--memory", "512M");
   std::string chunk = args.option("--chunk", "1M");
   std::string profile = args.option("--profile", "auto");
@@ -180,6 +187,14 @@ int cmd_convert(int argc, char** argv) {
     if (bits_text.empty() || *end != 0 || b < 1 || b > 31)
       return usage_error("convert", "bad --bits '" + bits_text + "' (1..31)");
     encode_options.bits = static_cast<int>(b);
+    b = std::strtol(normal_bits_text.c_str(), &end, 10);
+    if (normal_bits_text.empty() || *end != 0 || b < 0 || b == 1 || b > 16)
+      return usage_error("convert", "bad --normal-bits '" + normal_bits_text + "' (0, or 2..16)");
+    encode_options.normal_bits = static_cast<int>(b);
+    b = std::strtol(uv_bits_text.c_str(), &end, 10);
+    if (uv_bits_text.empty() || *end != 0 || b < 0 || b > 24)
+      return usage_error("convert", "bad --uv-bits '" + uv_bits_text + "' (0 to 24)");
+    encode_options.uv_bits = static_cast<int>(b);
   }
   uint64_t chunk_bytes = 0;
   if (!parse_size(chunk, &chunk_bytes) || chunk_bytes > (uint64_t{1} << 24))

@@ -139,6 +139,41 @@ std::string json_props(const std::vector<Property>& props) {
   return s + "]";
 }
 
+// The header's coded attributes (spec 8.3), as "normals (nx ny nz)
+// quantized, 8-bit octahedral; ...": what a quantized stream changed beyond
+// the positions.
+std::string attribute_text(const PsqHeader& h) {
+  std::string o;
+  for (const CodedAttribute& a : h.attributes) {
+    if (!o.empty()) o += "; ";
+    o += a.kind == CodedAttribute::Kind::kNormal     ? "normals ("
+         : a.kind == CodedAttribute::Kind::kTexcoord ? "texture coordinates ("
+                                                     : "colours (";
+    for (size_t i = 0; i < a.properties.size(); ++i)
+      o += (i ? " " : "") + h.schema.vertex_properties[a.properties[i]].name;
+    o += a.kind == CodedAttribute::Kind::kNormal     ? ") quantized, " + std::to_string(a.bits) + "-bit octahedral"
+         : a.kind == CodedAttribute::Kind::kTexcoord ? ") quantized to steps of 2^-" + std::to_string(a.bits)
+                                                     : std::string(") exact");
+  }
+  return o.empty() ? "none" : o;
+}
+
+std::string attribute_json(const PsqHeader& h) {
+  std::string o = "[";
+  for (const CodedAttribute& a : h.attributes) {
+    if (o.size() > 1) o += ", ";
+    o += std::string("{\"kind\": \"") +
+         (a.kind == CodedAttribute::Kind::kNormal     ? "normal"
+          : a.kind == CodedAttribute::Kind::kTexcoord ? "texcoord"
+                                                      : "color") +
+         "\", \"bits\": " + std::to_string(a.bits) + ", \"properties\": [";
+    for (size_t i = 0; i < a.properties.size(); ++i)
+      o += (i ? ", \"" : "\"") + json_escape(h.schema.vertex_properties[a.properties[i]].name) + "\"";
+    o += "]}";
+  }
+  return o + "]";
+}
+
 void print_json(const std::string& file, const OpenedMesh& mesh, const SourceReport& rep, const Report& r) {
   const SequenceStats& q = *r.sequence;
   auto n = [](uint64_t v) { return std::to_string(v); };
@@ -190,6 +225,8 @@ void print_json(const std::string& file, const OpenedMesh& mesh, const SourceRep
          ", \"connectivity_bits_per_vertex\": " + json_number(p.connectivity_bits / nv) +
          ", \"geometry_bits_per_vertex\": " + json_number(p.geometry_bits / nv) +
          ", \"property_bits_per_vertex\": " + json_number(8.0 * p.property_bytes / nv) +
+         ", \"attribute_bits_per_vertex\": " + json_number(8.0 * p.attribute_bytes / nv) +
+         ", \"attributes\": " + attribute_json(h) +
          ", \"overhead_bits_per_vertex\": " + json_number(8.0 * (p.header_bytes + p.chunk_overhead_bytes) / nv) +
          ", \"gates\": {\"offset_0\": " + n(p.gates[0]) + ", \"offset\": " + n(p.gates[1]) +
          ", \"far_rank\": " + n(p.far_gates[0]) + ", \"far_resume\": " + n(p.far_gates[1]) +
@@ -239,11 +276,13 @@ void print_text(const std::string& file, const OpenedMesh& mesh, const SourceRep
     std::printf("psq version            %d.%d, %s profile\n", h.version_major, h.version_minor, h.fast ? "fast" : "compact");
     if (h.lossless) std::printf("positions              lossless\n");
     else std::printf("positions              quantized to %d bits (step %.9g)\n", h.bits, h.step);
+    std::printf("coded attributes       %s\n", attribute_text(h).c_str());
     std::printf("size                   %llu bytes in %llu chunks, %.3f bits/vertex\n", u(p.total_bytes), u(p.chunks),
                 8.0 * p.total_bytes / nv);
     std::printf("  connectivity         %.3f bits/vertex\n", p.connectivity_bits / nv);
     std::printf("  geometry             %.3f bits/vertex\n", p.geometry_bits / nv);
     std::printf("  properties           %.3f bits/vertex\n", 8.0 * p.property_bytes / nv);
+    std::printf("  attributes           %.3f bits/vertex\n", 8.0 * p.attribute_bytes / nv);
     std::printf("  framing              %.3f bits/vertex\n", 8.0 * (p.header_bytes + p.chunk_overhead_bytes) / nv);
     std::printf("gates                  offset 0 %llu, offset %llu, far %llu (rank %llu, resume %llu, raw %llu), "
                 "start or isolated %llu\n",

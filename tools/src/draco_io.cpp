@@ -11,6 +11,7 @@
 #include <limits>
 #include <new>
 #include <set>
+#include <utility>
 
 #include "draco/attributes/geometry_attribute.h"
 #include "draco/attributes/point_attribute.h"
@@ -770,6 +771,7 @@ Status DracoWriter::begin(const MeshSchema& schema) {
   }
   int r = find("red"), gr = find("green"), b = find("blue"), al = find("alpha");
   auto is_uchar = [&](int i) { return i >= 0 && props[i].type == ScalarType::kUInt8; };
+  if (!(is_uchar(r) && is_uchar(gr) && is_uchar(b))) r = find("r"), gr = find("g"), b = find("b"), al = find("a");
   if (is_uchar(r) && is_uchar(gr) && is_uchar(b)) {
     Impl::Group g;
     g.type = draco::GeometryAttribute::COLOR;
@@ -779,7 +781,11 @@ Status DracoWriter::begin(const MeshSchema& schema) {
     if (is_uchar(al)) g.props.push_back(al);
     m.groups.push_back(g);
   }
-  int u = find("u"), v = find("v");
+  // Texture coordinates by any of the names psq's codec knows (spec 8.3).
+  int u = -1, v = -1;
+  for (auto [un, vn] : {std::pair<const char*, const char*>{"u", "v"}, {"s", "t"}, {"texture_u", "texture_v"},
+                        {"texture_s", "texture_t"}})
+    if (u < 0 || v < 0) u = find(un), v = find(vn);
   if (u >= 0 && v >= 0) {
     Impl::Group g;
     g.type = draco::GeometryAttribute::TEX_COORD;

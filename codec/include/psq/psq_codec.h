@@ -68,6 +68,22 @@ class FileWriter : public ByteWriter {
   OutputFile* out_;
 };
 
+// A vertex attribute that the stream codes with predictions across the
+// gate and the range coder (spec 8.3) instead of a property column. Its
+// components are vertex properties of the schema, recognized by their names
+// (nx ny nz; u v, s t, texture_u texture_v, texture_s texture_t; red green
+// blue [alpha], r g b [a]).
+struct CodedAttribute {
+  enum class Kind : uint8_t { kNormal = 1, kTexcoord = 2, kColor = 3 };
+  Kind kind = Kind::kNormal;
+  // Normals: bits of each octahedral coordinate, 2..16 (a lossy change:
+  // the decoder gives back unit vectors within the angle of that grid);
+  // texture coordinates: a grid of step 2^-bits, 1..24 (within half a
+  // step); colours: 8 (exact uint8 values).
+  int bits = 0;
+  std::vector<uint32_t> properties;  // the components, as indices of the schema's vertex properties
+};
+
 struct EncodeOptions {
   // Quantization bits per coordinate, 1..31 (spec 7.1). Ignored when
   // lossless.
@@ -81,6 +97,13 @@ struct EncodeOptions {
   // more bytes on large meshes, more on small ones, whose every chunk
   // carries its tables (bench/RESULTS.md has the current figures).
   bool fast = false;
+  // Normals (float or double nx ny nz) quantized octahedrally with this
+  // many bits per coordinate, 2..16 (spec 8.3); 0 keeps them bit-exact in a
+  // property column. Ignored when lossless.
+  int normal_bits = 0;
+  // Texture coordinates (float or double) on a grid of step 2^-uv_bits,
+  // 1..24 (spec 8.3); 0 keeps them bit-exact. Ignored when lossless.
+  int uv_bits = 0;
   // zstd level of the property streams (spec 8), 1..22.
   int zstd_level = 9;
   // A chunk is closed after the record that brings its coded connectivity
@@ -105,6 +128,7 @@ struct PsqStats {
   uint64_t chunk_overhead_bytes = 0;   // chunk fields, checksums, the end record
   uint64_t record_bytes = 0;           // range-coded connectivity and geometry
   uint64_t property_bytes = 0;         // zstd-compressed properties
+  uint64_t attribute_bytes = 0;        // range-coded attributes (spec 8.3)
   uint64_t total_bytes = 0;
   // The record bytes split by the information content of what was coded
   // (only when measured: EncodeOptions::measure_costs, PsqDecoder::measure_costs):
@@ -171,6 +195,9 @@ struct PsqHeader {
   double step = 0;
   uint32_t boundary_limit = 0;
   MeshSchema schema;
+  // The vertex attributes coded by prediction (spec 8.3), with their bits:
+  // what a quantized stream changed beyond the positions.
+  std::vector<CodedAttribute> attributes;
 };
 
 struct MeshBuffers;  // psq/psq_memory.h

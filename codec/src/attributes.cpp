@@ -1,0 +1,662 @@
+// SPDX-License-Identifier: Apache-2.0
+// codec/src/attributes.cpp: see attributes.h and spec/psq-format.md 8.3.
+// Normals on the octahedron as in Meyer, Sherman and Strzodka, "On
+// floating-point normal vectors" (EGSR 2010) and Cigolle et al., "A survey
+// of efficient representations for independent unit vectors" (JCGT 2014),
+// predicted by the parallelogram rule of Touma and Gotsman, "Triangle mesh
+// compression" (GI 1998) on the normals as vectors; texture coordinates
+// predicted by the new vertex's place beside the gate edge in space,
+// carried into the texture (as Draco's texture coordinate predictor does),
+// else by the parallelogram in texture space as in Isenburg and Snoeyink,
+// "Compressing texture coordinates with selective linear predictions" (CGI
+// 2003); residuals coded as positions are (spec 5.6, 7.4).
+#include "attributes.h"
+
+#include <algorithm>
+#include <cmath>
+#include <initializer_list>
+#include <string>
+
+#include "container.h"
+#include "fast_coding.h"
+#include "geometry.h"
+
+namespace psq {
+namespace codec {
+namespace {
+
+bool is_real(const Property& p) {
+  return !p.is_list && (p.type == ScalarType::kFloat32 || p.type == ScalarType::kFloat64);
+}
+bool is_byte(const Property& p) { return !p.is_list && p.type == ScalarType::kUInt8; }
+
+int find(const std::vector<Property>& props, const char* name) {
+  for (size_t i = 0; i < props.size(); ++i)
+    if (props[i].name == name) return static_cast<int>(i);
+  return -1;
+}
+
+// The indices of the named properties when all exist and pass `ok`.
+template <class Ok>
+bool find_all(const std::vector<Property>& props, std::initializer_list<const char*> names, Ok ok,
+              std::vector<uint32_t>* out) {
+  out->clear();
+  for (const char* n : names) {
+    const int i = find(props, n);
+    if (i < 0 || !ok(props[static_cast<size_t>(i)])) return false;
+    out->push_back(static_cast<uint32_t>(i));
+  }
+  return true;
+}
+
+int64_t mid(int64_t a, int64_t b) { return (a >> 1) + (b >> 1) + (a & b & 1); }
+
+// The distance of two values, modulo `mod` when it is not 0.
+uint64_t distance(int64_t a, int64_t b, int64_t mod) {
+  const uint64_t d = static_cast<uint64_t>(a > b ? a - b : b - a);
+  return mod != 0 ? std::min<uint64_t>(d, static_cast<uint64_t>(mod) - d) : d;
+}
+
+int components_of(CodedAttribute::Kind k) {
+  return k == CodedAttribute::Kind::kNormal ? 3 : k == CodedAttribute::Kind::kTexcoord ? 2 : 0;
+}
+
+}  // namespace
+
+std::vector<CodedAttribute> recognize_attributes(const std::vector<Property>& vertex, int normal_bits, int uv_bits) {
+  std::vector<CodedAttribute> out;
+  CodedAttribute a;
+  if (normal_bits > 0 && find_all(vertex, {"nx", "ny", "nz"}, is_real, &a.properties)) {
+    a.kind = CodedAttribute::Kind::kNormal;
+    a.bits = normal_bits;
+    out.push_back(a);
+  }
+  if (uv_bits > 0) {
+    for (auto names : {std::initializer_list<const char*>{"u", "v"}, {"s", "t"}, {"texture_u", "texture_v"},
+                       {"texture_s", "texture_t"}})
+      if (find_all(vertex, names, is_real, &a.properties)) {
+        a.kind = CodedAttribute::Kind::kTexcoord;
+        a.bits = uv_bits;
+        out.push_back(a);
+        break;
+      }
+  }
+  for (auto names : {std::initializer_list<const char*>{"red", "green", "blue"}, {"r", "g", "b"}})
+    if (find_all(vertex, names, is_byte, &a.properties)) {
+      const int alpha = find(vertex, names.size() && std::string(*names.begin()) == "red" ? "alpha" : "a");
+      if (alpha >= 0 && is_byte(vertex[static_cast<size_t>(alpha)])) a.properties.push_back(static_cast<uint32_t>(alpha));
+      a.kind = CodedAttribute::Kind::kColor;
+      a.bits = 8;
+      out.push_back(a);
+      break;
+    }
+  return out;
+}
+
+std::string attribute_table_error(const std::vector<Property>& vertex, const std::vector<CodedAttribute>& attrs) {
+  std::vector<bool> used(vertex.size(), false);
+  bool kind_seen[4] = {false, false, false, false};
+  for (const CodedAttribute& a : attrs) {
+    const int k = static_cast<int>(a.kind);
+    if (k < 1 || k > 3) return "attribute kind " + std::to_string(k) + " is unknown";
+    if (kind_seen[k]) return "attribute kind " + std::to_string(k) + " appears twice";
+    kind_seen[k] = true;
+    const size_t n = a.properties.size();
+    const bool color = a.kind == CodedAttribute::Kind::kColor;
+    if (color ? n != 3 && n != 4 : n != static_cast<size_t>(components_of(a.kind)))
+      return "attribute of kind " + std::to_string(k) + " has " + std::to_string(n) + " components";
+    const int lo = color ? 8 : a.kind == CodedAttribute::Kind::kNormal ? 2 : 1;
+    const int hi = color ? 8 : a.kind == CodedAttribute::Kind::kNormal ? 16 : 24;
+    if (a.bits < lo || a.bits > hi)
+      return "attribute of kind " + std::to_string(k) + " has bits " + std::to_string(a.bits) + " not in " +
+             std::to_string(lo) + ".." + std::to_string(hi);
+    for (uint32_t i : a.properties) {
+      if (i >= vertex.size()) return "attribute component " + std::to_string(i) + " is not a vertex property";
+      if (used[i]) return "vertex property '" + vertex[i].name + "' is in two attribute components";
+      used[i] = true;
+      if (color ? !is_byte(vertex[i]) : !is_real(vertex[i]))
+        return "vertex property '" + vertex[i].name + "' has the wrong type for its attribute";
+    }
+  }
+  return std::string();
+}
+
+void octahedral_decode(int32_t s, int32_t t, int32_t c, double out[3]) {
+  // Spec 8.3, in binary64, operation by operation.
+  const double cd = static_cast<double>(c);
+  double x = static_cast<double>(s - c) / cd;
+  double y = static_cast<double>(t - c) / cd;
+  const double ax = std::fabs(x), ay = std::fabs(y);
+  const double z = (1.0 - ax) - ay;
+  if (z < 0) {
+    const double fx = (1.0 - ay) * (x < 0 ? -1.0 : 1.0);
+    const double fy = (1.0 - ax) * (y < 0 ? -1.0 : 1.0);
+    x = fx;
+    y = fy;
+  }
+  const double n = std::sqrt((x * x + y * y) + z * z);
+  out[0] = x / n;
+  out[1] = y / n;
+  out[2] = z / n;
+}
+
+bool octahedral_round(const double n[3], int32_t c, int64_t* s, int64_t* t) {
+  const double l1 = (std::fabs(n[0]) + std::fabs(n[1])) + std::fabs(n[2]);
+  if (!(l1 > 0)) return false;
+  double x = n[0] / l1, y = n[1] / l1;
+  if (n[2] < 0) {
+    const double fx = (1.0 - std::fabs(y)) * (x < 0 ? -1.0 : 1.0);
+    const double fy = (1.0 - std::fabs(x)) * (y < 0 ? -1.0 : 1.0);
+    x = fx;
+    y = fy;
+  }
+  const double cd = static_cast<double>(c);
+  *s = std::min<int64_t>(std::max<int64_t>(static_cast<int64_t>(std::floor(x * cd + 0.5)) + c, 0), 2 * int64_t{c});
+  *t = std::min<int64_t>(std::max<int64_t>(static_cast<int64_t>(std::floor(y * cd + 0.5)) + c, 0), 2 * int64_t{c});
+  return true;
+}
+
+bool octahedral_encode(const double n[3], int32_t c, int32_t* s, int32_t* t) {
+  for (int i = 0; i < 3; ++i)
+    if (!std::isfinite(n[i])) return false;
+  const double l1 = std::fabs(n[0]) + std::fabs(n[1]) + std::fabs(n[2]);
+  if (!std::isfinite(l1)) return false;
+  if (l1 == 0) {  // no direction: coded as +z
+    *s = *t = c;
+    return true;
+  }
+  double x = n[0] / l1, y = n[1] / l1;
+  if (n[2] < 0) {
+    const double fx = (1.0 - std::fabs(y)) * (x < 0 ? -1.0 : 1.0);
+    const double fy = (1.0 - std::fabs(x)) * (y < 0 ? -1.0 : 1.0);
+    x = fx;
+    y = fy;
+  }
+  // The four grid points around (x, y): the one whose normal is closest.
+  const double norm = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+  const double gx = (x + 1.0) * c, gy = (y + 1.0) * c;
+  const int32_t sx = static_cast<int32_t>(std::floor(gx)), sy = static_cast<int32_t>(std::floor(gy));
+  double best = -2;
+  for (int dx = 0; dx < 2; ++dx)
+    for (int dy = 0; dy < 2; ++dy) {
+      const int32_t cs = std::min(std::max(sx + dx, 0), 2 * c), ct = std::min(std::max(sy + dy, 0), 2 * c);
+      double d[3];
+      octahedral_decode(cs, ct, c, d);
+      const double dot = (d[0] * n[0] + d[1] * n[1] + d[2] * n[2]) / norm;
+      if (dot > best) {
+        best = dot;
+        *s = cs;
+        *t = ct;
+      }
+    }
+  return true;
+}
+
+AttributeCoder::AttributeCoder(const std::vector<Property>& vertex, const std::vector<CodedAttribute>& attrs)
+    : attrs_(attrs), vertex_(vertex), role_(vertex.size(), -1) {
+  int k = 0;  // components (properties); a normal's three take two coded values
+  for (const CodedAttribute& at : attrs_) {
+    const int coded = at.kind == CodedAttribute::Kind::kNormal ? 2 : static_cast<int>(at.properties.size());
+    for (int j = 0; j < coded; ++j) {
+      Component& c = comp_[dims_ + j];
+      c.first = j == 0;
+      switch (at.kind) {
+        case CodedAttribute::Kind::kNormal: {
+          const int64_t half = (int64_t{1} << (at.bits - 1)) - 1;
+          c.bits = at.bits;
+          c.mod = 2 * half + 1;
+          c.lo = 0;
+          c.hi = 2 * half;
+          last_[dims_ + j] = static_cast<int32_t>(half);
+          break;
+        }
+        case CodedAttribute::Kind::kTexcoord:
+          c.lo = -int64_t{0x7fffffff};
+          c.hi = int64_t{0x7fffffff};
+          c.parallelogram = true;
+          break;
+        case CodedAttribute::Kind::kColor:
+          c.mod = 256;
+          c.lo = 0;
+          c.hi = 255;
+          break;
+      }
+    }
+    dims_ += coded;
+    for (uint32_t i : at.properties) role_[i] = k++;
+  }
+  for (size_t i = 0; i < vertex.size(); ++i)
+    if (role_[i] < 0) columns_.push_back(vertex[i]);
+  models_.resize(static_cast<size_t>(2 * dims_ * kLengthContexts));
+  // Spec 8.3: the length trees start as those of positions (7.4.1).
+  for (int kind = 0; kind < 2; ++kind)
+    for (int d = 0; d < dims_; ++d)
+      for (int c = 0; c < kLengthContexts; ++c) init_length_prior(model(kind, d, c), c);
+}
+
+int32_t* AttributeCoder::grow(std::vector<int32_t>* a, uint32_t slot) {
+  // Slots stay below the boundary limit (spec 6.1.1); none other is ever
+  // asked for, and none may make the arrays grow beyond it.
+  thread_local int32_t none[kMaxAttributeComponents] = {};
+  if (slot >= (1u << 28)) return none;
+  const size_t need = (static_cast<size_t>(slot) + 1) * static_cast<size_t>(dims_);
+  if (a->size() < need) a->resize(std::max(need, 2 * a->size()), 0);
+  return a->data() + static_cast<size_t>(slot) * static_cast<size_t>(dims_);
+}
+
+Status AttributeCoder::split(const PropertyValues& in, uint64_t vertex, PropertyValues* columns, int32_t* q) const {
+  columns->clear();
+  double value[kMaxAttributeComponents];
+  size_t at = 0;
+  for (size_t i = 0; i < vertex_.size(); ++i) {
+    if (at >= in.size()) return Status(ErrorCode::kBadValue, "vertex property values do not match the schema");
+    if (role_[i] >= 0) {
+      if (!scalar_holds(vertex_[i].type, in[at]))
+        return Status(ErrorCode::kBadValue,
+                      "vertex " + std::to_string(vertex) + ": a property value does not fit its type");
+      value[role_[i]] = in[at++];
+      continue;
+    }
+    size_t n = 1;
+    if (vertex_[i].is_list) n += static_cast<size_t>(in[at]);
+    if (in.size() - at < n) return Status(ErrorCode::kBadValue, "vertex property values do not match the schema");
+    columns->insert(columns->end(), in.begin() + static_cast<std::ptrdiff_t>(at),
+                    in.begin() + static_cast<std::ptrdiff_t>(at + n));
+    at += n;
+  }
+  int d = 0, k = 0;  // coded values, components
+  for (const CodedAttribute& a : attrs_) {
+    const double* v = value + k;
+    k += static_cast<int>(a.properties.size());
+    switch (a.kind) {
+      case CodedAttribute::Kind::kNormal:
+        if (!octahedral_encode(v, (1 << (a.bits - 1)) - 1, &q[d], &q[d + 1]))
+          return Status(ErrorCode::kBadValue, "vertex " + std::to_string(vertex) +
+                                                  ": the normal is not finite (keep normals exact: "
+                                                  "normal bits 0, or lossless)");
+        d += 2;
+        continue;
+      case CodedAttribute::Kind::kTexcoord:
+        for (int j = 0; j < 2; ++j) {
+          const double g = std::ldexp(v[j], a.bits);
+          if (!(std::fabs(g) < 2147483647.0))
+            return Status(ErrorCode::kBadValue, "vertex " + std::to_string(vertex) +
+                                                    ": texture coordinate not finite or beyond the grid of " +
+                                                    std::to_string(a.bits) + " bits (keep them exact: uv bits 0)");
+          q[d + j] = static_cast<int32_t>(std::llround(g));
+        }
+        break;
+      case CodedAttribute::Kind::kColor:
+        for (size_t j = 0; j < a.properties.size(); ++j) q[d + static_cast<int>(j)] = static_cast<int32_t>(v[j]);
+        break;
+    }
+    d += static_cast<int>(a.properties.size());
+  }
+  return Status();
+}
+
+void AttributeCoder::merge(const PropertyValues& columns, const int32_t* q, PropertyValues* out) const {
+  double value[kMaxAttributeComponents];
+  int d = 0, k = 0;  // coded values, components
+  for (const CodedAttribute& a : attrs_) {
+    double* v = value + k;
+    switch (a.kind) {
+      case CodedAttribute::Kind::kNormal:
+        octahedral_decode(q[d], q[d + 1], (1 << (a.bits - 1)) - 1, v);
+        d += 2;
+        break;
+      case CodedAttribute::Kind::kTexcoord:
+        for (int j = 0; j < 2; ++j) v[j] = std::ldexp(static_cast<double>(q[d + j]), -a.bits);
+        d += 2;
+        break;
+      case CodedAttribute::Kind::kColor:
+        for (size_t j = 0; j < a.properties.size(); ++j) v[j] = q[d++];
+        break;
+    }
+    for (size_t j = 0; j < a.properties.size(); ++j)
+      if (vertex_[a.properties[j]].type == ScalarType::kFloat32) v[j] = round_to_float(v[j]);
+    k += static_cast<int>(a.properties.size());
+  }
+  out->clear();
+  size_t at = 0;
+  for (size_t i = 0; i < vertex_.size(); ++i) {
+    if (role_[i] >= 0) {
+      out->push_back(value[role_[i]]);
+      continue;
+    }
+    size_t n = 1;
+    if (vertex_[i].is_list) n += static_cast<size_t>(columns[at]);
+    out->insert(out->end(), columns.begin() + static_cast<std::ptrdiff_t>(at),
+                columns.begin() + static_cast<std::ptrdiff_t>(at + n));
+    at += n;
+  }
+}
+
+// Spec 8.3: each new vertex in order of introduction, predicted from the
+// gate (an add) or from the vertex before (a start's, an isolated one);
+// then the new corners' values kept by vertex slot and each entering
+// edge's opposite vertex's values by edge slot. `code(kind, pred, extent,
+// q)` codes the residuals of one vertex.
+template <class Code>
+bool AttributeCoder::walk(const AttributeRecord& r, int32_t* q, Code&& code) {
+  const int D = dims_;
+  int j = -1;  // an add's new corner
+  if (r.triangle && r.nnew == 1)
+    for (int k = 0; k < 3; ++k)
+      if (r.new_mask >> k & 1) j = k;
+  for (int i = 0; i < r.nnew; ++i) {
+    int32_t* v = q + i * D;
+    int64_t pred[kMaxAttributeComponents];
+    int extent[kMaxAttributeComponents];
+    int kind = 1;
+    if (j >= 0) {
+      kind = 0;
+      const int32_t* a = vertex_values(r.c[(j + 1) % 3]);
+      const int32_t* b = vertex_values(r.c[(j + 2) % 3]);
+      const int32_t* o = edge_values(r.e[(j + 1) % 3]);
+      for (int d = 0; d < D; ++d) {
+        const Component& c = comp_[d];
+        uint64_t spread = distance(a[d], b[d], c.mod);
+        if (c.parallelogram) {
+          pred[d] = std::min(std::max(int64_t{a[d]} + b[d] - o[d], c.lo), c.hi);
+          spread = std::max({spread, distance(a[d], o[d], 0), distance(b[d], o[d], 0)});
+        } else {
+          pred[d] = mid(a[d], b[d]);
+        }
+        extent[d] = bit_length64(spread);
+      }
+      for (int d = 0; d < D; ++d) {
+        if (!comp_[d].first) continue;
+        if (comp_[d].bits != 0) predict_normal(d, a, b, o, pred);
+        if (comp_[d].parallelogram && r.pos[0] != nullptr) predict_texcoord(r, j, d, a, b, o, pred);
+      }
+    } else {
+      for (int d = 0; d < D; ++d) {
+        pred[d] = last_[d];
+        extent[d] = 0;
+      }
+    }
+    if (!code(kind, pred, extent, v)) return false;
+    std::copy(v, v + D, last_);
+  }
+  if (r.triangle) {
+    for (int k = 0; k < 3; ++k) {
+      if (!(r.new_mask >> k & 1)) continue;
+      for (int i = 0; i < r.nnew; ++i)
+        if (r.index[i] == r.v[k]) std::copy(q + i * D, q + (i + 1) * D, vertex_values(r.c[k]));
+    }
+    for (int k = 0; k < 3; ++k)
+      if (r.entering_mask >> k & 1) {
+        const int32_t* from = vertex_values(r.c[(k + 2) % 3]);
+        std::copy(from, from + D, edge_values(r.e[k]));
+      }
+  }
+  return true;
+}
+
+// Spec 8.3: a normal predicted by the parallelogram of the gate's
+// normals as vectors (the ends' sum less the gate triangle's third
+// vertex's), taken back to the grid; the mean of the ends on the grid when
+// that vector is zero. Vectors, not grid points: the octahedral map folds
+// the lower half of the sphere, where neighbouring normals can lie on
+// opposite sides of the square.
+void AttributeCoder::predict_normal(int d, const int32_t* a, const int32_t* b, const int32_t* o,
+                                    int64_t* pred) const {
+  const int32_t c = (int32_t{1} << (comp_[d].bits - 1)) - 1;
+  double na[3], nb[3], no[3], sum[3];
+  octahedral_decode(a[d], a[d + 1], c, na);
+  octahedral_decode(b[d], b[d + 1], c, nb);
+  octahedral_decode(o[d], o[d + 1], c, no);
+  for (int i = 0; i < 3; ++i) sum[i] = (na[i] + nb[i]) - no[i];
+  int64_t s, t;
+  if (octahedral_round(sum, c, &s, &t)) {
+    pred[d] = s;
+    pred[d + 1] = t;
+  }
+}
+
+// Spec 8.3: a texture coordinate predicted by where the new vertex lies
+// beside the gate edge in space: its foot on the edge and its distance
+// from it, as fractions of the edge's length, carried to the edge in the
+// texture, on the side away from the gate triangle's third vertex. Where
+// that is not defined (a gate of zero length, or the third vertex on the
+// edge in the texture) the parallelogram stays.
+void AttributeCoder::predict_texcoord(const AttributeRecord& r, int j, int d, const int32_t* a, const int32_t* b,
+                                      const int32_t* o, int64_t* pred) const {
+  const int64_t* x = r.pos[j];
+  const int64_t* p = r.pos[(j + 1) % 3];
+  const int64_t* q = r.pos[(j + 2) % 3];
+  double e[3], f[3];
+  for (int i = 0; i < 3; ++i) {
+    e[i] = static_cast<double>(q[i] - p[i]);
+    f[i] = static_cast<double>(x[i] - p[i]);
+  }
+  const double ee = (e[0] * e[0] + e[1] * e[1]) + e[2] * e[2];
+  if (!(ee > 0)) return;
+  const double t = ((f[0] * e[0] + f[1] * e[1]) + f[2] * e[2]) / ee;
+  double h2 = 0;
+  for (int i = 0; i < 3; ++i) {
+    const double g = f[i] - t * e[i];
+    h2 = h2 + g * g;
+  }
+  const double h = std::sqrt(h2 / ee);
+  const double eu = static_cast<double>(b[d]) - a[d], ev = static_cast<double>(b[d + 1]) - a[d + 1];
+  const double side = eu * (static_cast<double>(o[d + 1]) - a[d + 1]) - ev * (static_cast<double>(o[d]) - a[d]);
+  if (side == 0) return;
+  const double w = side > 0 ? -h : h;  // away from the third vertex
+  const double pu = (a[d] + t * eu) - w * ev, pv = (a[d + 1] + t * ev) + w * eu;
+  const Component& c = comp_[d];
+  if (!(std::fabs(pu) < 4.0e9) || !(std::fabs(pv) < 4.0e9)) return;
+  pred[d] = std::min(std::max(static_cast<int64_t>(std::floor(pu + 0.5)), c.lo), c.hi);
+  pred[d + 1] = std::min(std::max(static_cast<int64_t>(std::floor(pv + 0.5)), c.lo), c.hi);
+}
+
+// The length context of component d (spec 8.3, as 7.4 for positions):
+// the predicting values' spread for an attribute's first component, with
+// the longest residual of its earlier components for the others.
+static int attribute_context(int kind, bool first, int extent, int longest) {
+  const int c = first ? extent : kind == 0 ? (extent + longest + 1) / 2 : longest;
+  return std::min(c, kLengthContexts - 1);
+}
+
+void AttributeCoder::encode(Encoder& enc, const AttributeRecord& r, const int32_t* q) {
+  int32_t* v = const_cast<int32_t*>(q);  // walk() only reads the values it is given
+  walk(r, v, [&](int kind, const int64_t* pred, const int* extent, int32_t* x) {
+    int longest = 0;
+    for (int d = 0; d < dims_; ++d) {
+      const Component& c = comp_[d];
+      if (c.first) longest = 0;
+      int64_t res = x[d] - pred[d];
+      if (c.mod != 0) {
+        const int64_t lo = -(c.mod / 2);
+        if (res < lo) res += c.mod;
+        if (res > lo + c.mod - 1) res -= c.mod;
+      }
+      const int ctx = attribute_context(kind, c.first, extent[d], longest);
+      longest = std::max(longest, enc.residual(model(kind, d, ctx), res, kCostGeometry));
+    }
+    return true;
+  });
+}
+
+const char* AttributeCoder::decode(BasicDecoder<false>& dec, const AttributeRecord& r, int32_t* q) {
+  const char* why = nullptr;
+  walk(r, q, [&](int kind, const int64_t* pred, const int* extent, int32_t* x) {
+    int longest = 0;
+    for (int d = 0; d < dims_; ++d) {
+      const Component& c = comp_[d];
+      if (c.first) longest = 0;
+      const int ctx = attribute_context(kind, c.first, extent[d], longest);
+      int64_t res;
+      int length;
+      if (!dec.residual(model(kind, d, ctx), &res, &length, kCostGeometry)) return why = "attribute residual longer than 64 bits", false;
+      longest = std::max(longest, length);
+      int64_t value;
+      if (c.mod != 0) {
+        const int64_t lo = -(c.mod / 2);
+        if (res < lo || res > lo + c.mod - 1) return why = "attribute residual beyond its modulus", false;
+        value = pred[d] + res;
+        if (value < 0) value += c.mod;
+        if (value >= c.mod) value -= c.mod;
+      } else {
+        if (res < -(int64_t{1} << 40) || res > (int64_t{1} << 40)) return why = "texture coordinate outside its grid", false;
+        value = pred[d] + res;
+        if (value < c.lo || value > c.hi) return why = "texture coordinate outside its grid", false;
+      }
+      x[d] = static_cast<int32_t>(value);
+    }
+    return true;
+  });
+  return why;
+}
+
+void AttributeCoder::encode_fast(FastAttributeWriter& w, const AttributeRecord& r, const int32_t* q) {
+  if (w.counts.empty()) w.counts.assign(static_cast<size_t>(fast_tables()) * kFastLengthSymbols, 0);
+  int32_t* v = const_cast<int32_t*>(q);  // walk() only reads the values it is given
+  walk(r, v, [&](int kind, const int64_t* pred, const int* extent, int32_t* x) {
+    int longest = 0;
+    for (int d = 0; d < dims_; ++d) {
+      const Component& c = comp_[d];
+      if (c.first) longest = 0;
+      int64_t res = x[d] - pred[d];
+      if (c.mod != 0) {
+        const int64_t lo = -(c.mod / 2);
+        if (res < lo) res += c.mod;
+        if (res > lo + c.mod - 1) res -= c.mod;
+      }
+      const int table = fast_table(kind, d, attribute_context(kind, c.first, extent[d], longest));
+      // Spec 13.8.3: the length symbol, then the raw bits.
+      const uint64_t mag = res < 0 ? 0 - static_cast<uint64_t>(res) : static_cast<uint64_t>(res);
+      const int k = bit_length64(mag);
+      const int sym = fast_length_symbol(k, mag);
+      w.symbols.push_back(RansSymbol{static_cast<uint16_t>(table), static_cast<uint8_t>(sym)});
+      ++w.counts[static_cast<size_t>(table) * kFastLengthSymbols + static_cast<size_t>(sym)];
+      if (sym == kFastLengthEscape) {
+        w.raw.put(static_cast<uint32_t>(k - 33), 5);
+        w.raw.put(static_cast<uint32_t>((mag >> (k - 2)) & 1), 1);
+      }
+      const int nbits = fast_raw_bit_count(k);
+      const int low_bits = nbits - static_cast<int>(k != 0);
+      const uint64_t value = (static_cast<uint64_t>(res < 0) << low_bits) | (mag & ((uint64_t{1} << low_bits) - 1));
+      if (nbits > 32) {
+        w.raw.put(static_cast<uint32_t>(value), 32);
+        w.raw.put(static_cast<uint32_t>(value >> 32), nbits - 32);
+      } else {
+        w.raw.put(static_cast<uint32_t>(value), nbits);
+      }
+      longest = std::max(longest, k);
+    }
+    return true;
+  });
+}
+
+void AttributeCoder::finish_fast(FastAttributeWriter& w, std::vector<uint8_t>* out) const {
+  // Spec 13.12: as a fast record section (13.2): the table block, the
+  // rANS block and the raw block, the first two with their lengths.
+  const int n = fast_tables();
+  if (w.counts.empty()) w.counts.assign(static_cast<size_t>(n) * kFastLengthSymbols, 0);
+  std::vector<RansTable> tables(static_cast<size_t>(n));
+  RawWriter tw;
+  for (int i = 0; i < n; ++i) {
+    const uint64_t* c = &w.counts[static_cast<size_t>(i) * kFastLengthSymbols];
+    bool present = false;
+    for (int sym = 0; sym < kFastLengthSymbols; ++sym) present = present || c[sym] != 0;
+    tw.put(present, 1);
+    if (present) tables[static_cast<size_t>(i)].build(c, kFastLengthSymbols);
+  }
+  for (const RansTable& t : tables)
+    if (!t.empty()) t.write(tw);
+  const std::vector<uint8_t> table_bytes = tw.finish();
+  std::vector<uint8_t> rans_bytes;
+  rans_encode(w.symbols.data(), w.symbols.size(), tables.data(), tables.size(), &rans_bytes);
+  const std::vector<uint8_t> raw_bytes = w.raw.finish();
+  Put put(out);
+  put.varint(table_bytes.size());
+  put.varint(rans_bytes.size());
+  put.bytes(table_bytes.data(), table_bytes.size());
+  put.bytes(rans_bytes.data(), rans_bytes.size());
+  put.bytes(raw_bytes.data(), raw_bytes.size());
+  w.symbols.clear();
+  std::fill(w.counts.begin(), w.counts.end(), 0);
+}
+
+const char* AttributeCoder::open_fast(FastAttributeReader& rd, const uint8_t* data, size_t size) const {
+  uint64_t table_bytes = 0, rans_bytes = 0;
+  const int n1 = parse_varint(data, size, &table_bytes);
+  if (n1 <= 0) return "malformed table block length";
+  const int n2 = parse_varint(data + n1, size - static_cast<size_t>(n1), &rans_bytes);
+  if (n2 <= 0) return "malformed rANS block length";
+  const size_t at = static_cast<size_t>(n1 + n2);
+  if (table_bytes > size - at || rans_bytes > size - at - table_bytes) return "block lengths exceed the section";
+  RawReader tables(data + at, table_bytes);
+  const int n = fast_tables();
+  rd.tables.resize(static_cast<size_t>(n));
+  std::vector<bool> present(static_cast<size_t>(n));
+  for (int i = 0; i < n; ++i) present[static_cast<size_t>(i)] = tables.get(1) != 0;
+  for (int i = 0; i < n; ++i) {
+    RansTable& t = rd.tables[static_cast<size_t>(i)];
+    if (!present[static_cast<size_t>(i)]) {
+      t.set_absent();
+    } else if (!t.read(tables, kFastLengthSymbols)) {
+      return "an attribute table is invalid";
+    }
+  }
+  if (!tables.at_clean_end()) return "the table block does not end with its last table";
+  rd.rans = std::make_unique<RansDecoder>(data + at + table_bytes, rans_bytes);
+  const size_t raw_at = at + table_bytes + rans_bytes;
+  rd.raw = std::make_unique<RawReader>(data + raw_at, size - raw_at);
+  return nullptr;
+}
+
+const char* AttributeCoder::decode_fast(FastAttributeReader& rd, const AttributeRecord& r, int32_t* q) {
+  const char* why = nullptr;
+  RansDecoder& dec = *rd.rans;
+  RawReader& raw = *rd.raw;
+  walk(r, q, [&](int kind, const int64_t* pred, const int* extent, int32_t* x) {
+    int longest = 0;
+    for (int d = 0; d < dims_; ++d) {
+      const Component& c = comp_[d];
+      if (c.first) longest = 0;
+      const int table = fast_table(kind, d, attribute_context(kind, c.first, extent[d], longest));
+      const int s = dec.decode(rd.tables[static_cast<size_t>(table)]);
+      // Spec 13.8.3: a length symbol's residual from the raw bits.
+      uint64_t mag;
+      int len;
+      if (s < kFastLengthEscape) {
+        len = s < 2 ? s : (s + 2) >> 1;
+        const int low_bits = len >= 2 ? len - 2 : 0;
+        const uint64_t lead = len == 0 ? 0 : len == 1 ? 1 : (uint64_t{2} | static_cast<uint64_t>(s & 1)) << (len - 2);
+        mag = lead | (len == 0 ? 0 : raw.get(low_bits));
+      } else if (s == kFastLengthEscape) {
+        len = 33 + static_cast<int>(raw.get(5));
+        mag = uint64_t{1} << (len - 1) | static_cast<uint64_t>(raw.get(1)) << (len - 2);
+        const int low_bits = len - 2;
+        mag |= low_bits > 32 ? raw.get(32) | static_cast<uint64_t>(raw.get(low_bits - 32)) << 32 : raw.get(low_bits);
+      } else {
+        return why = "attribute symbol of an absent table", false;
+      }
+      const bool negative = len != 0 && raw.get(1) != 0;
+      if (!negative && mag >= (uint64_t{1} << 63)) return why = "attribute residual longer than 64 bits", false;
+      int64_t res = negative ? static_cast<int64_t>(0 - mag) : static_cast<int64_t>(mag);
+      longest = std::max(longest, len);
+      int64_t value;
+      if (c.mod != 0) {
+        const int64_t lo = -(c.mod / 2);
+        if (res < lo || res > lo + c.mod - 1) return why = "attribute residual beyond its modulus", false;
+        value = pred[d] + res;
+        if (value < 0) value += c.mod;
+        if (value >= c.mod) value -= c.mod;
+      } else {
+        if (res < -(int64_t{1} << 40) || res > (int64_t{1} << 40)) return why = "texture coordinate outside its grid", false;
+        value = pred[d] + res;
+        if (value < c.lo || value > c.hi) return why = "texture coordinate outside its grid", false;
+      }
+      x[d] = static_cast<int32_t>(value);
+    }
+    return true;
+  });
+  return why;
+}
+
+}  // namespace codec
+}  // namespace psq

@@ -1,0 +1,143 @@
+// SPDX-License-Identifier: Apache-2.0
+// codec/src/attributes.h: vertex attributes coded like positions
+// (spec/psq-format.md 8.3): normals (octahedral), texture coordinates (a
+// grid) and colours (exact bytes), predicted across the gate and range
+// coded in a section of each chunk. The coder sees a record as its events:
+// the new vertices in order of introduction and the triangle with its
+// vertex and edge slots, so that both profiles' record loops, encoder and
+// decoder, share it.
+#ifndef PSQ_CODEC_ATTRIBUTES_H_
+#define PSQ_CODEC_ATTRIBUTES_H_
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "coding.h"
+#include "rans.h"
+#include "psq/psq_codec.h"
+#include "psq/status.h"
+
+namespace psq {
+namespace codec {
+
+constexpr int kMaxAttributeComponents = 9;  // a normal, a texture coordinate and a colour with alpha
+constexpr uint32_t kMaxAttributeBytes = 1u << 26;  // the attribute section of one chunk (spec 4.4)
+
+// The attributes the encoder codes for a schema: the first normal, texture
+// coordinate and colour found by their names (spec 8.3). Normals and
+// texture coordinates only with non-zero bits.
+std::vector<CodedAttribute> recognize_attributes(const std::vector<Property>& vertex, int normal_bits, int uv_bits);
+
+// Checks a header's attribute table against its vertex properties (spec
+// 4.2); an empty string when it is valid, else what is wrong.
+std::string attribute_table_error(const std::vector<Property>& vertex, const std::vector<CodedAttribute>& attrs);
+
+// What the coder needs of one record (spec 8.3): the new vertices in order
+// of introduction; for a triangle, its corners' dense indices and vertex
+// slots and its edges' slots, in any rotation (edge k joins corner k to
+// corner k + 1), which corners are new and which edges enter.
+struct AttributeRecord {
+  int nnew = 0;
+  uint32_t index[3] = {0, 0, 0};
+  bool triangle = false;
+  uint32_t v[3] = {0, 0, 0}, c[3] = {0, 0, 0}, e[3] = {0, 0, 0};
+  uint8_t new_mask = 0, entering_mask = 0;
+  // The corners' coded coordinates in a quantized stream (spec 7.1: texture
+  // coordinates are predicted from the new triangle's shape), else null.
+  const int64_t* pos[3] = {nullptr, nullptr, nullptr};
+};
+
+// The attribute section of a fast chunk (spec 13.12): the residuals'
+// length symbols with static tables and rANS, their low bits and signs raw.
+struct FastAttributeWriter {
+  std::vector<RansSymbol> symbols;
+  std::vector<uint64_t> counts;  // [table][symbol], this chunk's
+  RawWriter raw;
+  // Roughly the section's size so far (the encoder's chunk target).
+  size_t size_estimate() const { return static_cast<size_t>(raw.bits() / 8) + symbols.size(); }
+};
+struct FastAttributeReader {
+  std::vector<RansTable> tables;
+  std::unique_ptr<RansDecoder> rans;
+  std::unique_ptr<RawReader> raw;
+};
+
+class AttributeCoder {
+ public:
+  AttributeCoder(const std::vector<Property>& vertex, const std::vector<CodedAttribute>& attrs);
+  bool empty() const { return dims_ == 0; }
+  int dims() const { return dims_; }
+  // The vertex properties left to the property columns (spec 8.1).
+  const std::vector<Property>& column_properties() const { return columns_; }
+
+  // Encoder: a vertex's values (matching the schema) split into the
+  // column values and the quantized attribute values q[dims()]. kBadValue
+  // for a normal that is not finite or zero, or a texture coordinate
+  // beyond the grid.
+  Status split(const PropertyValues& in, uint64_t vertex, PropertyValues* columns, int32_t* q) const;
+  // Decoder: the values in schema order from the column values and q.
+  void merge(const PropertyValues& columns, const int32_t* q, PropertyValues* out) const;
+
+  // Codes one record; `q` holds r.nnew vertices' values, dims() each.
+  void encode(Encoder& enc, const AttributeRecord& r, const int32_t* q);
+  // Decodes one record into q; nullptr, or why the stream is corrupt.
+  const char* decode(BasicDecoder<false>& dec, const AttributeRecord& r, int32_t* q);
+
+  // The fast profile's back-end (spec 13.12): the same predictions and
+  // contexts, the residuals as length symbols of static tables.
+  void encode_fast(FastAttributeWriter& w, const AttributeRecord& r, const int32_t* q);
+  // Appends a chunk's section and starts the next.
+  void finish_fast(FastAttributeWriter& w, std::vector<uint8_t>* out) const;
+  // Reads a chunk's tables; nullptr, or why the section is corrupt.
+  const char* open_fast(FastAttributeReader& rd, const uint8_t* data, size_t size) const;
+  const char* decode_fast(FastAttributeReader& rd, const AttributeRecord& r, int32_t* q);
+  // The table of a residual (spec 13.12).
+  int fast_table(int kind, int d, int ctx) const { return (kind * dims_ + d) * 3 + (ctx < 4 ? 0 : ctx < 8 ? 1 : 2); }
+  int fast_tables() const { return 6 * dims_; }
+
+ private:
+  struct Component {
+    int bits = 0;         // a normal's bits, else 0
+    int64_t mod = 0;      // values modulo this (normals, colours), 0: none (texture coordinates)
+    int64_t lo = 0, hi = 0;  // valid values
+    bool parallelogram = false;  // predicted across the gate, else the mean of its ends
+    bool first = false;   // the first component of its attribute
+  };
+  template <class Code>
+  bool walk(const AttributeRecord& r, int32_t* q, Code&& code);
+  void predict_normal(int d, const int32_t* a, const int32_t* b, const int32_t* o, int64_t* pred) const;
+  void predict_texcoord(const AttributeRecord& r, int j, int d, const int32_t* a, const int32_t* b, const int32_t* o,
+                        int64_t* pred) const;
+  int32_t* vertex_values(uint32_t slot) { return grow(&vattr_, slot); }
+  int32_t* edge_values(uint32_t slot) { return grow(&eattr_, slot); }
+  int32_t* grow(std::vector<int32_t>* a, uint32_t slot);
+  ResidualModel& model(int kind, int d, int ctx) {
+    return models_[(static_cast<size_t>(kind) * static_cast<size_t>(dims_) + static_cast<size_t>(d)) * kLengthContexts +
+                   static_cast<size_t>(ctx)];
+  }
+
+  std::vector<CodedAttribute> attrs_;
+  std::vector<Property> vertex_, columns_;
+  std::vector<int> role_;  // per vertex property: its component, or -1 for a column
+  int dims_ = 0;  // coded values a vertex: a normal's two, a texture coordinate's two, a colour's 3 or 4
+  Component comp_[kMaxAttributeComponents];
+  std::vector<ResidualModel> models_;  // [kind: gate, other][component][length context]
+  std::vector<int32_t> vattr_, eattr_;  // by vertex slot, by edge slot (its opposite vertex's)
+  int32_t last_[kMaxAttributeComponents] = {};
+};
+
+// Normals on the octahedron (spec 8.3): `c` = 2^(bits - 1) - 1.
+void octahedral_decode(int32_t s, int32_t t, int32_t c, double out[3]);
+// The grid point whose decoded normal is nearest to n; a zero normal is
+// (0, 0, 1). False when n is not finite.
+bool octahedral_encode(const double n[3], int32_t c, int32_t* s, int32_t* t);
+// The grid point of direction n by rounding (spec 8.3, the prediction of a
+// normal): false for the zero vector.
+bool octahedral_round(const double n[3], int32_t c, int64_t* s, int64_t* t);
+
+}  // namespace codec
+}  // namespace psq
+
+#endif  // PSQ_CODEC_ATTRIBUTES_H_
