@@ -249,10 +249,54 @@ TEST(Weld, SmallBudgetSpillsTheSortAndGivesTheSameSequence) {
   EXPECT_EQ(small.report.vertices, sphere.positions.size());
   EXPECT_EQ(canonical(small.rec.triangles), canonical(position_triangles(sphere)));
   EXPECT_EQ(canonical(small.rec.triangles), canonical(big.rec.triangles));
-  // The map (4 bytes a vertex) must fit its share: refused, not grown.
+  EXPECT_FALSE(small.report.weld_external);
+  // A map of 4 bytes a vertex (144 KB) beyond its share (32 KiB of a
+  // 64 KiB budget): the renumbering goes through external sorts instead,
+  // with the same result.
   Built tiny;
-  build(s, WeldMode::kAll, &tiny, uint64_t{64} << 10);
-  EXPECT_EQ(tiny.status.code(), ErrorCode::kLimit) << tiny.status.to_string();
+  build(s, WeldMode::kAll, &tiny, uint64_t{64} << 10, true);
+  ASSERT_TRUE(tiny.status.ok()) << tiny.status.to_string();
+  EXPECT_TRUE(tiny.report.weld_external);
+  EXPECT_EQ(tiny.report.vertices, sphere.positions.size());
+  EXPECT_EQ(tiny.report.welded_vertices, small.report.welded_vertices);
+  EXPECT_EQ(canonical(tiny.rec.triangles), canonical(small.rec.triangles));
+}
+
+TEST(Weld, ExternalRenumberingMatchesTheMap) {
+  // Values that keep some copies apart, a triangle made degenerate and one
+  // degenerate in the input, through both paths.
+  Mesh sphere = test::make_sphere(60, 80);
+  sphere.schema.vertex_properties.push_back({"nz", ScalarType::kFloat32});
+  for (auto& v : sphere.vertex_values) v = {0.25};
+  Mesh s = soup(sphere);
+  for (size_t t = 0; t < s.triangles.size(); t += 3) s.vertex_values[s.triangles[t][0]] = {-1.0};
+  s.positions.push_back(s.positions[0]);
+  s.vertex_values.push_back(s.vertex_values[0]);
+  const uint32_t copy = static_cast<uint32_t>(s.positions.size() - 1);
+  s.triangles.push_back({0, copy, 1});
+  s.triangles.push_back({2, 2, 1});
+  s.face_values.resize(s.triangles.size());
+  s = shuffled(s, 11);
+  for (WeldMode mode : {WeldMode::kAll, WeldMode::kPositions}) {
+    Built map, external;
+    build(s, mode, &map);
+    build(s, mode, &external, uint64_t{64} << 10, true);
+    ASSERT_TRUE(map.status.ok()) << map.status.to_string();
+    ASSERT_TRUE(external.status.ok()) << external.status.to_string();
+    EXPECT_FALSE(map.report.weld_external);
+    EXPECT_TRUE(external.report.weld_external);
+    EXPECT_EQ(external.report.vertices, map.report.vertices);
+    EXPECT_EQ(external.report.weld_dropped, 1u);
+    EXPECT_EQ(map.report.weld_dropped, 1u);
+    EXPECT_EQ(external.report.converter.degenerate_dropped, 1u);
+    EXPECT_EQ(canonical(external.rec.triangles), canonical(map.rec.triangles));
+    std::multiset<std::pair<Pos, double>> a, b;
+    for (size_t i = 0; i < map.rec.positions.size(); ++i) a.insert({map.rec.positions[i], map.rec.values[i][0]});
+    for (size_t i = 0; i < external.rec.positions.size(); ++i) {
+      b.insert({external.rec.positions[i], external.rec.values[i][0]});
+    }
+    EXPECT_EQ(a, b);
+  }
 }
 
 }  // namespace

@@ -320,6 +320,7 @@ Status weld_spooled(const BuildOptions& options, Spooled* s, BuildReport* report
   report->welded_vertices = stats.merged;
   report->weld_dropped = stats.dropped;
   report->weld_sort_runs = stats.sort_runs;
+  report->weld_external = stats.external;
   return s->triangles->rewind();
 }
 

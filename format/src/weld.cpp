@@ -92,12 +92,47 @@ double DuplicateSampler::duplicate_share() const {
   return static_cast<double>(duplicates_) / static_cast<double>(sampled_);
 }
 
+namespace {
+
+// The external path's records (weld_spools, when the map does not fit).
+struct Member {  // vertex `index` belongs to the class whose first vertex is `rep`
+  uint32_t rep;
+  uint32_t index;
+  bool operator<(const Member& o) const { return rep != o.rep ? rep < o.rep : index < o.index; }
+};
+struct NewIndex {  // vertex `index` becomes welded vertex `id`; `first`: it is its class's first
+  uint32_t index;
+  uint32_t id;
+  uint32_t first;
+  bool operator<(const NewIndex& o) const { return index < o.index; }
+};
+struct Corner {  // corner `at` (triangle * 3 + k) uses input vertex `vertex`, or welded vertex `vertex`
+  uint64_t at;
+  uint32_t vertex;
+  uint32_t unused;
+};
+struct ByVertex {
+  bool operator()(const Corner& a, const Corner& b) const { return a.vertex != b.vertex ? a.vertex < b.vertex : a.at < b.at; }
+};
+struct ByCorner {
+  bool operator()(const Corner& a, const Corner& b) const { return a.at < b.at; }
+};
+
+Status bad_corner(uint64_t t, uint32_t v, uint64_t nv) {
+  return Status(ErrorCode::kBadIndex, "triangle " + std::to_string(t) + " uses vertex " + std::to_string(v) + " of " +
+                                          std::to_string(nv));
+}
+
+bool degenerate(const uint32_t idx[3]) { return idx[0] == idx[1] || idx[1] == idx[2] || idx[2] == idx[0]; }
+
+}  // namespace
+
 Status weld_spools(SpoolFile& vin, uint64_t nv, SpoolFile& tin, uint64_t nt, bool positions_only,
                    uint64_t sort_budget, uint64_t map_budget, const std::string& tmpdir, SpoolFile* vout,
                    SpoolFile* tout, WeldStats* stats) {
-  if (nv * 4 > map_budget) {
-    return Status(ErrorCode::kLimit, "the weld map (4 bytes per vertex) does not fit --memory");
-  }
+  // The map from input to welded index in memory when it fits its share;
+  // otherwise the same through three more external sorts.
+  const bool in_memory = nv * 4 <= map_budget;
   // 1. Every vertex's key, sorted.
   ExternalSortOptions so;
   so.memory_budget = sort_budget;
@@ -123,12 +158,22 @@ Status weld_spools(SpoolFile& vin, uint64_t nv, SpoolFile& tin, uint64_t nt, boo
     }
   }
   PSQ_RETURN_IF_ERROR(sorter.finish());
-  // 2. map[i]: the first vertex in file order identical to vertex i.
-  std::vector<uint32_t> map(nv);
+  // 2. Each vertex's class: the first vertex in file order identical to it
+  // (map[i] in memory, Member records otherwise).
+  std::vector<uint32_t> map(in_memory ? nv : 0);
+  ExternalSorter<Member> members(so);
+  auto assign = [&](uint32_t index, uint32_t rep) -> Status {
+    if (in_memory) {
+      map[index] = rep;
+      return Status();
+    }
+    return members.add(Member{rep, index});
+  };
   const bool compare = !positions_only && any_values;
-  if (compare && vin.size() <= map_budget - nv * 4) {
+  const uint64_t map_bytes = in_memory ? nv * 4 : 0;
+  if (compare && vin.size() <= map_budget - map_bytes) {
     bool loaded = false;
-    PSQ_RETURN_IF_ERROR(vin.load(map_budget - nv * 4, &loaded));
+    PSQ_RETURN_IF_ERROR(vin.load(map_budget - map_bytes, &loaded));
   }
   {
     // The distinct vertices of the current key; more than one only when
@@ -149,12 +194,12 @@ Status weld_spools(SpoolFile& vin, uint64_t nv, SpoolFile& tin, uint64_t nt, boo
       if (first || !key.same_class(prev)) {
         reps.clear();
         reps.push_back(Rep{key.index, key.offset, false, {}});
-        map[key.index] = key.index;
+        PSQ_RETURN_IF_ERROR(assign(key.index, key.index));
         prev = key;
         continue;
       }
       if (!compare) {
-        map[key.index] = reps[0].index;
+        PSQ_RETURN_IF_ERROR(assign(key.index, reps[0].index));
         continue;
       }
       PSQ_RETURN_IF_ERROR(get_values_at(vin, key.offset + 24, &values));
@@ -165,23 +210,46 @@ Status weld_spools(SpoolFile& vin, uint64_t nv, SpoolFile& tin, uint64_t nt, boo
           r.read = true;
         }
         if (same_values(r.values, values)) {
-          map[key.index] = r.index;
+          PSQ_RETURN_IF_ERROR(assign(key.index, r.index));
           found = true;
           break;
         }
       }
       if (!found) {
         reps.push_back(Rep{key.index, key.offset, true, values});
-        map[key.index] = key.index;
+        PSQ_RETURN_IF_ERROR(assign(key.index, key.index));
       }
     }
   }
   stats->sort_runs = sorter.runs();
   sorter = ExternalSorter<WeldKey>(so);  // release its buffers
-  // 3. The first vertex of each class, in file order; map becomes the new
-  // index (a class's first vertex comes before its others).
+  // External: classes in the order of their first vertex give the welded
+  // indices (a class's first vertex sorts first in it).
+  ExternalSorter<NewIndex> new_index(so);
+  if (!in_memory) {
+    PSQ_RETURN_IF_ERROR(members.finish());
+    uint32_t next_id = 0, rep = 0;
+    for (bool first = true;; first = false) {
+      Member m{};
+      bool done = false;
+      PSQ_RETURN_IF_ERROR(members.next(&m, &done));
+      if (done) break;
+      if (first || m.rep != rep) {
+        rep = m.rep;
+        ++next_id;
+      }
+      PSQ_RETURN_IF_ERROR(new_index.add(NewIndex{m.index, next_id - 1, m.index == m.rep ? 1u : 0u}));
+    }
+    members = ExternalSorter<Member>(so);
+    PSQ_RETURN_IF_ERROR(new_index.finish());
+  }
+  // 3. The first vertex of each class, in file order. In memory, map
+  // becomes the new index (a class's first vertex comes before its
+  // others); externally the new indices go to a spool in input order.
   PSQ_RETURN_IF_ERROR(vout->create(tmpdir));
   PSQ_RETURN_IF_ERROR(vin.rewind());
+  SpoolFile ids;
+  if (!in_memory) PSQ_RETURN_IF_ERROR(ids.create(tmpdir));
   uint64_t kept = 0;
   {
     InputStream& in = vin.stream();
@@ -190,14 +258,61 @@ Status weld_spools(SpoolFile& vin, uint64_t nv, SpoolFile& tin, uint64_t nt, boo
     for (uint64_t i = 0; i < nv; ++i) {
       PSQ_RETURN_IF_ERROR(in.read_exact(pos, 24));
       PSQ_RETURN_IF_ERROR(get_values(in, &values));
-      if (map[i] == i) {
-        map[i] = static_cast<uint32_t>(kept++);
+      bool first;
+      if (in_memory) {
+        first = map[i] == i;
+        map[i] = first ? static_cast<uint32_t>(kept) : map[map[i]];
+      } else {
+        NewIndex n{};
+        bool done = false;
+        PSQ_RETURN_IF_ERROR(new_index.next(&n, &done));
+        if (done || n.index != i) return Status(ErrorCode::kInternal, "weld: vertex classes out of step");
+        first = n.first != 0;
+        PSQ_RETURN_IF_ERROR(ids.write(&n.id, 4));
+      }
+      if (first) {
+        ++kept;
         PSQ_RETURN_IF_ERROR(vout->write(pos, 24));
         PSQ_RETURN_IF_ERROR(put_values(*vout, values));
-      } else {
-        map[i] = map[map[i]];
       }
     }
+  }
+  new_index = ExternalSorter<NewIndex>(so);
+  // External: each corner's welded index, by sorting the corners by input
+  // vertex, reading the new indices in step, and sorting back.
+  ExternalSorter<Corner, ByCorner> welded(so);
+  if (!in_memory) {
+    ExternalSorter<Corner, ByVertex> corners(so);
+    InputStream& in = tin.stream();
+    uint32_t idx[3];
+    PropertyValues values;
+    for (uint64_t t = 0; t < nt; ++t) {
+      PSQ_RETURN_IF_ERROR(in.read_exact(idx, 12));
+      PSQ_RETURN_IF_ERROR(get_values(in, &values));
+      for (int k = 0; k < 3; ++k) {
+        if (idx[k] >= nv) return bad_corner(t, idx[k], nv);
+        PSQ_RETURN_IF_ERROR(corners.add(Corner{3 * t + static_cast<uint64_t>(k), idx[k], 0}));
+      }
+    }
+    PSQ_RETURN_IF_ERROR(corners.finish());
+    PSQ_RETURN_IF_ERROR(ids.rewind());
+    InputStream& id_in = ids.stream();
+    uint64_t at = 0;  // input vertices whose new index was read
+    uint32_t id = 0;
+    for (;;) {
+      Corner c{};
+      bool done = false;
+      PSQ_RETURN_IF_ERROR(corners.next(&c, &done));
+      if (done) break;
+      while (at <= c.vertex) {
+        PSQ_RETURN_IF_ERROR(id_in.read_exact(&id, 4));
+        ++at;
+      }
+      c.vertex = id;
+      PSQ_RETURN_IF_ERROR(welded.add(c));
+    }
+    PSQ_RETURN_IF_ERROR(welded.finish());
+    PSQ_RETURN_IF_ERROR(tin.rewind());
   }
   // 4. The triangles renumbered; those with two corners in one vertex go.
   PSQ_RETURN_IF_ERROR(tout->create(tmpdir));
@@ -211,15 +326,22 @@ Status weld_spools(SpoolFile& vin, uint64_t nv, SpoolFile& tin, uint64_t nt, boo
       PSQ_RETURN_IF_ERROR(get_values(in, &values));
       // A triangle degenerate in the input goes on for the converter to
       // drop and count with its own; only welding's are counted here.
-      const bool was_degenerate = idx[0] == idx[1] || idx[1] == idx[2] || idx[2] == idx[0];
+      const bool was_degenerate = degenerate(idx);
       for (int k = 0; k < 3; ++k) {
-        if (idx[k] >= nv) {
-          return Status(ErrorCode::kBadIndex, "triangle " + std::to_string(t) + " uses vertex " +
-                                                   std::to_string(idx[k]) + " of " + std::to_string(nv));
+        if (in_memory) {
+          if (idx[k] >= nv) return bad_corner(t, idx[k], nv);
+          idx[k] = map[idx[k]];
+        } else {
+          Corner c{};
+          bool done = false;
+          PSQ_RETURN_IF_ERROR(welded.next(&c, &done));
+          if (done || c.at != 3 * t + static_cast<uint64_t>(k)) {
+            return Status(ErrorCode::kInternal, "weld: corners out of step");
+          }
+          idx[k] = c.vertex;
         }
-        idx[k] = map[idx[k]];
       }
-      if (!was_degenerate && (idx[0] == idx[1] || idx[1] == idx[2] || idx[2] == idx[0])) {
+      if (!was_degenerate && degenerate(idx)) {
         ++dropped;
         continue;
       }
@@ -234,6 +356,7 @@ Status weld_spools(SpoolFile& vin, uint64_t nv, SpoolFile& tin, uint64_t nt, boo
   stats->triangles = triangles;
   stats->merged = nv - kept;
   stats->dropped = dropped;
+  stats->external = !in_memory;
   return Status();
 }
 

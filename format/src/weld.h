@@ -50,6 +50,7 @@ struct WeldStats {
   uint64_t merged = 0;     // vertices merged into another: input vertices - vertices
   uint64_t dropped = 0;    // triangles with two corners welded into one vertex
   uint64_t sort_runs = 0;  // runs the external sort spilled to disk (0: it fit in memory)
+  bool external = false;   // the map did not fit: renumbered through external sorts
 };
 
 // Reads `nv` vertex and `nt` triangle records (spool_records.h) from `vin`
@@ -59,9 +60,12 @@ struct WeldStats {
 // the first of them in file order, which keeps its values; the vertices
 // keep their relative file order; triangles are renumbered, and dropped
 // when two of their corners became one vertex. Memory: the external sort of
-// 48-byte keys within `sort_budget`, and a map of 4 bytes per input vertex,
-// refused (kLimit) beyond `map_budget`. Errors: kLimit, kBadIndex (a
-// triangle corner past the vertices), kIo and kTruncated from the files.
+// 48-byte keys within `sort_budget`, and a map of 4 bytes per input vertex
+// within `map_budget`; when the map does not fit, three more external
+// sorts (of the classes' members, the new indices and the corners) within
+// `sort_budget` do its work, with temporary files instead. Errors:
+// kBadIndex (a triangle corner past the vertices), kIo and kTruncated
+// from the files.
 Status weld_spools(SpoolFile& vin, uint64_t nv, SpoolFile& tin, uint64_t nt, bool positions_only,
                    uint64_t sort_budget, uint64_t map_budget, const std::string& tmpdir, SpoolFile* vout,
                    SpoolFile* tout, WeldStats* stats);

@@ -59,8 +59,9 @@ struct BuildOptions {
   // file order (the vertices keep their relative order); triangles are
   // renumbered, and a triangle two of whose corners become one vertex is
   // dropped (BuildReport::weld_dropped). Memory: an external sort of
-  // 48-byte keys in the sort share and a map of 4 bytes per input vertex
-  // (kLimit beyond the rank array's share, as the sort path).
+  // 48-byte keys in the sort share and a map of 4 bytes per input vertex in
+  // the rank array's share, or, when the map does not fit there, three more
+  // external sorts and temporary files instead (BuildReport::weld_external).
   WeldMode weld = WeldMode::kOff;
 };
 
@@ -74,6 +75,7 @@ struct BuildReport {
   uint64_t welded_vertices = 0;  // merged into another: input_vertices - vertices
   uint64_t weld_dropped = 0;     // triangles dropped because welding made them degenerate
   uint64_t weld_sort_runs = 0;   // runs the weld's external sort spilled (0: it fit in memory)
+  bool weld_external = false;    // the weld map did not fit: renumbered through external sorts
   // Without welding: the estimated share of the input's vertices whose
   // position repeats another's (a sample of the positions by hash; -1 when
   // too few to tell). A triangle soup is about 5/6.
@@ -84,7 +86,7 @@ struct BuildReport {
 // Reads all of `source` and writes its processing sequence to `sink`
 // (begin ... finish), welding first when options.weld says so. Errors:
 // the source's, kIo for temporary files, the sink's, kLimit when the rank
-// array (or the weld map) would not fit `memory_budget`, and kBadIndex
+// array would not fit `memory_budget`, and kBadIndex
 // when welding meets a triangle corner past the vertices.
 Status build_sequence(MeshSource& source, SequenceSink& sink, const BuildOptions& options,
                       BuildReport* report);
