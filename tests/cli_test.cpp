@@ -296,6 +296,56 @@ TEST(Cli, ConvertPicksTheFastProfileForLargeInputs) {
   EXPECT_EQ(run_psq("convert --profile quick " + small + " " + dir.file("q.psq"), &out, &err), 2);
 }
 
+// --weld: a triangle soup (each triangle with its own three vertices)
+// becomes the indexed mesh; without it a note suggests welding.
+TEST(Cli, ConvertWeldsASoup) {
+  test::TempDir dir;
+  const Mesh sphere = test::make_sphere(60, 90);
+  Mesh soup;
+  soup.schema = sphere.schema;
+  for (const auto& t : sphere.triangles) {
+    const uint32_t first = static_cast<uint32_t>(soup.positions.size());
+    for (int k = 0; k < 3; ++k) soup.positions.push_back(sphere.positions[t[k]]);
+    soup.triangles.push_back({first, first + 1, first + 2});
+  }
+  test::reset_values(&soup);
+  {
+    OutputFile out;
+    ASSERT_TRUE(out.open(dir.file("soup.ply"), false).ok());
+    PlyWriter w(&out);
+    test::MemorySource src(soup);
+    ASSERT_TRUE(pump(src, w).ok());
+    ASSERT_TRUE(out.commit().ok());
+  }
+  const std::string in = dir.file("soup.ply");
+  std::string out, err;
+  ASSERT_EQ(run_psq("convert " + in + " " + dir.file("plain.psq"), &out, &err), 0) << err;
+  EXPECT_NE(err.find("--weld would merge them"), std::string::npos) << err;
+  ASSERT_EQ(run_psq("convert -q " + in + " " + dir.file("quiet.psq"), &out, &err), 0) << err;
+  EXPECT_EQ(err, "");
+  const std::string merged = std::to_string(soup.positions.size() - sphere.positions.size());
+  for (const char* mode : {"--weld", "--weld=positions"}) {
+    ASSERT_EQ(run_psq("convert -f --json --memory 1M " + std::string(mode) + " " + in + " " + dir.file("w.psq"), &out,
+                      &err), 0) << err;
+    EXPECT_NE(out.find("\"welded_vertices\": " + merged + ","), std::string::npos) << out;
+    EXPECT_NE(out.find("\"weld_dropped_triangles\": 0,"), std::string::npos) << out;
+    EXPECT_NE(out.find("\"vertices\": " + std::to_string(sphere.positions.size()) + ","), std::string::npos) << out;
+    EXPECT_NE(err.find("--weld merged " + merged + " of"), std::string::npos) << err;
+    ASSERT_EQ(run_psq("convert -f " + dir.file("w.psq") + " " + dir.file("w.ply"), &out, &err), 0) << err;
+    Mesh back;
+    ASSERT_TRUE(test::load_mesh(dir.file("w.ply"), &back).ok());
+    EXPECT_EQ(back.positions.size(), sphere.positions.size());
+    EXPECT_EQ(back.triangles.size(), sphere.triangles.size());
+  }
+  EXPECT_LT(test::read_file(dir.file("w.psq")).size() * 3, test::read_file(dir.file("plain.psq")).size());
+  EXPECT_EQ(run_psq("convert --weld=normals " + in + " " + dir.file("x.psq"), &out, &err), 2);
+  EXPECT_NE(err.find("bad --weld 'normals'"), std::string::npos) << err;
+  EXPECT_EQ(run_psq("convert --weld " + in + " " + dir.file("x.ply"), &out, &err), 2);
+  EXPECT_EQ(run_psq("convert --weld " + dir.file("plain.psq") + " " + dir.file("x.psq"), &out, &err), 2);
+  EXPECT_FALSE(test::file_exists(dir.file("x.psq")));
+  EXPECT_FALSE(test::file_exists(dir.file("x.ply")));
+}
+
 TEST(Cli, ConvertSafety) {
   test::TempDir dir;
   std::string ply = write_sphere(dir, "s.ply");

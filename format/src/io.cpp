@@ -138,6 +138,11 @@ Status InputStream::open_fd(int fd, bool take_ownership, std::string name) {
   name_ = std::move(name);
   fd_ = fd;
   own_fd_ = take_ownership;
+  // A stream opened again (SpoolFile::rewind() a second time) starts over.
+  pos_ = end_ = 0;
+  base_ = 0;
+  eof_ = false;
+  size_ = -1;
   struct stat st;
   if (::fstat(fd_, &st) == 0) {
     if (S_ISDIR(st.st_mode)) return Status(ErrorCode::kIo, "is a directory");

@@ -9,37 +9,21 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <memory>
 #include <vector>
 
 #include "psq/external_sort.h"
 #include "psq/io.h"
 #include "psq/memory_budget.h"
+#include "spool_records.h"
+#include "weld.h"
 
 namespace psq {
 namespace {
 
-// Spool record layouts (native endianness; the files never leave the
-// process): vertex = 3 doubles, uint32 n, n doubles; triangle = 3 uint32,
-// uint32 n, n doubles.
-Status put_values(SpoolFile& f, const PropertyValues& values) {
-  uint32_t n = static_cast<uint32_t>(values.size());
-  PSQ_RETURN_IF_ERROR(f.write(&n, 4));
-  return values.empty() ? Status() : f.write(values.data(), 8 * values.size());
-}
-
-Status get_values(InputStream& in, PropertyValues* values) {
-  uint32_t n;
-  PSQ_RETURN_IF_ERROR(in.read_exact(&n, 4));
-  values->resize(n);
-  return n == 0 ? Status() : in.read_exact(values->data(), 8 * size_t{n});
-}
-
-Status get_values_at(const SpoolFile& f, uint64_t offset, PropertyValues* values) {
-  uint32_t n;
-  PSQ_RETURN_IF_ERROR(f.read_at(offset, &n, 4));
-  values->resize(n);
-  return n == 0 ? Status() : f.read_at(offset + 4, values->data(), 8 * size_t{n});
-}
+using detail::get_values;
+using detail::get_values_at;
+using detail::put_values;
 
 // A float made into an unsigned integer that sorts like the float.
 uint32_t sortable(float f) {
@@ -71,8 +55,8 @@ struct TriangleKey {
 constexpr uint64_t kBlock = 4096;
 
 struct Spooled {
-  SpoolFile vertices;
-  SpoolFile triangles;
+  std::unique_ptr<SpoolFile> vertices = std::make_unique<SpoolFile>();
+  std::unique_ptr<SpoolFile> triangles = std::make_unique<SpoolFile>();
   uint64_t nv = 0, nt = 0;
   double lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
   std::vector<uint32_t> block_min;  // smallest index a block of triangles uses
@@ -81,9 +65,40 @@ struct Spooled {
   uint64_t window = 0;              // most vertices fed but not final during a block (coherent path)
 };
 
-Status spool_input(MeshSource& source, const BuildOptions& options, Spooled* s) {
-  PSQ_RETURN_IF_ERROR(s->vertices.create(options.tmpdir));
-  PSQ_RETURN_IF_ERROR(s->triangles.create(options.tmpdir));
+// Adds a triangle to the block statistics of the coherent path.
+void note_triangle(Spooled* s, const uint32_t index[3]) {
+  uint32_t mn = std::min({index[0], index[1], index[2]});
+  uint32_t mx = std::max({index[0], index[1], index[2]});
+  if (s->nt % kBlock == 0) {
+    s->block_min.push_back(mn);
+    s->block_max.push_back(mx);
+  }
+  s->block_min.back() = std::min(s->block_min.back(), mn);
+  s->block_max.back() = std::max(s->block_max.back(), mx);
+  ++s->nt;
+}
+
+// Suffix minima, and the window the coherent path would hold: vertices
+// fed by the end of a block (up to the largest index used so far) that
+// were not final when the block began (below the smallest index of the
+// block and all later ones; nothing is final before the first block).
+void finish_blocks(Spooled* s) {
+  size_t blocks = s->block_min.size();
+  s->later_min.assign(blocks, static_cast<uint32_t>(std::min<uint64_t>(s->nv, 0xffffffffu)));
+  for (size_t b = blocks; b-- > 1;) s->later_min[b - 1] = std::min(s->later_min[b], s->block_min[b]);
+  uint64_t fed = 0;
+  s->window = 0;
+  for (size_t b = 0; b < blocks; ++b) {
+    fed = std::max<uint64_t>(fed, uint64_t{s->block_max[b]} + 1);
+    const uint64_t final_before = b == 0 ? 0 : s->later_min[b - 1];
+    if (fed > final_before) s->window = std::max<uint64_t>(s->window, fed - final_before);
+  }
+}
+
+Status spool_input(MeshSource& source, const BuildOptions& options, Spooled* s,
+                   detail::DuplicateSampler* sampler) {
+  PSQ_RETURN_IF_ERROR(s->vertices->create(options.tmpdir));
+  PSQ_RETURN_IF_ERROR(s->triangles->create(options.tmpdir));
   MeshItem item;
   for (;;) {
     PSQ_RETURN_IF_ERROR(source.next(&item));
@@ -97,38 +112,19 @@ Status spool_input(MeshSource& source, const BuildOptions& options, Spooled* s) 
         s->lo[k] = std::min(s->lo[k], item.position[k]);
         s->hi[k] = std::max(s->hi[k], item.position[k]);
       }
-      PSQ_RETURN_IF_ERROR(s->vertices.write(item.position, 24));
-      PSQ_RETURN_IF_ERROR(put_values(s->vertices, item.values));
+      if (sampler) sampler->add(item.position);
+      PSQ_RETURN_IF_ERROR(s->vertices->write(item.position, 24));
+      PSQ_RETURN_IF_ERROR(put_values(*s->vertices, item.values));
       ++s->nv;
     } else {
-      PSQ_RETURN_IF_ERROR(s->triangles.write(item.index, 12));
-      PSQ_RETURN_IF_ERROR(put_values(s->triangles, item.values));
-      uint32_t mn = std::min({item.index[0], item.index[1], item.index[2]});
-      uint32_t mx = std::max({item.index[0], item.index[1], item.index[2]});
-      if (s->nt % kBlock == 0) {
-        s->block_min.push_back(mn);
-        s->block_max.push_back(mx);
-      }
-      s->block_min.back() = std::min(s->block_min.back(), mn);
-      s->block_max.back() = std::max(s->block_max.back(), mx);
-      ++s->nt;
+      PSQ_RETURN_IF_ERROR(s->triangles->write(item.index, 12));
+      PSQ_RETURN_IF_ERROR(put_values(*s->triangles, item.values));
+      note_triangle(s, item.index);
     }
   }
-  // Suffix minima, and the window the coherent path would hold: vertices
-  // fed by the end of a block (up to the largest index used so far) that
-  // were not final when the block began (below the smallest index of the
-  // block and all later ones; nothing is final before the first block).
-  size_t blocks = s->block_min.size();
-  s->later_min.assign(blocks, static_cast<uint32_t>(std::min<uint64_t>(s->nv, 0xffffffffu)));
-  for (size_t b = blocks; b-- > 1;) s->later_min[b - 1] = std::min(s->later_min[b], s->block_min[b]);
-  uint64_t fed = 0;
-  for (size_t b = 0; b < blocks; ++b) {
-    fed = std::max<uint64_t>(fed, uint64_t{s->block_max[b]} + 1);
-    const uint64_t final_before = b == 0 ? 0 : s->later_min[b - 1];
-    if (fed > final_before) s->window = std::max<uint64_t>(s->window, fed - final_before);
-  }
-  PSQ_RETURN_IF_ERROR(s->vertices.rewind());
-  return s->triangles.rewind();
+  finish_blocks(s);
+  PSQ_RETURN_IF_ERROR(s->vertices->rewind());
+  return s->triangles->rewind();
 }
 
 // The builder's shares of its budget (psq/memory_budget.h), in two phases
@@ -157,8 +153,8 @@ Shares builder_shares(uint64_t total) {
 // triangles reach them; after each block of triangles, every vertex below
 // the smallest index of all later blocks is final.
 Status feed_coherent(Spooled& s, SequenceConverter& conv) {
-  InputStream& vin = s.vertices.stream();
-  InputStream& tin = s.triangles.stream();
+  InputStream& vin = s.vertices->stream();
+  InputStream& tin = s.triangles->stream();
   uint64_t fed = 0, finalized = 0;
   double pos[3];
   PropertyValues values, vertex_values;  // apart: feeding vertices must not clobber a triangle's
@@ -203,7 +199,7 @@ Status feed_sorted(Spooled& s, const BuildOptions& options, const Shares& shares
   ExternalSorter<VertexKey> vsort(so);
   bool vertex_values = false;  // some vertex record has property values
   {
-    InputStream& vin = s.vertices.stream();
+    InputStream& vin = s.vertices->stream();
     VertexKey vk{};
     PropertyValues values;
     uint64_t offset = 0;
@@ -240,7 +236,7 @@ Status feed_sorted(Spooled& s, const BuildOptions& options, const Shares& shares
   ExternalSorter<TriangleKey> tsort(so);
   bool triangle_values = false;
   {
-    InputStream& tin = s.triangles.stream();
+    InputStream& tin = s.triangles->stream();
     TriangleKey tk{};
     PropertyValues values;
     uint64_t offset = 0;
@@ -262,11 +258,11 @@ Status feed_sorted(Spooled& s, const BuildOptions& options, const Shares& shares
   // random reads").
   std::vector<uint32_t>().swap(rank);
   const uint64_t share = shares.spools;
-  const uint64_t want = (vertex_values ? s.vertices.size() : 0) + (triangle_values ? s.triangles.size() : 0);
+  const uint64_t want = (vertex_values ? s.vertices->size() : 0) + (triangle_values ? s.triangles->size() : 0);
   if (want > 0 && want <= share) {
     bool loaded = false;
-    if (vertex_values) PSQ_RETURN_IF_ERROR(s.vertices.load(share, &loaded));
-    if (triangle_values) PSQ_RETURN_IF_ERROR(s.triangles.load(share, &loaded));
+    if (vertex_values) PSQ_RETURN_IF_ERROR(s.vertices->load(share, &loaded));
+    if (triangle_values) PSQ_RETURN_IF_ERROR(s.triangles->load(share, &loaded));
   }
   // 4. Merge: for each vertex in rank order, the vertex, the triangles whose
   // first vertex it is, and its finalization: all its triangles are in.
@@ -282,11 +278,11 @@ Status feed_sorted(Spooled& s, const BuildOptions& options, const Shares& shares
     PSQ_RETURN_IF_ERROR(oin.read_exact(&index, 4));
     PSQ_RETURN_IF_ERROR(oin.read_exact(&offset, 8));
     PSQ_RETURN_IF_ERROR(oin.read_exact(pos, 24));
-    if (vertex_values) PSQ_RETURN_IF_ERROR(get_values_at(s.vertices, offset + 24, &values));
+    if (vertex_values) PSQ_RETURN_IF_ERROR(get_values_at(*s.vertices, offset + 24, &values));
     else values.clear();
     PSQ_RETURN_IF_ERROR(conv.vertex(index, pos, values));
     while (!t_done && next_t.rank == r) {
-      if (triangle_values) PSQ_RETURN_IF_ERROR(get_values_at(s.triangles, next_t.offset + 12, &values));
+      if (triangle_values) PSQ_RETURN_IF_ERROR(get_values_at(*s.triangles, next_t.offset + 12, &values));
       else values.clear();
       PSQ_RETURN_IF_ERROR(conv.triangle(next_t.idx, values));
       PSQ_RETURN_IF_ERROR(tsort.next(&next_t, &t_done));
@@ -296,12 +292,52 @@ Status feed_sorted(Spooled& s, const BuildOptions& options, const Shares& shares
   return Status();
 }
 
+// Welds the spools (weld.cpp) within the sort phase's shares, and redoes
+// the block statistics of the coherent path on the welded triangles.
+Status weld_spooled(const BuildOptions& options, Spooled* s, BuildReport* report) {
+  const Shares shares = builder_shares(options.memory_budget);
+  auto vertices = std::make_unique<SpoolFile>();
+  auto triangles = std::make_unique<SpoolFile>();
+  detail::WeldStats stats;
+  PSQ_RETURN_IF_ERROR(detail::weld_spools(*s->vertices, s->nv, *s->triangles, s->nt,
+                                          options.weld == WeldMode::kPositions, shares.sort, shares.ranks,
+                                          options.tmpdir, vertices.get(), triangles.get(), &stats));
+  s->vertices = std::move(vertices);
+  s->triangles = std::move(triangles);
+  s->nv = stats.vertices;
+  s->nt = 0;
+  s->block_min.clear();
+  s->block_max.clear();
+  InputStream& in = s->triangles->stream();
+  PropertyValues values;
+  for (uint64_t t = 0; t < stats.triangles; ++t) {
+    uint32_t idx[3];
+    PSQ_RETURN_IF_ERROR(in.read_exact(idx, 12));
+    PSQ_RETURN_IF_ERROR(get_values(in, &values));
+    note_triangle(s, idx);
+  }
+  finish_blocks(s);
+  report->welded_vertices = stats.merged;
+  report->weld_dropped = stats.dropped;
+  report->weld_sort_runs = stats.sort_runs;
+  report->weld_external = stats.external;
+  return s->triangles->rewind();
+}
+
 }  // namespace
 
 Status build_sequence(MeshSource& source, SequenceSink& sink, const BuildOptions& options, BuildReport* report) {
   Spooled s;
-  PSQ_RETURN_IF_ERROR(spool_input(source, options, &s));
+  // Without --weld, a sample of the positions tells whether most vertices
+  // repeat others (a triangle soup), for the caller to suggest welding.
+  detail::DuplicateSampler sampler;
+  const bool weld = options.weld != WeldMode::kOff;
+  PSQ_RETURN_IF_ERROR(spool_input(source, options, &s, weld ? nullptr : &sampler));
   if (s.nv > 0xffffffffull) return Status(ErrorCode::kLimit, "more than 4294967295 vertices");
+  report->input_vertices = s.nv;
+  report->input_triangles = s.nt;
+  if (!weld) report->duplicate_share = sampler.duplicate_share();
+  if (weld) PSQ_RETURN_IF_ERROR(weld_spooled(options, &s, report));
   SequenceConverter conv(&sink);
   // The spool pass knows the bounding box before the first vertex goes on:
   // the .psq encoder places its quantization grid on it. Counts are the

@@ -65,6 +65,14 @@ const char kHelp[] =
     "                 be polygons), 65536 vertices or more, where the fast\n"
     "                 profile's per-chunk tables no longer weigh; a .psq input\n"
     "                 keeps its own profile)\n"
+    "  --weld[=positions]  .psq from a mesh: merge vertices with identical\n"
+    "                 positions and property values (=positions: identical\n"
+    "                 positions alone; the first vertex keeps its values)\n"
+    "                 before the sequence is built, and drop the triangles\n"
+    "                 this makes degenerate. Identical: the same bits as read,\n"
+    "                 -0.0 equal to 0.0. Without it the mesh is kept exactly,\n"
+    "                 and a note suggests --weld when most vertices repeat\n"
+    "                 another vertex's position (a triangle soup)\n"
     "  --ascii        write ascii PLY instead of binary little-endian\n"
     "  --tmpdir DIR   directory for temporary spool files (default $TMPDIR)\n"
     "  --threads N    .psq: 1 runs on one thread; 2 (the default on two or\n"
@@ -85,6 +93,14 @@ constexpr int64_t kAutoFastVertices = 65536;
 bool auto_fast(const MeshSchema& schema) {
   if (schema.triangle_count != MeshSchema::kUnknown) return schema.triangle_count >= kAutoFastTriangles;
   return schema.vertex_count != MeshSchema::kUnknown && schema.vertex_count >= kAutoFastVertices;
+}
+
+// The share of duplicated positions above which convert suggests --weld:
+// "most vertices" (a soup of a closed mesh repeats about 5 in 6).
+constexpr double kSuggestWeld = 0.5;
+
+const char* weld_name(WeldMode m) {
+  return m == WeldMode::kOff ? "off" : m == WeldMode::kAll ? "all" : "positions";
 }
 
 // IN (any mesh, or .psq) to a .psq OUT: the processing sequence of the
@@ -118,6 +134,15 @@ int to_psq(const std::string& in, const std::string& out, OpenedMesh& mesh, Outp
   std::vector<std::string> notes = mesh.source->report().notes;
   if (report.converter.degenerate_dropped)
     notes.push_back(std::to_string(report.converter.degenerate_dropped) + " degenerate triangle(s) dropped");
+  const bool welded = build_options.weld != WeldMode::kOff;
+  if (welded) {
+    notes.push_back("--weld merged " + std::to_string(report.welded_vertices) + " of " +
+                    std::to_string(report.input_vertices) + " vertices and dropped " +
+                    std::to_string(report.weld_dropped) + " triangle(s) it made degenerate");
+  } else if (report.duplicate_share > kSuggestWeld) {
+    notes.push_back("about " + std::to_string(static_cast<int>(100 * report.duplicate_share + 0.5)) +
+                    "% of the vertices repeat another vertex's position (a triangle soup?): --weld would merge them");
+  }
   if (!quiet)
     for (const std::string& n : notes) note(in, n);
   const double nv = st.vertices ? static_cast<double>(st.vertices) : 1.0;
@@ -126,7 +151,9 @@ int to_psq(const std::string& in, const std::string& out, OpenedMesh& mesh, Outp
     std::snprintf(summary, sizeof summary, "%llu triangles, %llu -> %llu bytes, %.2f bits/vertex",
                   static_cast<unsigned long long>(st.triangles), static_cast<unsigned long long>(mesh.stream->offset()),
                   static_cast<unsigned long long>(output.size()), 8.0 * st.total_bytes / nv);
-    progress.finish(in, out, summary);
+    std::string line = summary;
+    if (welded) line += ", " + std::to_string(report.welded_vertices) + " vertices welded";
+    progress.finish(in, out, line);
   }
   if (json) {
     std::string o = "{\"input\": \"" + json_escape(in) + "\", \"output\": \"" + json_escape(out) +
@@ -138,7 +165,15 @@ int to_psq(const std::string& in, const std::string& out, OpenedMesh& mesh, Outp
                     ", \"geometry_bits_per_vertex\": " + json_number(st.geometry_bits / nv) +
                     ", \"property_bits_per_vertex\": " + json_number(8.0 * st.property_bytes / nv) +
                     ", \"lossless\": " + (encode_options.lossless ? "true" : "false") +
-                    ", \"bits\": " + std::to_string(encode_options.lossless ? 0 : encode_options.bits) + ", \"notes\": [";
+                    ", \"bits\": " + std::to_string(encode_options.lossless ? 0 : encode_options.bits) +
+                    ", \"weld\": \"" + weld_name(build_options.weld) + "\"";
+    if (!mesh.decoder) {
+      o += ", \"input_vertices\": " + std::to_string(report.input_vertices) +
+           ", \"input_triangles\": " + std::to_string(report.input_triangles) +
+           ", \"welded_vertices\": " + std::to_string(report.welded_vertices) +
+           ", \"weld_dropped_triangles\": " + std::to_string(report.weld_dropped);
+    }
+    o += ", \"notes\": [";
     for (size_t i = 0; i < notes.size(); ++i) o += (i ? ", \"" : "\"") + json_escape(notes[i]) + "\"";
     o += "]}\n";
     std::fputs(o.c_str(), stdout);
@@ -159,6 +194,9 @@ int cmd_convert(int argc, char** argv) {
   bool json = args.flag("--json");
   bool ascii = args.flag("--ascii");
   bool lossless = args.flag("--lossless");
+  // --weld alone, or --weld=all|positions.
+  const bool weld_flag = args.flag("--weld");
+  std::string weld_text = args.option("--weld", weld_flag ? "all" : "off");
   std::string to = args.option("--to");
   std::string out_option = args.option("--output", args.option("-o"));
   std::string tmpdir = args.option("--tmpdir");
@@ -211,6 +249,9 @@ int cmd_convert(int argc, char** argv) {
   build_options.tmpdir = tmpdir;
   if (!parse_size(memory, &build_options.memory_budget))
     return usage_error("convert", "bad --memory '" + memory + "' (e.g. 256M, 2G)");
+  if (weld_text == "all") build_options.weld = WeldMode::kAll;
+  else if (weld_text == "positions") build_options.weld = WeldMode::kPositions;
+  else if (weld_text != "off") return usage_error("convert", "bad --weld '" + weld_text + "' (--weld or --weld=positions)");
 
   MeshFormat out_format = to.empty() ? format_from_extension(out) : format_from_name(to);
   if (out_format == MeshFormat::kUnknown) {
@@ -219,6 +260,8 @@ int cmd_convert(int argc, char** argv) {
   }
   if (out_format == MeshFormat::kDraco && !lossless && encode_options.bits > 30)
     return usage_error("convert", "bad --bits " + bits_text + " for Draco (1..30)");
+  if (build_options.weld != WeldMode::kOff && out_format != MeshFormat::kPsq)
+    return usage_error("convert", "--weld applies to .psq output");
   if (same_file(in, out)) return usage_error("convert", "IN and OUT are the same file");
   if (out == "-" && json) return usage_error("convert", "--json needs OUT to be a file (stdout carries the mesh)");
   if (out == "-" && ::isatty(STDOUT_FILENO) && !(out_format == MeshFormat::kObj || ascii)) {
@@ -231,6 +274,10 @@ int cmd_convert(int argc, char** argv) {
   OpenedMesh mesh;
   Status s = open_mesh(in, open_options, &mesh);
   if (!s.ok()) return report_error(in, s);
+  if (mesh.decoder && build_options.weld != WeldMode::kOff) {
+    // A .psq input is re-encoded as decoded, without a builder to weld.
+    return usage_error("convert", "--weld applies to a mesh input, not to a .psq");
+  }
 
   OutputFile output;
   s = output.open(out, force);
