@@ -371,10 +371,15 @@ Status build_sequence(MeshSource& source, SequenceSink& sink, const BuildOptions
   // of triangles counts as incoherent: one pass would hold all of it, and
   // the sort costs little at that size. The rule on half of the mesh
   // applies only when the sort's rank array fits the budget (feed_sorted):
-  // otherwise the one pass runs as before.
+  // otherwise the one pass runs as before. So does a window beyond the
+  // converter's share, when the rank array does not fit but the window is
+  // less than half of the mesh: one pass holds more than its share, the
+  // sort could not run at all.
   uint64_t limit = std::max<uint64_t>(1024, shares.lookahead / 400);
-  const bool incoherent = 2 * s.window > s.nv && s.nv * 4 <= shares.ranks;
-  bool sorted = options.force_sort || s.window > limit || incoherent;
+  const bool ranks_fit = s.nv * 4 <= shares.ranks;
+  const bool incoherent = 2 * s.window > s.nv && ranks_fit;
+  const bool wide = s.window > limit && (ranks_fit || 2 * s.window > s.nv);
+  bool sorted = options.force_sort || wide || incoherent;
   report->sorted = sorted;
   report->window = s.window;
   report->vertices = s.nv;
