@@ -11,7 +11,7 @@
 #include <sstream>
 
 #include "psq/psq_codec.h"
-#include "psq/sequence_dump.h"
+#include "sequence_dump.h"
 #include "test_util.h"
 
 namespace psq {

@@ -16,7 +16,7 @@
 #include "attributes.h"
 #include "properties.h"
 #include "psq/psq_codec.h"
-#include "psq/range_coder.h"
+#include "range_coder.h"
 #include "rans.h"
 
 namespace psq {

@@ -11,7 +11,7 @@
 #include <limits>
 #include <vector>
 
-#include "psq/external_sort.h"
+#include "external_sort.h"
 #include "psq/io.h"
 #include "psq/memory_budget.h"
 
