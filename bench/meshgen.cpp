@@ -53,7 +53,7 @@
 #include <string>
 #include <vector>
 
-#include "psq/external_sort.h"
+#include "external_sort.h"
 #include "psq/io.h"
 #include "psq/status.h"
 

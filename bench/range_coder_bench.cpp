@@ -8,7 +8,7 @@
 #include <random>
 #include <vector>
 
-#include "psq/range_coder.h"
+#include "range_coder.h"
 
 namespace {
 

@@ -11,7 +11,7 @@
 #include <sstream>
 
 #include "psq/psq_codec.h"
-#include "psq/sequence_dump.h"
+#include "sequence_dump.h"
 #include "test_util.h"
 
 namespace psq {
@@ -131,17 +131,14 @@ TEST(Conformance, SpiderVectorUsesEveryPrediction) {
   EXPECT_GT(st.predictions[4], 0u) << "mean with the edge after";
 }
 
-// Spec 13.8.2: a quantized fast stream of format 10 predicts every add
-// across the gate and codes no choice; a lossless one, and a fast stream of
-// format 9, code choices (all five of them here).
-TEST(Conformance, FastVectorsCodeChoicesWhenLosslessOrFormat9) {
+// Spec 13.8.2: a quantized fast stream predicts every add across the gate
+// and codes no choice; a lossless one codes choices (all five of them here).
+TEST(Conformance, FastVectorsCodeChoicesWhenLossless) {
   const PsqStats quantized = stats_of("fast_spider_16bit.psq");
   EXPECT_GT(quantized.predictions[0], 0u);
   for (int k = 1; k < 5; ++k) EXPECT_EQ(quantized.predictions[k], 0u) << "choice " << k;
-  for (const char* name : {"fast_spider_lossless.psq", "format9_fast_spider_16bit.psq"}) {
-    const PsqStats st = stats_of(name);
-    for (int k = 0; k < 5; ++k) EXPECT_GT(st.predictions[k], 0u) << name << ", choice " << k;
-  }
+  const PsqStats lossless = stats_of("fast_spider_lossless.psq");
+  for (int k = 0; k < 5; ++k) EXPECT_GT(lossless.predictions[k], 0u) << "choice " << k;
 }
 
 // doubles_lossless holds f64 positions whose order-preserving integers
@@ -199,12 +196,6 @@ TEST(Conformance, FastVectorsDecodeLikeTheirCompactTwins) {
     decode_vector(std::string("fast_") + name + ".psq", &dec, [](const SequenceEvent&) {});
     EXPECT_TRUE(dec.header().fast) << name;
   }
-  // Format 7.0 and 10.0 streams decode like the 11.0 compact stream of
-  // their input, and a format 9.0 fast stream (with prediction choices)
-  // like the 11.0 fast stream.
-  EXPECT_EQ(test::read_file(kDir + "format7_spider_16bit.dump"), test::read_file(kDir + "spider_16bit.dump"));
-  EXPECT_EQ(test::read_file(kDir + "format10_spider_16bit.dump"), test::read_file(kDir + "spider_16bit.dump"));
-  EXPECT_EQ(test::read_file(kDir + "format9_fast_spider_16bit.dump"), test::read_file(kDir + "fast_spider_16bit.dump"));
 }
 
 // The encoder still writes the vectors made from tests/data byte for byte.

@@ -12,7 +12,7 @@
 #include <tuple>
 #include <vector>
 
-#include "psq/external_sort.h"
+#include "external_sort.h"
 #include "test_util.h"
 
 namespace psq {

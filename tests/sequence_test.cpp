@@ -17,7 +17,7 @@
 #include "psq/mesh_formats.h"
 #include "psq/sequence_builder.h"
 #include "psq/sequence_check.h"
-#include "psq/sequence_dump.h"
+#include "sequence_dump.h"
 #include "test_util.h"
 
 namespace psq {

@@ -129,7 +129,7 @@ class SlotStack {
 };
 
 // kLookups: whether the boundary can find an open edge by its endpoints
-// and knows its dead edges (format 7 and the compact profile, and the
+// and knows its dead edges (the compact profile, and the
 // encoder of either profile). Without them (the fast profile's decoder, see
 // spec section 13), it keeps only slots, counts and loop links:
 // find_edge(), find_completions(), the recency ranks and the departure
@@ -695,8 +695,7 @@ inline Prediction predict_new_vertex(const B& boundary, uint32_t gate, int i, co
 
 // predict_new_vertex() for an add by choice 0: the parallelogram across
 // `gate` with the gate triangle's extents (kPredParallelogram), the only
-// prediction of the gate records of quantized fast streams from format 10
-// on (spec 13.8.2). Computed alone: predict_new_vertex() also forms a neighbour's
+// prediction of the gate records of quantized fast streams (spec 13.8.2). Computed alone: predict_new_vertex() also forms a neighbour's
 // parallelogram and the mean, for a choice known only at run time.
 template <class B>
 PSQ_INLINE Prediction predict_across_gate(const B& boundary, uint32_t gate) {

@@ -12,7 +12,7 @@
 #include <algorithm>
 #include <cstdint>
 
-#include "psq/range_coder.h"
+#include "range_coder.h"
 
 namespace psq {
 namespace codec {

@@ -175,8 +175,8 @@ Status parse_header_payload(const uint8_t* p, size_t n, uint64_t base, PsqHeader
     if (pr.name == "x" || pr.name == "y" || pr.name == "z")
       return bad("vertex property named '" + pr.name + "' clashes with the position", 0);
   at = get.pos();
-  // Spec 4.2: the attribute table, from format 11.0 on.
-  const uint64_t na = h->version_major >= 11 ? get.varint() : 0;
+  // Spec 4.2: the attribute table.
+  const uint64_t na = get.varint();
   if (get.malformed()) return bad("malformed varint", at);
   if (na > 3) return bad("attribute table of " + std::to_string(na) + " entries (at most 3)", at);
   h->attributes.clear();

@@ -16,12 +16,8 @@
 namespace psq {
 namespace codec {
 
-constexpr int kVersionMajor = 11;
-// The oldest major version still read: 7.0 to 10.0 streams are 11.0
-// streams without the attribute table and attribute sections (spec 8.3),
-// 9.0 fast streams also code prediction choices (spec 13.8.2), and 8.0
-// fast streams are no longer read (spec 11).
-constexpr int kOldestVersionMajor = 7;
+// The version pair written, and the only major version read (spec 11).
+constexpr int kVersionMajor = 1;
 constexpr int kVersionMinor = 0;
 constexpr uint16_t kFlagLossless = 1u << 0;
 constexpr uint16_t kFlagRotation = 1u << 1;

@@ -22,19 +22,14 @@ Status PsqDecoder::Impl::open(InputStream* stream) {
   header.version_major = get.u8();
   header.version_minor = get.u8();
   uint16_t flags = get.u16();
-  if (header.version_major < kOldestVersionMajor || header.version_major > kVersionMajor)
+  // Spec 4.2, 11: another major version is unsupported; any minor version
+  // of this one is read.
+  if (header.version_major != kVersionMajor)
     return Status(ErrorCode::kUnsupported, "format version " + std::to_string(header.version_major) + "." +
                                                std::to_string(header.version_minor) + "; this psq reads " +
-                                               std::to_string(kOldestVersionMajor) + ".x to " +
                                                std::to_string(kVersionMajor) + ".x", 8);
-  // Format 7 had no fast profile, and format 8's fast profile (rANS
-  // tables of total 2^10) is no longer read (spec 11).
-  if (header.version_major == 8 && (flags & kFlagFast))
-    return Status(ErrorCode::kUnsupported,
-                  "a format 8 stream of the fast profile, which this psq no longer reads (re-encode it)", 10);
-  const uint16_t known = header.version_major < 8 ? static_cast<uint16_t>(kKnownFlags & ~kFlagFast) : kKnownFlags;
-  if (flags & ~known)
-    return Status(ErrorCode::kUnsupported, "unknown header flags (value " + std::to_string(flags & ~known) + ")", 10);
+  if (flags & ~kKnownFlags)
+    return Status(ErrorCode::kUnsupported, "unknown header flags (value " + std::to_string(flags & ~kKnownFlags) + ")", 10);
   uint64_t length = 0;
   PSQ_RETURN_IF_ERROR(read_varint(&length, nullptr));
   const uint64_t payload_at = in->offset();
@@ -44,7 +39,7 @@ Status PsqDecoder::Impl::open(InputStream* stream) {
   header.lossless = flags & kFlagLossless;
   header.rotation = flags & kFlagRotation;
   header.fast = fast = flags & kFlagFast;
-  fast_choices = fast && fast_codes_choices(header.lossless, header.version_major);
+  fast_choices = fast && fast_codes_choices(header.lossless);
   std::vector<uint8_t> payload;
   PSQ_RETURN_IF_ERROR(read_block(length, &payload));
   uint32_t expect = file_crc;
@@ -89,12 +84,11 @@ Status PsqDecoder::Impl::next_chunk() {
   if (tag == kEndTag) return read_end();
   if (tag != kChunkTag)
     return Status(ErrorCode::kBadHeader, "unknown chunk tag " + std::to_string(tag), chunk_offset);
-  // Spec 4.3: seven varint fields (six before format 11.0).
+  // Spec 4.3: seven varint fields.
   std::vector<uint8_t> f;
-  uint64_t records, vertices, triangles, conn_size, prop_size, prop_raw, attr_size = 0;
-  for (uint64_t* field : {&records, &vertices, &triangles, &conn_size, &prop_size, &prop_raw})
+  uint64_t records, vertices, triangles, conn_size, prop_size, prop_raw, attr_size;
+  for (uint64_t* field : {&records, &vertices, &triangles, &conn_size, &prop_size, &prop_raw, &attr_size})
     PSQ_RETURN_IF_ERROR(read_varint(field, &f));
-  if (header.version_major >= 11) PSQ_RETURN_IF_ERROR(read_varint(&attr_size, &f));  // from format 11.0 on
   auto bad = [&](const std::string& what) { return Status(ErrorCode::kBadHeader, "chunk: " + what, chunk_offset); };
   if (records == 0 || records > kMaxChunkRecords) return bad("record count " + std::to_string(records) + " not in 1..2^24");
   if (triangles > records || vertices > 3ull * records) return bad("more vertices or triangles than its records hold");
@@ -539,13 +533,12 @@ namespace {
 // by their section lengths, with no other check: decode_into()'s hint for
 // the arrays' capacity. It stops at the first tag or field that does not
 // parse; the decoder reports what is wrong when it gets there.
-void declared_totals(const uint8_t* data, size_t size, size_t at, bool fields7, uint64_t* vertices,
-                     uint64_t* triangles) {
+void declared_totals(const uint8_t* data, size_t size, size_t at, uint64_t* vertices, uint64_t* triangles) {
   *vertices = *triangles = 0;
   while (at < size && data[at] == kChunkTag) {
     ++at;
-    uint64_t f[7] = {0, 0, 0, 0, 0, 0, 0};  // records, vertices, triangles, R, Z, U, A (from 11.0)
-    for (int i = 0; i < (fields7 ? 7 : 6); ++i) {
+    uint64_t f[7];  // records, vertices, triangles, R, Z, U, A
+    for (int i = 0; i < 7; ++i) {
       const int n = parse_varint(data + at, size - at, &f[i]);
       if (n <= 0) return;
       at += static_cast<size_t>(n);
@@ -574,7 +567,7 @@ Status PsqDecoder::Impl::decode_into(MeshBuffers* mesh, const uint8_t* data, siz
   // fast_direct_records() caps a chunk's room; the capacity is address
   // space, which stays untouched until records write it (direct_room()).
   uint64_t vertices = 0, triangles = 0;
-  declared_totals(data, size, static_cast<size_t>(in->offset()), header.version_major >= 11, &vertices, &triangles);
+  declared_totals(data, size, static_cast<size_t>(in->offset()), &vertices, &triangles);
   // A reservation the system refuses is no error: the arrays then grow.
   const uint64_t cap = 4 * static_cast<uint64_t>(size) + 64;
   try {

@@ -23,7 +23,7 @@
 #include "psq/io.h"
 #include "psq/psq_codec.h"
 #include "psq/psq_memory.h"
-#include "psq/range_coder.h"
+#include "range_coder.h"
 #include "rans.h"
 
 namespace psq {

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // codec/src/encoder_impl.h: the state of the .psq encoder (psq/psq_codec.h),
-// shared by its two record coders: encoder.cpp (format 7 coding, the
-// compact profile) and fast_encoder.cpp (the fast profile,
+// shared by its two record coders: encoder.cpp (the compact profile,
+// spec sections 5 to 7) and fast_encoder.cpp (the fast profile,
 // spec section 13).
 #ifndef PSQ_CODEC_ENCODER_IMPL_H_
 #define PSQ_CODEC_ENCODER_IMPL_H_
@@ -16,7 +16,7 @@
 #include "attributes.h"
 #include "properties.h"
 #include "psq/psq_codec.h"
-#include "psq/range_coder.h"
+#include "range_coder.h"
 #include "rans.h"
 
 namespace psq {

@@ -102,7 +102,7 @@ constexpr uint32_t kFastRingScan = 128;
 constexpr int kFastLengthSymbols = 65;
 constexpr int kFastLengthEscape = 64;
 
-// Degree context of B (format 7's third_context).
+// Degree context of B (the compact profile's third_context, spec 6.2.2).
 constexpr int kFastBContexts = (kDegreeCap + 1) * (kDegreeCap + 1);
 
 // The fixed table list (spec 13.5.3).
@@ -161,9 +161,8 @@ inline int fast_length_table(int kind, int axis, int context) {
   return kFastTableLength + (kind * 2 + (axis == 0 ? 0 : 1)) * kLengthContexts + context;
 }
 // Whether a fast stream's gate records code a prediction choice (spec
-// 13.8.2): in a lossless stream, and in every fast stream of major version
-// 9; a quantized stream of a later version predicts across the gate.
-inline bool fast_codes_choices(bool lossless, int version_major) { return lossless || version_major == 9; }
+// 13.8.2): in a lossless stream; a quantized one predicts across the gate.
+inline bool fast_codes_choices(bool lossless) { return lossless; }
 inline int fast_choice_table(uint32_t mask, int previous) {
   return kFastTableChoice + (static_cast<int>(mask) - 1) * kChoices + previous;
 }

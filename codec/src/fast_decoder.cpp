@@ -269,8 +269,7 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_common(RansDecoder& d, RawReader& bits,
     fast_context = fast_a_context_gate(cls, kFastNew);
     PSQ_RETURN_IF_ERROR(fast_vertex_room());
     // Across the gate (spec 13.8.2), or by a decoded choice in a lossless
-    // stream or one of format 9 (the same for the whole stream: a branch
-    // that is predicted).
+    // stream (the same for the whole stream: a branch that is predicted).
     int choice = kChoiceGate;
     if (fast_choices) {
       const uint32_t mask = prediction_choices(b, gate);

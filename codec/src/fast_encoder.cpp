@@ -3,7 +3,7 @@
 // section 13): static rANS symbols and raw
 // bits, coded at the end of each chunk.
 //
-// The encoder keeps format 7's boundary, with its lookups by endpoints: it
+// The encoder keeps the compact profile's boundary, with its lookups by endpoints: it
 // must check its input and find which open edges a triangle completes. The
 // decoder keeps the same slots and links without the lookups
 // (FastBoundary), because every completion is named in the record.
@@ -105,7 +105,7 @@ int64_t fixed_log2(uint64_t x) {  // x >= 1
 }  // namespace
 
 void PsqEncoder::Impl::fast_begin() {
-  fast_choices = fast_codes_choices(header.lossless, kVersionMajor);
+  fast_choices = fast_codes_choices(header.lossless);
   fast_denominator.resize(kFastTables);
   fast_log_denominator.resize(kFastTables);
   for (int i = 0; i < kFastTables; ++i) {
@@ -151,7 +151,7 @@ PSQ_INLINE int64_t PsqEncoder::Impl::fast_cost(int table, int symbol) const {
 // under the running counts of the fast tables (the choice symbol, the
 // length symbols and the raw bits), among the candidates whose residuals
 // have no more bits than the gate's (as choose_prediction() does for
-// format 7). Ties go to the lower choice.
+// the compact profile). Ties go to the lower choice.
 int PsqEncoder::Impl::fast_choose_prediction(uint32_t gate, uint32_t mask, const int64_t pos[3], Prediction* pred) {
   // The five choices combine three parallelograms and the extents of
   // three triangles as predict_new_vertex() does (spec 7.3): each is

@@ -1,12 +1,12 @@
 // SPDX-License-Identifier: Apache-2.0
-// The adaptive binary range coder (psq/range_coder.h). A range coder in
+// The adaptive binary range coder (range_coder.h). A range coder in
 // the style of Martin (1979), with 32-bit range, bottom renormalisation by
 // bytes and carry propagation through a cached byte and a run of 0xff bytes
 // (the scheme of Subbotin's and LZMA's coders); 16-bit adaptive bit models
 // whose update rate slows as they learn (adapt_step); integers as bit length + sign + low bits as in
 // LASzip's integer coder (Isenburg, "LASzip: lossless compression of LiDAR
 // data", 2013).
-#include "psq/range_coder.h"
+#include "range_coder.h"
 
 namespace psq {
 namespace {

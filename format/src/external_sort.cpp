@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
-// The temporary files of the external merge sort (psq/external_sort.h), after
+// The temporary files of the external merge sort (external_sort.h), after
 // the external sorts of Lindstrom and Silva, "A memory insensitive technique
 // for large model simplification" (IEEE Visualization 2001).
-#include "psq/external_sort.h"
+#include "external_sort.h"
 
 #include <unistd.h>
 

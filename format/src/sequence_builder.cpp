@@ -12,7 +12,7 @@
 #include <memory>
 #include <vector>
 
-#include "psq/external_sort.h"
+#include "external_sort.h"
 #include "psq/io.h"
 #include "psq/memory_budget.h"
 #include "spool_records.h"

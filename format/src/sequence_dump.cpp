@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
-// DumpWriter (psq/sequence_dump.h): the "psq-dump 1" text form of a
+// DumpWriter (sequence_dump.h): the "psq-dump 1" text form of a
 // processing sequence, specified in spec/psq-dump.md.
-#include "psq/sequence_dump.h"
+#include "sequence_dump.h"
 
 #include <cinttypes>
 #include <cstdio>

@@ -5,7 +5,7 @@
 // Snoeyink 2003, section 3) then has no shared edges to code, and every
 // triangle is its own component. Draco's encoder merges equal positions by
 // default for the same reason. The classes of identical vertices are found
-// with the external sort (psq/external_sort.h, as the spatial sort of
+// with the external sort (external_sort.h, as the spatial sort of
 // sequence_builder.cpp), so that memory stays within the budget: the only
 // per-vertex array is the map from input to welded index (4 bytes a vertex,
 // like the sort path's rank array).
@@ -13,7 +13,7 @@
 
 #include <algorithm>
 
-#include "psq/external_sort.h"
+#include "external_sort.h"
 #include "spool_records.h"
 
 namespace psq::detail {

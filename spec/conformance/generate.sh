@@ -153,20 +153,6 @@ valid fast_attributes_8bit "$data/attributes.ply" --bits 12 --normal-bits 8 --uv
 valid fast_attributes_lossless "$data/attributes.ply" --lossless --profile fast
 valid spider_attributes "$data/spider_attributes.ply" --bits 14 --normal-bits 10 --uv-bits 12
 valid fast_spider_attributes "$data/spider_attributes.ply" --bits 14 --normal-bits 10 --uv-bits 12 --profile fast
-# A format 7.0 stream, as psq wrote it before 8.0 (tests/data): decoders of
-# 11.0 read it (spec 11).
-cp "$data/format7_spider_16bit.psq" format7_spider_16bit.psq
-"$psq" dump format7_spider_16bit.psq -o format7_spider_16bit.dump
-echo "valid format7_spider_16bit.psq $(sha256sum < format7_spider_16bit.dump | cut -d' ' -f1)" >> MANIFEST
-# A format 10.0 stream (tests/data): decoders of 11.0 read it (spec 11).
-cp "$data/format10_spider_16bit.psq" format10_spider_16bit.psq
-"$psq" dump format10_spider_16bit.psq -o format10_spider_16bit.dump
-echo "valid format10_spider_16bit.psq $(sha256sum < format10_spider_16bit.dump | cut -d' ' -f1)" >> MANIFEST
-# A format 9.0 fast stream, whose gate records code a prediction choice
-# (tests/data): decoders of 11.0 read it (spec 13.8.2, 11).
-cp "$data/format9_fast_spider_16bit.psq" format9_fast_spider_16bit.psq
-"$psq" dump format9_fast_spider_16bit.psq -o format9_fast_spider_16bit.dump
-echo "valid format9_fast_spider_16bit.psq $(sha256sum < format9_fast_spider_16bit.dump | cut -d' ' -f1)" >> MANIFEST
 # Written to a pipe: the same bytes as to a file (the encoder never seeks).
 "$psq" convert - - --to psq --bits 10 < "$data/spider.ply" > spider_pipe.psq
 "$psq" dump spider_pipe.psq -o spider_pipe.dump
@@ -200,15 +186,8 @@ payload=$((12 + hvar))     # where the header payload starts
 chunk=$((payload + hlen + 4))  # the first chunk's tag
 # Not .psq at all.
 printf 'PLY\n' > bad_magic.psq; invalid bad_magic unknown_format 0
-# A major version this decoder does not know (12).
-{ head -c 8 "$src"; printf '\x0c'; tail -c +10 "$src"; } > bad_version.psq; invalid bad_version unsupported 8
-# A fast-profile stream that claims format 7, which had no fast profile.
-{ head -c 8 fast_spider_16bit.psq; printf '\x07'; tail -c +10 fast_spider_16bit.psq; } > bad_fast_version.psq
-invalid bad_fast_version unsupported 10
-# A fast-profile stream that claims format 8, whose fast profile (tables of
-# total 2^10) is no longer read.
-{ head -c 8 fast_spider_16bit.psq; printf '\x08'; tail -c +10 fast_spider_16bit.psq; } > bad_fast_version8.psq
-invalid bad_fast_version8 unsupported 10
+# A major version other than 1 (2): unsupported (spec 4.2, 11).
+{ head -c 8 "$src"; printf '\x02'; tail -c +10 "$src"; } > bad_version.psq; invalid bad_version unsupported 8
 # An unknown flag.
 { head -c 11 "$src"; printf '\x80'; tail -c +13 "$src"; } > bad_flags.psq; invalid bad_flags unsupported 10
 # A header payload of 2^28 bytes (a five-byte varint).

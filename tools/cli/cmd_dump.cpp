@@ -8,7 +8,7 @@
 #include "commands.h"
 #include "psq/mesh_formats.h"
 #include "psq/sequence_builder.h"
-#include "psq/sequence_dump.h"
+#include "sequence_dump.h"
 
 namespace psq::cli {
 namespace {

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// psq/external_sort.h: sorting more fixed-size records than fit in memory.
+// format/src/external_sort.h: sorting more fixed-size records than fit in memory.
 //
 // The converter's external spatial sort (paper section 3: vertices sorted by
 // spatial key, triangles by their smallest vertex key, "implemented using a
@@ -40,8 +40,8 @@
 // with vertex and triangle numbers).
 //
 // Not thread-safe: use one sorter per thread.
-#ifndef PSQ_EXTERNAL_SORT_H_
-#define PSQ_EXTERNAL_SORT_H_
+#ifndef PSQ_FORMAT_EXTERNAL_SORT_H_
+#define PSQ_FORMAT_EXTERNAL_SORT_H_
 
 #include <algorithm>
 #include <cstddef>
@@ -511,4 +511,4 @@ class ExternalSorter {
 
 }  // namespace psq
 
-#endif  // PSQ_EXTERNAL_SORT_H_
+#endif  // PSQ_FORMAT_EXTERNAL_SORT_H_

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// psq/range_coder.h: the adaptive binary range coder of the .psq codec.
+// codec/src/range_coder.h: the adaptive binary range coder of the .psq codec.
 //
 // A range coder (Martin 1979; the carry handling with a cached byte as in
 // Subbotin's and LZMA's coders) that codes binary decisions with adaptive
@@ -19,8 +19,8 @@
 // stream decodes to is garbage that the caller's checks must reject.
 //
 // The exact arithmetic is normative: spec/psq-format.md, section 5.
-#ifndef PSQ_RANGE_CODER_H_
-#define PSQ_RANGE_CODER_H_
+#ifndef PSQ_CODEC_RANGE_CODER_H_
+#define PSQ_CODEC_RANGE_CODER_H_
 
 #include <cstddef>
 #include <cstdint>
@@ -183,4 +183,4 @@ class RangeDecoder {
 
 }  // namespace psq
 
-#endif  // PSQ_RANGE_CODER_H_
+#endif  // PSQ_CODEC_RANGE_CODER_H_

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// psq/sequence_dump.h: the text dump of a processing sequence (spec/,
+// format/src/sequence_dump.h: the text dump of a processing sequence (spec/,
 // appendix "psq-dump 1"), one event per line:
 //
 //   psq-dump 1
@@ -13,8 +13,8 @@
 // Float values print with %.9g and doubles with %.17g, so they read back
 // bit-exact; integers print as integers; a list prints its values separated
 // by commas.
-#ifndef PSQ_SEQUENCE_DUMP_H_
-#define PSQ_SEQUENCE_DUMP_H_
+#ifndef PSQ_FORMAT_SEQUENCE_DUMP_H_
+#define PSQ_FORMAT_SEQUENCE_DUMP_H_
 
 #include <string>
 
@@ -45,4 +45,4 @@ class DumpWriter : public SequenceSink {
 
 }  // namespace psq
 
-#endif  // PSQ_SEQUENCE_DUMP_H_
+#endif  // PSQ_FORMAT_SEQUENCE_DUMP_H_
