@@ -210,10 +210,6 @@ struct DistanceParams {
 };
 std::string distance(const std::string& a, const std::string& b, const DistanceParams& params);
 
-// JSON helpers (as the psq command writes them).
-std::string json_escape(const std::string& s);
-std::string json_number(double v);
-
 }  // namespace psq::python
 
 #endif  // PSQ_PYTHON_BINDING_H_

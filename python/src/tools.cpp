@@ -5,8 +5,6 @@
 // prints with --json, with the same fields, so that scripts can move
 // between the two. Progress lines and notes on stderr are the command's
 // business and are left out; notes come back in the object.
-#include <sys/stat.h>
-
 #include <algorithm>
 #include <charconv>
 #include <chrono>
@@ -15,6 +13,11 @@
 #include <thread>
 
 #include "binding.h"
+#include "clustering_run.h"
+#include "distance_report.h"
+#include "info.h"
+#include "json.h"
+#include "pipeline.h"
 #include "psq/clustering.h"
 #include "psq/converter.h"
 #include "psq/distance.h"
@@ -32,136 +35,27 @@
 
 namespace psq::python {
 
-std::string json_escape(const std::string& s) {
-  std::string out;
-  for (unsigned char c : s) {
-    switch (c) {
-      case '"': out += "\\\""; break;
-      case '\\': out += "\\\\"; break;
-      case '\n': out += "\\n"; break;
-      case '\r': out += "\\r"; break;
-      case '\t': out += "\\t"; break;
-      default:
-        if (c < 0x20) {
-          char buf[8];
-          std::snprintf(buf, sizeof buf, "\\u%04x", c);
-          out += buf;
-        } else {
-          out += static_cast<char>(c);
-        }
-    }
-  }
-  return out;
-}
-
-std::string json_number(double v) {
-  if (!std::isfinite(v)) return "null";
-  char buf[64];
-  auto r = std::to_chars(buf, buf + sizeof buf, v);
-  return std::string(buf, r.ptr);
-}
-
 namespace {
 
+using detail::json_number;
+using detail::json_strings;
+using detail::same_file;
+
 std::string n(uint64_t v) { return std::to_string(v); }
-std::string q(const std::string& s) { return "\"" + json_escape(s) + "\""; }
+std::string q(const std::string& s) { return detail::json_string(s); }
 
-std::string json_notes(const std::vector<std::string>& notes) {
-  std::string o = "[";
-  for (size_t i = 0; i < notes.size(); ++i) o += (i ? ", " : "") + q(notes[i]);
-  return o + "]";
-}
-
-bool same_file(const std::string& a, const std::string& b) {
-  struct stat sa, sb;
-  return ::stat(a.c_str(), &sa) == 0 && ::stat(b.c_str(), &sb) == 0 && sa.st_dev == sb.st_dev &&
-         sa.st_ino == sb.st_ino;
-}
-
-// Where a pipeline's error goes: a place in the input, or anything about
-// the data, concerns IN; an I/O error without a place (a write) OUT.
+// Where a pipeline's error goes (tools/src/ops/pipeline.h).
 [[noreturn]] void pipeline_error(const Status& s, const std::string& in, const std::string& out) {
-  const bool about_out = s.line() == Status::kNoPlace && s.offset() == Status::kNoPlace && s.code() == ErrorCode::kIo;
-  throw StatusError(s, about_out ? out : in);
+  throw StatusError(s, detail::error_is_about_output(s) ? out : in);
 }
 
 MeshFormat output_format(const std::string& format, const std::string& path) {
-  const MeshFormat f = format.empty() ? format_from_extension(path) : format_from_name(format);
+  const MeshFormat f = detail::output_format(format, path);
   if (f == MeshFormat::kUnknown) {
     if (!format.empty()) usage("unknown output format '" + format + "' (psq, ply, obj or drc)");
     usage("cannot tell the output format from '" + path + "': give to='psq', 'ply', 'obj' or 'drc'");
   }
   return f;
-}
-
-// As psq convert --profile auto.
-bool auto_fast(const MeshSchema& schema) {
-  if (schema.triangle_count != MeshSchema::kUnknown) return schema.triangle_count >= 131072;
-  return schema.vertex_count != MeshSchema::kUnknown && schema.vertex_count >= 65536;
-}
-
-// A processing sequence written as an indexed mesh, re-appearing vertices
-// merged back into the vertex they re-appear (spec/psq-dump.md A.2.1).
-class SequenceToMesh : public SequenceSink {
- public:
-  explicit SequenceToMesh(MeshSink* out) : out_(out) {}
-  Status begin(const MeshSchema& schema) override {
-    MeshSchema s = schema;
-    s.vertex_count = MeshSchema::kUnknown;
-    s.triangle_count = MeshSchema::kUnknown;
-    return out_->begin(s);
-  }
-  Status vertex(const SequenceVertex& v) override {
-    if (v.reappears != kNoVertex) {
-      reappearing_.push_back(v.index);
-      first_.push_back(mesh_index(v.reappears));
-      return Status();
-    }
-    return out_->vertex(v.position, v.values);
-  }
-  Status triangle(const SequenceTriangle& t) override {
-    const uint32_t index[3] = {mesh_index(t.v[0]), mesh_index(t.v[1]), mesh_index(t.v[2])};
-    return out_->triangle(index, t.values);
-  }
-  Status finalize(uint32_t) override { return Status(); }
-  Status finish() override { return out_->finish(); }
-
- private:
-  uint32_t mesh_index(uint32_t dense) const {
-    auto it = std::lower_bound(reappearing_.begin(), reappearing_.end(), dense);
-    if (it != reappearing_.end() && *it == dense) return first_[static_cast<size_t>(it - reappearing_.begin())];
-    return dense - static_cast<uint32_t>(it - reappearing_.begin());
-  }
-  MeshSink* out_;
-  std::vector<uint32_t> reappearing_, first_;
-};
-
-class NullSequenceSink : public SequenceSink {
- public:
-  Status begin(const MeshSchema&) override { return Status(); }
-  Status vertex(const SequenceVertex& v) override {
-    for (int a = 0; a < 3; ++a) {
-      lo[a] = any ? std::min(lo[a], v.position[a]) : v.position[a];
-      hi[a] = any ? std::max(hi[a], v.position[a]) : v.position[a];
-    }
-    any = true;
-    return Status();
-  }
-  Status triangle(const SequenceTriangle&) override {
-    ++triangles;
-    return Status();
-  }
-  Status finalize(uint32_t) override { return Status(); }
-  Status finish() override { return Status(); }
-  uint64_t triangles = 0;
-  bool any = false;
-  double lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
-};
-
-// The processing sequence of an opened input into `sink`.
-Status feed(OpenedMesh& mesh, SequenceSink& sink, const BuildOptions& build, BuildReport* report) {
-  if (mesh.decoder) return mesh.decoder->pump(sink);
-  return build_sequence(*mesh.source, sink, build, report);
 }
 
 void open_input(const std::string& path, const OpenOptions& options, OpenedMesh* mesh) {
@@ -205,8 +99,8 @@ std::string convert(const std::string& in, const std::string& out, const Convert
     e.zstd_level = w.zstd_level;
     e.measure_costs = p.measure_costs;
     e.fast = w.profile == "fast" ||
-             (w.profile == "auto" && (mesh.decoder ? mesh.decoder->header().fast || auto_fast(mesh.decoder->schema())
-                                                   : auto_fast(mesh.source->schema())));
+             (w.profile == "auto" && (mesh.decoder ? mesh.decoder->header().fast || detail::auto_fast_profile(mesh.decoder->schema())
+                                                   : detail::auto_fast_profile(mesh.source->schema())));
     FileWriter writer(&output);
     PsqEncoder encoder(&writer, e);
     std::unique_ptr<ThreadedSequenceSink> threaded;
@@ -216,7 +110,7 @@ std::string convert(const std::string& in, const std::string& out, const Convert
     build.tmpdir = w.tmpdir;
     build.memory_budget = w.memory;
     BuildReport report;
-    Status s = feed(mesh, *sink, build, &report);
+    Status s = detail::feed_sequence(mesh, *sink, build, &report);
     threaded.reset();  // joins the encoder's thread
     if (!s.ok()) {
       output.discard();
@@ -277,7 +171,7 @@ std::string convert(const std::string& in, const std::string& out, const Convert
     o += ", \"vertices\": " + n(counter.vertices) + ", \"triangles\": " + n(counter.triangles) +
          ", \"bytes_in\": " + n(mesh.stream->offset()) + ", \"bytes_out\": " + n(output.size());
   }
-  return o + ", \"notes\": " + json_notes(notes) + "}";
+  return o + ", \"notes\": " + json_strings(notes) + "}";
 }
 
 // ----------------------------------------------------------------- simplify
@@ -295,7 +189,7 @@ struct Output {
   std::unique_ptr<SequenceConverter> converter;
   std::unique_ptr<MeshSink> writer;
   std::unique_ptr<DenseMeshSink> dense;
-  std::unique_ptr<SequenceToMesh> to_mesh;
+  std::unique_ptr<detail::SequenceToMesh> to_mesh;
 
   void open(const std::string& path, const SimplifyParams& p, const EncodeOptions& e, uint64_t draco_budget,
             bool mesh_stream) {
@@ -317,7 +211,7 @@ struct Output {
     w.memory_budget = draco_budget;
     writer = make_mesh_writer(format, &file, w);
     if (mesh_stream) dense = std::make_unique<DenseMeshSink>(writer.get());
-    else to_mesh = std::make_unique<SequenceToMesh>(writer.get());
+    else to_mesh = std::make_unique<detail::SequenceToMesh>(writer.get());
   }
   StreamingMeshSink* mesh_sink() { return converter ? static_cast<StreamingMeshSink*>(converter.get()) : dense.get(); }
   SequenceSink* sequence_sink() { return encoder ? static_cast<SequenceSink*>(encoder.get()) : to_mesh.get(); }
@@ -326,21 +220,9 @@ struct Output {
 uint64_t count_triangles(const std::string& in, const OpenOptions& oo) {
   OpenedMesh mesh;
   open_input(in, oo, &mesh);
-  if (mesh.decoder) {
-    if (mesh.decoder->schema().triangle_count >= 0) return static_cast<uint64_t>(mesh.decoder->schema().triangle_count);
-    NullSequenceSink counter;
-    check(mesh.decoder->pump(counter), in);
-    return counter.triangles;
-  }
-  if (mesh.source->schema().triangle_count >= 0) return static_cast<uint64_t>(mesh.source->schema().triangle_count);
-  MeshItem item;
-  uint64_t t = 0;
-  for (;;) {
-    check(mesh.source->next(&item), in);
-    if (item.kind == MeshItem::Kind::kEnd) break;
-    if (item.kind == MeshItem::Kind::kTriangle) ++t;
-  }
-  return t;
+  uint64_t count = 0;
+  check(detail::count_triangles(mesh, &count), in);
+  return count;
 }
 
 }  // namespace
@@ -385,7 +267,7 @@ std::string simplify(const std::string& in, const std::string& out, const Simpli
   if (p.bits && lossless_psq && p.method == "qem")
     usage("bits: the input is a lossless .psq, which gives no bounding box to quantize on; use lossless=True");
   e.fast = p.profile == "fast" || (p.profile == "auto" && (psq_in ? mesh.decoder->header().fast : false)) ||
-           (p.profile == "auto" && p.method == "clustering" && auto_fast(in_schema));
+           (p.profile == "auto" && p.method == "clustering" && detail::auto_fast_profile(in_schema));
   if (output.format == MeshFormat::kDraco && !e.lossless && e.bits > 30)
     usage("the input's " + std::to_string(e.bits) + " bits are too many for Draco: give bits (1..30)");
 
@@ -453,9 +335,7 @@ std::string simplify(const std::string& in, const std::string& out, const Simpli
     }
     check(output.file.commit(), out);
     const QemReport& r = qem.report();
-    notes = mesh.source->report().notes;
-    if (report.converter.degenerate_dropped)
-      notes.push_back(std::to_string(report.converter.degenerate_dropped) + " degenerate triangle(s) dropped");
+    notes = detail::input_notes(mesh, report);
     if (r.target_triangles > 0 &&
         std::fabs(static_cast<double>(r.output_triangles) - static_cast<double>(r.target_triangles)) >
             0.01 * static_cast<double>(r.target_triangles) + 2)
@@ -484,66 +364,45 @@ std::string simplify(const std::string& in, const std::string& out, const Simpli
       co.cell_size = p.cell;
       co.grid = 0;
     }
-    uint64_t target = p.triangles;
-    if (p.ratio > 0) {
-      const uint64_t total = count_triangles(in, oo);
-      target = std::max<uint64_t>(1, static_cast<uint64_t>(std::llround(p.ratio * static_cast<double>(total))));
-    }
     int passes = 0;
     // A lossless .psq declares no bounding box: a first pass measures it.
     if (psq_in && !in_schema.has_bounds) {
-      NullSequenceSink box;
       ++passes;
-      check(mesh.decoder->pump(box), in);
-      co.has_bounds = true;
-      std::copy(box.lo, box.lo + 3, co.bounds_min);
-      std::copy(box.hi, box.hi + 3, co.bounds_max);
+      check(detail::measure_bounds(*mesh.decoder, &co), in);
       open_input(in, oo, &mesh);
     }
     // A target: trial passes pick the grid, as psq simplify --triangles
-    // does (the output grows about as the grid squared).
-    if (target > 0) {
-      co.grid = first_grid_for_triangles(target);
-      double trial_grid[2] = {co.grid, 0};
-      uint64_t trial_triangles[2] = {0, 0};
-      for (int t = 0; t < 2; ++t) {
-        ClusteringOptions trial = co;
-        trial.grid = trial_grid[t];
+    // and --ratio do.
+    uint64_t target = p.triangles;
+    if (p.ratio > 0) target = detail::ratio_target(p.ratio, in_schema.triangle_count);
+    if (target > 0) co.grid = first_grid_for_triangles(target);
+    if (target > 0 || p.ratio > 0) {
+      bool reopening = false;  // an error of opening IN again, not of a pass
+      Status s = detail::search_grid(&target, p.ratio, &co,
+                                     [&](const ClusteringOptions& trial, uint64_t* tin, uint64_t* tout) {
         CountingMeshSink count;
         ClusteringFilter filter(&count, trial);
         BuildReport r;
         ++passes;
-        Status s = feed(mesh, filter, build, &r);
-        if (!s.ok()) pipeline_error(s, in, out);
-        trial_triangles[t] = count.triangles;
-        open_input(in, oo, &mesh);
-        const double off =
-            std::fabs(static_cast<double>(count.triangles) - static_cast<double>(target)) / static_cast<double>(target);
-        if (off <= 0.02) {
-          co.grid = trial_grid[t];
-          break;
-        }
-        if (t == 0) {
-          co.grid = corrected_grid_for_triangles(target, trial_grid[0], trial_triangles[0]);
-          const double ratio = co.grid / trial_grid[0];
-          if (ratio > 0.8 && ratio < 1.25) break;
-          trial_grid[1] = co.grid;
-        } else if (trial_triangles[0] > 0 && trial_triangles[1] > 0 && trial_triangles[0] != trial_triangles[1]) {
-          const double slope = std::log(static_cast<double>(trial_triangles[1]) / trial_triangles[0]) /
-                               std::log(trial_grid[1] / trial_grid[0]);
-          co.grid = slope > 0.5 ? trial_grid[1] * std::pow(static_cast<double>(target) / trial_triangles[1], 1 / slope)
-                                : corrected_grid_for_triangles(target, trial_grid[1], trial_triangles[1]);
-          co.grid = std::min<double>(ClusterGrid::kMaxDim - 1, std::max(1.0, co.grid));
-        } else {
-          co.grid = corrected_grid_for_triangles(target, trial_grid[1], trial_triangles[1]);
-        }
+        PSQ_RETURN_IF_ERROR(detail::feed_sequence(mesh, filter, build, &r));
+        *tin = filter.stats().triangles_in;
+        *tout = count.triangles;
+        reopening = true;
+        mesh = OpenedMesh();
+        PSQ_RETURN_IF_ERROR(open_mesh(in, oo, &mesh));
+        reopening = false;
+        return Status();
+      });
+      if (!s.ok()) {
+        if (reopening) throw StatusError(s, in);
+        pipeline_error(s, in, out);
       }
     }
     output.open(out, p, e, draco_budget, true);
     if (output.converter) output.converter->set_lookahead_budget(lookahead);
     ClusteringFilter filter(output.mesh_sink(), co);
     ++passes;
-    Status s = feed(mesh, filter, build, &report);
+    Status s = detail::feed_sequence(mesh, filter, build, &report);
     if (!s.ok()) {
       output.file.discard();
       pipeline_error(s, in, out);
@@ -566,89 +425,16 @@ std::string simplify(const std::string& in, const std::string& out, const Simpli
          ", \"output_vertices\": " + n(st.vertices_out) + ", \"output_triangles\": " + n(st.triangles_out) +
          ", \"clusters\": " + n(st.clusters) + ", \"filter_peak_bytes\": " + n(st.peak_bytes);
   }
-  if (output.format == MeshFormat::kObj)
-    for (const std::string& d : static_cast<ObjWriter*>(output.writer.get())->dropped())
-      notes.push_back("property '" + d + "' dropped: OBJ cannot hold it");
-  if (output.format == MeshFormat::kDraco)
-    for (const std::string& d : static_cast<DracoWriter*>(output.writer.get())->dropped())
-      notes.push_back("property '" + d + "' dropped: Draco output keeps scalar vertex properties only");
+  for (const std::string& d : detail::writer_notes(output.format, output.writer.get())) notes.push_back(d);
   o += ", \"bytes_in\": " + n(mesh.stream ? mesh.stream->offset() : 0) + ", \"bytes_out\": " + n(output.file.size()) +
        ", \"seconds\": " + json_number(seconds_since(start));
   if (output.format == MeshFormat::kPsq)
     o += ", \"lossless\": " + std::string(e.lossless ? "true" : "false") + ", \"bits\": " +
          std::to_string(e.lossless ? 0 : e.bits) + ", \"profile\": \"" + (e.fast ? "fast" : "compact") + "\"";
-  return o + ", \"notes\": " + json_notes(notes) + "}";
+  return o + ", \"notes\": " + json_strings(notes) + "}";
 }
 
 // --------------------------------------------------------------------- info
-
-namespace {
-
-class TeeSource : public MeshSource {
- public:
-  TeeSource(MeshSource* in, MeshSink* side) : in_(in), side_(side) {}
-  const MeshSchema& schema() const override { return in_->schema(); }
-  const SourceReport& report() const override { return in_->report(); }
-  Status next(MeshItem* item) override {
-    if (!started_) {
-      started_ = true;
-      PSQ_RETURN_IF_ERROR(side_->begin(in_->schema()));
-    }
-    PSQ_RETURN_IF_ERROR(in_->next(item));
-    switch (item->kind) {
-      case MeshItem::Kind::kVertex: return side_->vertex(item->position, item->values);
-      case MeshItem::Kind::kTriangle: return side_->triangle(item->index, item->values);
-      case MeshItem::Kind::kEnd: return side_->finish();
-    }
-    return Status();
-  }
-
- private:
-  MeshSource* in_;
-  MeshSink* side_;
-  bool started_ = false;
-};
-
-class PsqInfoSink : public SequenceSink {
- public:
-  Status begin(const MeshSchema& s) override { return counter.begin(s); }
-  Status vertex(const SequenceVertex& v) override {
-    if (vertices_++ == 0)
-      for (int k = 0; k < 3; ++k) bbox_min[k] = bbox_max[k] = v.position[k];
-    for (int k = 0; k < 3; ++k) {
-      bbox_min[k] = std::min(bbox_min[k], v.position[k]);
-      bbox_max[k] = std::max(bbox_max[k], v.position[k]);
-    }
-    return counter.vertex(v);
-  }
-  Status triangle(const SequenceTriangle& t) override { return counter.triangle(t); }
-  Status finalize(uint32_t i) override { return counter.finalize(i); }
-  Status finish() override { return counter.finish(); }
-  SequenceCounter counter;
-  double bbox_min[3] = {0, 0, 0}, bbox_max[3] = {0, 0, 0};
-
- private:
-  uint64_t vertices_ = 0;
-};
-
-std::string json_props(const std::vector<Property>& props) {
-  std::string s = "[";
-  for (size_t i = 0; i < props.size(); ++i) {
-    const Property& pr = props[i];
-    if (i) s += ", ";
-    s += "{\"name\": " + q(pr.name) + ", \"type\": \"" + scalar_name(pr.type) + "\"";
-    if (pr.is_list) s += std::string(", \"list\": true, \"count_type\": \"") + scalar_name(pr.count_type) + "\"";
-    s += "}";
-  }
-  return s + "]";
-}
-
-std::string json_box(const double* lo, const double* hi) {
-  return "{\"min\": [" + json_number(lo[0]) + ", " + json_number(lo[1]) + ", " + json_number(lo[2]) + "], \"max\": [" +
-         json_number(hi[0]) + ", " + json_number(hi[1]) + ", " + json_number(hi[2]) + "]}";
-}
-
-}  // namespace
 
 std::string info(const std::string& path, const InfoParams& p) {
   OpenOptions oo;
@@ -658,120 +444,12 @@ std::string info(const std::string& path, const InfoParams& p) {
   BuildOptions build;
   build.tmpdir = p.tmpdir;
   build.memory_budget = p.memory;
-  PsqInfoSink psq_sink;
-  MeshStats stats;
-  SequenceChecker checker;
-  BuildReport br;
-  const SequenceStats* qs = nullptr;
-  MeshSchema schema;
-  uint64_t vertices, triangles, unreferenced, degenerate, border, nm_vertices, nm_edges, misoriented;
-  const double *lo, *hi;
-  if (mesh.decoder) {
-    mesh.decoder->measure_costs(true);
-    check(mesh.decoder->pump(psq_sink), path);
-    qs = &psq_sink.counter.stats();
-    schema = mesh.decoder->schema();
-    vertices = qs->vertices;
-    triangles = qs->triangles;
-    unreferenced = qs->unreferenced_vertices;
-    degenerate = qs->degenerate_triangles;
-    lo = psq_sink.bbox_min;
-    hi = psq_sink.bbox_max;
-    border = qs->mesh_border_edges;
-    nm_vertices = qs->nonmanifold_vertices;
-    nm_edges = qs->mesh_nonmanifold_edges;
-    misoriented = qs->mesh_misoriented_edges;
-  } else {
-    TeeSource tee(mesh.source.get(), &stats);
-    check(build_sequence(tee, checker, build, &br), path);
-    const MeshStatsResult& m = stats.result();
-    qs = &checker.stats();
-    schema = m.schema;
-    vertices = m.vertices;
-    triangles = m.triangles;
-    unreferenced = m.unreferenced_vertices;
-    degenerate = m.degenerate_triangles;
-    lo = m.bbox_min;
-    hi = m.bbox_max;
-    border = br.converter.border_edges;
-    nm_vertices = br.converter.nonmanifold_vertices;
-    nm_edges = br.converter.nonmanifold_edges;
-    misoriented = br.converter.misoriented_edges;
-  }
-  const SequenceStats& s = *qs;
-  const SourceReport& rep = mesh.source->report();
-  std::string o = "{\"file\": " + q(path) + ", \"format\": \"" + format_name(mesh.format) + "\"";
-  o += ", \"vertices\": " + n(vertices) + ", \"triangles\": " + n(triangles) +
-       ", \"unreferenced_vertices\": " + n(unreferenced) + ", \"degenerate_triangles\": " + n(degenerate) +
-       ", \"polygons_triangulated\": " + n(rep.polygons_triangulated) + ", \"strip_triangles\": " +
-       n(rep.strip_triangles) + ", \"position_type\": \"" + scalar_name(schema.position_type) + "\"" +
-       ", \"bbox\": " + json_box(lo, hi) + ", \"components\": " + n(s.components) + ", \"border_edges\": " + n(border) +
-       ", \"border_loops\": " + n(s.border_loops) + ", \"handles\": " + std::to_string(s.handles) +
-       ", \"nonmanifold_vertices\": " + n(nm_vertices) + ", \"nonmanifold_edges\": " + n(nm_edges) +
-       ", \"misoriented_edges\": " + n(misoriented) + ", \"reappearances\": " + n(s.reappearances) +
-       ", \"max_boundary_vertices\": " + n(s.max_boundary_vertices) +
-       ", \"max_boundary_edges\": " + n(s.max_boundary_edges) + ", \"ops\": {\"start\": " + n(s.ops[0]) +
-       ", \"add\": " + n(s.ops[1]) + ", \"join\": " + n(s.ops[2]) + ", \"fill\": " + n(s.ops[3]) +
-       ", \"end\": " + n(s.ops[4]) + "}";
-  if (mesh.decoder) {
-    o += ", \"sequence_order\": \"file\"";
-  } else {
-    o += std::string(", \"sequence_order\": \"") + (br.sorted ? "sorted" : "coherent") + "\"";
-    o += ", \"coherence_window\": " + n(br.window) +
-         ", \"max_waiting_triangles\": " + n(br.converter.max_waiting_triangles) +
-         ", \"max_waiting_vertices\": " + n(br.converter.max_waiting_vertices);
-  }
-  o += ", \"vertex_properties\": " + json_props(schema.vertex_properties) +
-       ", \"face_properties\": " + json_props(schema.face_properties);
-  if (mesh.decoder) {
-    const PsqHeader& h = mesh.decoder->header();
-    const PsqStats& st = mesh.decoder->stats();
-    const double nv = st.vertices ? static_cast<double>(st.vertices) : 1.0;
-    o += ", \"psq\": {\"version\": \"" + std::to_string(h.version_major) + "." + std::to_string(h.version_minor) +
-         "\", \"profile\": \"" + (h.fast ? "fast" : "compact") + "\", \"lossless\": " + (h.lossless ? "true" : "false") +
-         ", \"bits\": " + std::to_string(h.bits) + ", \"step\": " + json_number(h.step) + ", \"chunks\": " +
-         n(st.chunks) + ", \"bytes\": " + n(st.total_bytes) + ", \"sequence_vertices\": " + n(st.vertices) +
-         ", \"bits_per_vertex\": " + json_number(8.0 * st.total_bytes / nv) +
-         ", \"connectivity_bits_per_vertex\": " + json_number(st.connectivity_bits / nv) +
-         ", \"geometry_bits_per_vertex\": " + json_number(st.geometry_bits / nv) +
-         ", \"property_bits_per_vertex\": " + json_number(8.0 * st.property_bytes / nv) +
-         ", \"overhead_bits_per_vertex\": " + json_number(8.0 * (st.header_bytes + st.chunk_overhead_bytes) / nv) +
-         ", \"gates\": {\"offset_0\": " + n(st.gates[0]) + ", \"offset\": " + n(st.gates[1]) +
-         ", \"far_rank\": " + n(st.far_gates[0]) + ", \"far_resume\": " + n(st.far_gates[1]) +
-         ", \"far_raw\": " + n(st.far_gates[2]) + ", \"start_or_isolated\": " + n(st.gates[3]) +
-         "}, \"add_predictions\": {\"gate\": " + n(st.predictions[0]) + ", \"before\": " + n(st.predictions[1]) +
-         ", \"after\": " + n(st.predictions[2]) + ", \"mean_before\": " + n(st.predictions[3]) +
-         ", \"mean_after\": " + n(st.predictions[4]) + "}}";
-  }
-  return o + ", \"notes\": " + json_notes(rep.notes) + "}";
+  detail::InfoReport r;
+  check(detail::measure_info(mesh, build, &r), path);
+  return detail::info_json(path, r);
 }
 
 // ----------------------------------------------------------------- distance
-
-namespace {
-
-uint64_t estimated_triangles(const OpenedMesh& m) {
-  const int64_t t = m.source->schema().triangle_count;
-  if (t >= 0) return static_cast<uint64_t>(t);
-  const int64_t size = m.stream->size();
-  if (size >= 0) return static_cast<uint64_t>(size) / 25;
-  return UINT64_MAX;
-}
-
-std::string json_stats(const DirectionDistance& d, double div, bool counts) {
-  std::string s = "{";
-  if (counts) s += "\"samples\": " + n(d.samples) + ", \"vertex_samples\": " + n(d.vertex_samples) + ", ";
-  return s + "\"max\": " + json_number(d.max / div) + ", \"mean\": " + json_number(d.mean / div) +
-         ", \"rms\": " + json_number(d.rms / div) + "}";
-}
-
-std::string json_mesh(const std::string& file, const MeshDistanceSummary& m) {
-  return "{\"file\": " + q(file) + ", \"vertices\": " + n(m.vertices) + ", \"used_vertices\": " + n(m.used_vertices) +
-         ", \"triangles\": " + n(m.triangles) + ", \"area\": " + json_number(m.area) +
-         ", \"held\": " + (m.held ? "true" : "false") + "}";
-}
-
-}  // namespace
 
 std::string distance(const std::string& a_path, const std::string& b_path, const DistanceParams& p) {
   DistanceOptions options;
@@ -791,31 +469,11 @@ std::string distance(const std::string& a_path, const std::string& b_path, const
   OpenedMesh a, b;
   open_input(a_path, oo, &a);
   open_input(b_path, oo, &b);
-  if (options.hold == DistanceHold::kAuto) {
-    const uint64_t ta = estimated_triangles(a), tb = estimated_triangles(b);
-    if (std::max(ta, tb) <= kAutoInMemoryTriangles) options.hold = DistanceHold::kBoth;
-    else options.hold = ta < tb ? DistanceHold::kA : DistanceHold::kB;
-  }
+  if (options.hold == DistanceHold::kAuto) options.hold = detail::auto_hold(a, b);
   DistanceResult r;
   Status s = measure_distance(*a.source, *b.source, options, &r);
-  if (!s.ok()) throw StatusError(s, r.error_input == 1 ? a_path : r.error_input == 2 ? b_path : "temporary file");
-  DirectionDistance sym;
-  sym.max = r.hausdorff;
-  sym.mean = std::max(r.a_to_b.mean, r.b_to_a.mean);
-  sym.rms = std::max(r.a_to_b.rms, r.b_to_a.rms);
-  const uint64_t total = r.a_to_b.samples + r.b_to_a.samples;
-  const double rate = r.seconds > 0 ? static_cast<double>(total) / r.seconds : 0;
-  const int threads = options.threads > 0 ? options.threads
-                                          : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  const double diag = r.diagonal > 0 ? r.diagonal : std::nan("");
-  return "{\"a\": " + json_mesh(a_path, r.a) + ", \"b\": " + json_mesh(b_path, r.b) + ", \"seed\": " + n(options.seed) +
-         ", \"a_to_b\": " + json_stats(r.a_to_b, 1, true) + ", \"b_to_a\": " + json_stats(r.b_to_a, 1, true) +
-         ", \"hausdorff\": " + json_number(r.hausdorff) + ", \"symmetric\": " + json_stats(sym, 1, false) +
-         ", \"diagonal\": " + json_number(r.diagonal) + ", \"relative\": {\"a_to_b\": " +
-         json_stats(r.a_to_b, diag, false) + ", \"b_to_a\": " + json_stats(r.b_to_a, diag, false) +
-         ", \"hausdorff\": " + json_number(r.hausdorff / diag) + ", \"symmetric\": " + json_stats(sym, diag, false) +
-         "}, \"timing\": {\"seconds\": " + json_number(r.seconds) + ", \"samples_per_second\": " + json_number(rate) +
-         ", \"threads\": " + std::to_string(threads) + "}}";
+  if (!s.ok()) throw StatusError(s, detail::distance_error_file(r, a_path, b_path, p.tmpdir));
+  return detail::distance_json(a_path, b_path, options, r);
 }
 
 }  // namespace psq::python

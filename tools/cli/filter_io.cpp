@@ -11,46 +11,6 @@
 namespace psq::cli {
 namespace {
 
-// A processing sequence written as an indexed mesh: vertices in the order
-// they are introduced, re-appearing vertices (non-manifold cuts) merged back
-// into the vertex they re-appear.
-class SequenceMeshAdapter : public SequenceSink {
- public:
-  explicit SequenceMeshAdapter(MeshSink* out) : out_(out) {}
-  Status begin(const MeshSchema& schema) override {
-    MeshSchema s = schema;
-    s.vertex_count = MeshSchema::kUnknown;
-    s.triangle_count = MeshSchema::kUnknown;
-    return out_->begin(s);
-  }
-  Status vertex(const SequenceVertex& v) override {
-    if (v.reappears != kNoVertex) {
-      reappearing_.push_back(v.index);
-      first_.push_back(mesh_index(v.reappears));
-      return Status();
-    }
-    return out_->vertex(v.position, v.values);
-  }
-  Status triangle(const SequenceTriangle& t) override {
-    const uint32_t index[3] = {mesh_index(t.v[0]), mesh_index(t.v[1]), mesh_index(t.v[2])};
-    return out_->triangle(index, t.values);
-  }
-  Status finalize(uint32_t) override { return Status(); }
-  Status finish() override { return out_->finish(); }
-
- private:
-  // Dense sequence index to mesh index: minus the re-appearances before it,
-  // or the index of the vertex it re-appears.
-  uint32_t mesh_index(uint32_t dense) const {
-    auto it = std::lower_bound(reappearing_.begin(), reappearing_.end(), dense);
-    if (it != reappearing_.end() && *it == dense) return first_[static_cast<size_t>(it - reappearing_.begin())];
-    return dense - static_cast<uint32_t>(it - reappearing_.begin());
-  }
-
-  MeshSink* out_;
-  std::vector<uint32_t> reappearing_, first_;
-};
-
 // Counts the input's triangles for the progress line and calls a hook
 // before the filter's begin().
 class InputSink : public SequenceSink {
@@ -94,19 +54,6 @@ class CountingSource : public MeshSource {
  private:
   MeshSource* in_;
   Progress* progress_;
-};
-
-class NullSink : public SequenceSink {
- public:
-  Status begin(const MeshSchema&) override { return Status(); }
-  Status vertex(const SequenceVertex&) override { return Status(); }
-  Status triangle(const SequenceTriangle&) override {
-    ++triangles;
-    return Status();
-  }
-  Status finalize(uint32_t) override { return Status(); }
-  Status finish() override { return Status(); }
-  uint64_t triangles = 0;
 };
 
 }  // namespace
@@ -161,10 +108,7 @@ int64_t FilterRun::declared_triangles() const {
 }
 
 std::vector<std::string> FilterRun::input_notes() const {
-  std::vector<std::string> notes = mesh_.source->report().notes;
-  if (build_report_.converter.degenerate_dropped)
-    notes.push_back(std::to_string(build_report_.converter.degenerate_dropped) + " degenerate triangle(s) dropped");
-  return notes;
+  return detail::input_notes(mesh_, build_report_);
 }
 
 uint64_t FilterRun::bytes_in() const { return mesh_.stream ? mesh_.stream->offset() : 0; }
@@ -173,7 +117,7 @@ int FilterRun::open(const std::string& command, const FilterOptions& o) {
   o_ = o;
   const std::string& in = o.in;
   const std::string& out = o.out;
-  out_format_ = o.to.empty() ? format_from_extension(out) : format_from_name(o.to);
+  out_format_ = detail::output_format(o.to, out);
   if (out_format_ == MeshFormat::kUnknown) {
     if (!o.to.empty()) return usage_error(command, "unknown output format '" + o.to + "' (psq, ply, obj or drc)");
     return usage_error(command, "cannot tell the output format from '" + out + "': use --to psq|ply|obj|drc");
@@ -242,7 +186,7 @@ int FilterRun::open(const std::string& command, const FilterOptions& o) {
     w.lossless = encode_.lossless;
     w.memory_budget = o.memory;
     mesh_writer_ = make_mesh_writer(out_format_, &output_, w);
-    adapter_ = std::make_unique<SequenceMeshAdapter>(mesh_writer_.get());
+    adapter_ = std::make_unique<detail::SequenceToMesh>(mesh_writer_.get());
     chain = adapter_.get();
   }
   sink_ = std::make_unique<ProgressSequenceSink>(chain, progress_.get());
@@ -256,7 +200,7 @@ int FilterRun::count_psq_triangles(uint64_t* count) {
   open_options.spool_dir = o_.tmpdir;
   Status s = open_mesh(o_.in, open_options, &again);
   if (s.ok() && !again.decoder) s = Status(ErrorCode::kUnknownFormat, "not a .psq any more");
-  NullSink counter;
+  detail::SequenceBox counter;
   if (s.ok()) s = again.decoder->pump(counter);
   if (!s.ok()) return report_error(o_.in, s);
   *count = counter.triangles;

@@ -1,0 +1,146 @@
+// SPDX-License-Identifier: Apache-2.0
+// The plumbing of a pipeline from an input mesh to an output file; see
+// pipeline.h. The sequence into an indexed mesh follows
+// spec/psq-dump.md A.2.1.
+#include "pipeline.h"
+
+#include <sys/stat.h>
+
+#include <algorithm>
+
+#include "psq/draco.h"
+#include "psq/obj.h"
+#include "psq/psq_codec.h"
+
+namespace psq::detail {
+
+bool same_file(const std::string& a, const std::string& b) {
+  if (a == "-" || b == "-") return false;
+  if (a == b) return true;
+  struct stat sa, sb;
+  if (::stat(a.c_str(), &sa) != 0 || ::stat(b.c_str(), &sb) != 0) return false;
+  return sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
+}
+
+bool error_is_about_output(const Status& status) {
+  return status.line() == Status::kNoPlace && status.offset() == Status::kNoPlace && status.code() == ErrorCode::kIo;
+}
+
+MeshFormat output_format(const std::string& name, const std::string& path) {
+  return name.empty() ? format_from_extension(path) : format_from_name(name);
+}
+
+bool auto_fast_profile(const MeshSchema& schema) {
+  if (schema.triangle_count != MeshSchema::kUnknown) return schema.triangle_count >= 131072;
+  return schema.vertex_count != MeshSchema::kUnknown && schema.vertex_count >= 65536;
+}
+
+std::vector<std::string> writer_notes(MeshFormat format, MeshSink* writer) {
+  std::vector<std::string> notes;
+  if (format == MeshFormat::kObj)
+    for (const std::string& d : static_cast<ObjWriter*>(writer)->dropped())
+      notes.push_back("property '" + d + "' dropped: OBJ cannot hold it");
+  if (format == MeshFormat::kDraco) {
+    for (const std::string& d : static_cast<DracoWriter*>(writer)->dropped())
+      notes.push_back("property '" + d + "' dropped: Draco output keeps scalar vertex properties only");
+    for (const std::string& n : static_cast<DracoWriter*>(writer)->notes()) notes.push_back(n);
+  }
+  return notes;
+}
+
+std::vector<std::string> input_notes(const OpenedMesh& mesh, const BuildReport& build) {
+  std::vector<std::string> notes = mesh.source->report().notes;
+  if (build.converter.degenerate_dropped)
+    notes.push_back(std::to_string(build.converter.degenerate_dropped) + " degenerate triangle(s) dropped");
+  return notes;
+}
+
+Status SequenceToMesh::begin(const MeshSchema& schema) {
+  MeshSchema s = schema;
+  s.vertex_count = MeshSchema::kUnknown;
+  s.triangle_count = MeshSchema::kUnknown;
+  return out_->begin(s);
+}
+
+Status SequenceToMesh::vertex(const SequenceVertex& v) {
+  if (v.reappears != kNoVertex) {
+    reappearing_.push_back(v.index);
+    first_.push_back(mesh_index(v.reappears));
+    return Status();
+  }
+  return out_->vertex(v.position, v.values);
+}
+
+Status SequenceToMesh::triangle(const SequenceTriangle& t) {
+  const uint32_t index[3] = {mesh_index(t.v[0]), mesh_index(t.v[1]), mesh_index(t.v[2])};
+  return out_->triangle(index, t.values);
+}
+
+uint32_t SequenceToMesh::mesh_index(uint32_t dense) const {
+  auto it = std::lower_bound(reappearing_.begin(), reappearing_.end(), dense);
+  if (it != reappearing_.end() && *it == dense) return first_[static_cast<size_t>(it - reappearing_.begin())];
+  return dense - static_cast<uint32_t>(it - reappearing_.begin());
+}
+
+Status SequenceBox::vertex(const SequenceVertex& v) {
+  for (int a = 0; a < 3; ++a) {
+    lo[a] = any ? std::min(lo[a], v.position[a]) : v.position[a];
+    hi[a] = any ? std::max(hi[a], v.position[a]) : v.position[a];
+  }
+  any = true;
+  return Status();
+}
+
+Status ObservedSource::next(MeshItem* item) {
+  Status s = in_->next(item);
+  if (observer_ && s.ok() && item->kind == MeshItem::Kind::kTriangle) observer_->triangle_read();
+  return s;
+}
+
+Status ObservedSequence::triangle(const SequenceTriangle& t) {
+  if (observer_) {
+    if (written_) observer_->triangle_written();
+    else observer_->triangle_read();
+  }
+  return out_->triangle(t);
+}
+
+Status feed_sequence(OpenedMesh& mesh, SequenceSink& sink, const BuildOptions& build, BuildReport* report,
+                     RunObserver* observer) {
+  if (mesh.decoder) {
+    if (!observer) return mesh.decoder->pump(sink);
+    ObservedSequence observed(&sink, observer);
+    return mesh.decoder->pump(observed);
+  }
+  if (!observer) return build_sequence(*mesh.source, sink, build, report);
+  ObservedSource observed(mesh.source.get(), observer);
+  return build_sequence(observed, sink, build, report);
+}
+
+Status count_triangles(OpenedMesh& mesh, uint64_t* count) {
+  if (mesh.decoder) {
+    if (mesh.decoder->schema().triangle_count >= 0) {
+      *count = static_cast<uint64_t>(mesh.decoder->schema().triangle_count);
+      return Status();
+    }
+    SequenceBox counter;
+    PSQ_RETURN_IF_ERROR(mesh.decoder->pump(counter));
+    *count = counter.triangles;
+    return Status();
+  }
+  if (mesh.source->schema().triangle_count >= 0) {
+    *count = static_cast<uint64_t>(mesh.source->schema().triangle_count);
+    return Status();
+  }
+  MeshItem item;
+  uint64_t t = 0;
+  for (;;) {
+    PSQ_RETURN_IF_ERROR(mesh.source->next(&item));
+    if (item.kind == MeshItem::Kind::kEnd) break;
+    if (item.kind == MeshItem::Kind::kTriangle) ++t;
+  }
+  *count = t;
+  return Status();
+}
+
+}  // namespace psq::detail
