@@ -15,6 +15,7 @@
 #include "binding.h"
 #include "clustering_run.h"
 #include "distance_report.h"
+#include "filter_output.h"
 #include "info.h"
 #include "json.h"
 #include "pipeline.h"
@@ -178,43 +179,20 @@ std::string convert(const std::string& in, const std::string& out, const Convert
 
 namespace {
 
-// The output of a simplification: a .psq (through the converter for a
-// clustering filter's mesh stream, directly for qem's sequence) or a mesh
-// writer.
+// The output file of a simplification and its writers.
 struct Output {
   OutputFile file;
   MeshFormat format = MeshFormat::kUnknown;
-  std::unique_ptr<FileWriter> byte_writer;
-  std::unique_ptr<PsqEncoder> encoder;
-  std::unique_ptr<SequenceConverter> converter;
-  std::unique_ptr<MeshSink> writer;
-  std::unique_ptr<DenseMeshSink> dense;
-  std::unique_ptr<detail::SequenceToMesh> to_mesh;
+  detail::FilterOutput chain;  // after `file`: goes first
 
-  void open(const std::string& path, const SimplifyParams& p, const EncodeOptions& e, uint64_t draco_budget,
-            bool mesh_stream) {
+  void open(const std::string& path, const SimplifyParams& p, const EncodeOptions& e, uint64_t draco_budget) {
     check(file.open(path, p.overwrite), path);
-    if (format == MeshFormat::kPsq) {
-      byte_writer = std::make_unique<FileWriter>(&file);
-      encoder = std::make_unique<PsqEncoder>(byte_writer.get(), e);
-      if (mesh_stream) {
-        converter = std::make_unique<SequenceConverter>(encoder.get());
-        converter->set_lookahead_minimum(4096);  // as psq simplify: a filter's output
-      }
-      return;
-    }
     WriteOptions w;
     w.ascii = p.ascii;
     w.spool_dir = p.tmpdir;
-    w.draco_bits = std::min(e.bits, 30);
-    w.lossless = e.lossless;
     w.memory_budget = draco_budget;
-    writer = make_mesh_writer(format, &file, w);
-    if (mesh_stream) dense = std::make_unique<DenseMeshSink>(writer.get());
-    else to_mesh = std::make_unique<detail::SequenceToMesh>(writer.get());
+    chain.open(&file, format, e, w);
   }
-  StreamingMeshSink* mesh_sink() { return converter ? static_cast<StreamingMeshSink*>(converter.get()) : dense.get(); }
-  SequenceSink* sequence_sink() { return encoder ? static_cast<SequenceSink*>(encoder.get()) : to_mesh.get(); }
 };
 
 uint64_t count_triangles(const std::string& in, const OpenOptions& oo) {
@@ -293,42 +271,13 @@ std::string simplify(const std::string& in, const std::string& out, const Simpli
     if (qo.ratio == 0 && qo.target_triangles == 0 && qo.max_error < 0)
       usage("give a target: ratio, triangles or max_error");
     if (qo.target_triangles > 0 && psq_in && in_schema.triangle_count < 0) qo.input_triangles = count_triangles(in, oo);
-    output.open(out, p, e, draco_budget, false);
-    StreamQem qem(output.sequence_sink(), qo);
-    Status s;
-    if (psq_in) {
-      s = mesh.decoder->pump(qem);
-    } else {
-      // The builder reads the whole mesh before the first event: its count
-      // is known by the filter's begin().
-      struct Counting : MeshSource {
-        MeshSource* in;
-        uint64_t triangles = 0;
-        const MeshSchema& schema() const override { return in->schema(); }
-        const SourceReport& report() const override { return in->report(); }
-        Status next(MeshItem* item) override {
-          Status st = in->next(item);
-          if (st.ok() && item->kind == MeshItem::Kind::kTriangle) ++triangles;
-          return st;
-        }
-      } counting;
-      counting.in = mesh.source.get();
-      struct AtBegin : SequenceSink {
-        StreamQem* qem;
-        Counting* counting;
-        Status begin(const MeshSchema& sc) override {
-          if (counting->triangles) qem->set_input_triangles(counting->triangles);
-          return qem->begin(sc);
-        }
-        Status vertex(const SequenceVertex& v) override { return qem->vertex(v); }
-        Status triangle(const SequenceTriangle& t) override { return qem->triangle(t); }
-        Status finalize(uint32_t i) override { return qem->finalize(i); }
-        Status finish() override { return qem->finish(); }
-      } at_begin;
-      at_begin.qem = &qem;
-      at_begin.counting = &counting;
-      s = build_sequence(counting, at_begin, build, &report);
-    }
+    output.open(out, p, e, draco_budget);
+    StreamQem qem(output.chain.sequence_sink(false), qo);
+    // The builder reads the whole mesh before the first event: its count
+    // is known by the filter's begin().
+    Status s = detail::feed_sequence(mesh, qem, build, &report, nullptr, [&](uint64_t triangles) {
+      if (triangles) qem.set_input_triangles(triangles);
+    });
     if (!s.ok()) {
       output.file.discard();
       pipeline_error(s, in, out);
@@ -398,9 +347,8 @@ std::string simplify(const std::string& in, const std::string& out, const Simpli
         pipeline_error(s, in, out);
       }
     }
-    output.open(out, p, e, draco_budget, true);
-    if (output.converter) output.converter->set_lookahead_budget(lookahead);
-    ClusteringFilter filter(output.mesh_sink(), co);
+    output.open(out, p, e, draco_budget);
+    ClusteringFilter filter(output.chain.mesh_sink(lookahead, false, false), co);
     ++passes;
     Status s = detail::feed_sequence(mesh, filter, build, &report);
     if (!s.ok()) {
@@ -425,7 +373,7 @@ std::string simplify(const std::string& in, const std::string& out, const Simpli
          ", \"output_vertices\": " + n(st.vertices_out) + ", \"output_triangles\": " + n(st.triangles_out) +
          ", \"clusters\": " + n(st.clusters) + ", \"filter_peak_bytes\": " + n(st.peak_bytes);
   }
-  for (const std::string& d : detail::writer_notes(output.format, output.writer.get())) notes.push_back(d);
+  for (const std::string& d : output.chain.notes()) notes.push_back(d);
   o += ", \"bytes_in\": " + n(mesh.stream ? mesh.stream->offset() : 0) + ", \"bytes_out\": " + n(output.file.size()) +
        ", \"seconds\": " + json_number(seconds_since(start));
   if (output.format == MeshFormat::kPsq)

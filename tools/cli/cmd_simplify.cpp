@@ -17,16 +17,15 @@
 #include "cli_util.h"
 #include "commands.h"
 #include "clustering_run.h"
+#include "filter_output.h"
 #include "progress.h"
 #include "run_progress.h"
 #include "psq/clustering.h"
-#include "psq/converter.h"
 #include "psq/memory_budget.h"
 #include "psq/mesh_formats.h"
 #include "psq/mesh_stream.h"
 #include "psq/psq_codec.h"
 #include "psq/sequence_builder.h"
-#include "psq/threaded_mesh_sink.h"
 #include "psq/threaded_sink.h"
 
 namespace psq::cli {
@@ -105,25 +104,6 @@ const char kHelp[] =
     "                      '-'): counts in and out, the output's non-manifold\n"
     "                      vertices and edges, the filter's peak memory, time\n"
     "  -h, --help          show this help\n";
-
-// The output converter keeps at least this many ready triangles waiting
-// (psq/converter.h, set_lookahead_minimum()): the converter's default of
-// 65536 and 32 per open edge made it the largest structure of a run (65 MB
-// peak for a 50M-triangle foam simplified to 10%). This, with a 64th of
-// --memory as its cap (4 MB by default), keeps a 200M-triangle foam at 10%
-// under 57 MB for 0.4% more output bytes than a 32nd.
-constexpr uint64_t kOutputLookahead = 4096;
-
-// Drops a sequence: the converter in front of it only counts the output's
-// non-manifold elements (--json with a mesh format).
-class NullSequenceSink : public SequenceSink {
- public:
-  Status begin(const MeshSchema&) override { return Status(); }
-  Status vertex(const SequenceVertex&) override { return Status(); }
-  Status triangle(const SequenceTriangle&) override { return Status(); }
-  Status finalize(uint32_t) override { return Status(); }
-  Status finish() override { return Status(); }
-};
 
 // The input, opened once per pass. Standard input that must be read more
 // than once (a trial pass, or a lossless .psq whose bounding box takes a
@@ -416,53 +396,22 @@ int cmd_simplify(int argc, char** argv) {
   if (profile == "auto")
     encode_options.fast = mesh.decoder ? mesh.decoder->header().fast || detail::auto_fast_profile(mesh.decoder->schema())
                                        : detail::auto_fast_profile(mesh.source->schema());
-  FileWriter file_writer(&output);
-  std::unique_ptr<PsqEncoder> encoder;
-  std::unique_ptr<MeshSink> writer;
-  std::unique_ptr<DenseMeshSink> dense;
-  NullSequenceSink null_sink;
-  std::unique_ptr<SequenceConverter> converter;
-  std::unique_ptr<TeeMeshSink> tee;
-  StreamingMeshSink* sink = nullptr;
-  if (out_format == MeshFormat::kPsq) {
-    encoder = std::make_unique<PsqEncoder>(&file_writer, encode_options);
-    converter = std::make_unique<SequenceConverter>(encoder.get());
-    converter->set_lookahead_budget(lookahead_share);
-    converter->set_lookahead_minimum(kOutputLookahead);
-    sink = converter.get();
-  } else {
-    WriteOptions write_options;
-    write_options.ascii = ascii;
-    write_options.spool_dir = tmpdir;
-    write_options.draco_bits = out_bits;
-    write_options.lossless = lossless;
-    write_options.memory_budget = draco_share;
-    writer = make_mesh_writer(out_format, &output, write_options);
-    dense = std::make_unique<DenseMeshSink>(writer.get());
-    sink = dense.get();
-    if (json) {
-      // The converter counts the output's non-manifold vertices and edges.
-      converter = std::make_unique<SequenceConverter>(&null_sink);
-      converter->set_lookahead_budget(lookahead_share);
-      converter->set_lookahead_minimum(kOutputLookahead);
-      tee = std::make_unique<TeeMeshSink>(dense.get(), converter.get());
-      sink = tee.get();
-    }
-  }
-  // With two threads or more, the output side runs on a thread of its own:
-  // only the filter's output crosses, a tenth or less of its input.
-  std::unique_ptr<ThreadedMeshSink> threaded_out;
-  if (threads > 1) {
-    threaded_out = std::make_unique<ThreadedMeshSink>(sink);
-    sink = threaded_out.get();
-  }
+  WriteOptions write_options;
+  write_options.ascii = ascii;
+  write_options.spool_dir = tmpdir;
+  write_options.memory_budget = draco_share;
+  detail::FilterOutput chain;
+  chain.open(&output, out_format, encode_options, write_options);
+  // With --json the output's non-manifold vertices and edges are counted.
+  // With two threads or more, the output side runs on a thread of its own.
+  StreamingMeshSink* sink = chain.mesh_sink(lookahead_share, json, threads > 1);
   ClusteringFilter filter(sink, options);
   Progress progress(mesh.stream.get(), !quiet);
   BuildReport report;
   ++passes;
   s = feed(mesh, filter, build, progress, threads, &report);
   if (!s.ok()) {
-    threaded_out.reset();  // stops the output's thread before the output goes
+    chain.stop();  // stops the output's thread before the output goes
     output.discard();
     return report_pipeline_error(in, out, s);
   }
@@ -476,7 +425,7 @@ int cmd_simplify(int argc, char** argv) {
     if (p.is_list) notes.push_back("vertex property '" + p.name + "' dropped: lists do not merge");
   for (const Property& p : mesh.source->schema().face_properties)
     if (p.is_list) notes.push_back("face property '" + p.name + "' dropped: lists do not merge");
-  for (const std::string& n : detail::writer_notes(out_format, writer.get())) notes.push_back(n);
+  for (const std::string& n : chain.notes()) notes.push_back(n);
   if (st.triangles_in > 0 && st.triangles_out == 0)
     notes.push_back("no triangle has its corners in three cells: the output is empty (use a finer grid)");
   if (target > 0)
@@ -495,7 +444,7 @@ int cmd_simplify(int argc, char** argv) {
     progress.finish(in, out, summary);
   }
   if (json) {
-    const ConverterStats* cs = converter ? &converter->stats() : nullptr;
+    const ConverterStats* cs = chain.converter_stats();
     auto num = [](uint64_t v) { return std::to_string(v); };
     std::string o = "{\"input\": \"" + json_escape(in) + "\", \"output\": \"" + json_escape(out) +
                     "\", \"input_format\": \"" + format_name(mesh.format) + "\", \"output_format\": \"" +

@@ -8,55 +8,9 @@
 #include <cstdlib>
 #include <thread>
 
+#include "run_progress.h"
+
 namespace psq::cli {
-namespace {
-
-// Counts the input's triangles for the progress line and calls a hook
-// before the filter's begin().
-class InputSink : public SequenceSink {
- public:
-  InputSink(SequenceSink* out, Progress* progress, std::function<void()> at_begin)
-      : out_(out), progress_(progress), at_begin_(std::move(at_begin)) {}
-  Status begin(const MeshSchema& s) override {
-    if (at_begin_) at_begin_();
-    return out_->begin(s);
-  }
-  Status vertex(const SequenceVertex& v) override { return out_->vertex(v); }
-  Status triangle(const SequenceTriangle& t) override {
-    if (count_progress_) progress_->triangle();
-    return out_->triangle(t);
-  }
-  Status finalize(uint32_t i) override { return out_->finalize(i); }
-  Status finish() override { return out_->finish(); }
-  bool count_progress_ = true;
-
- private:
-  SequenceSink* out_;
-  Progress* progress_;
-  std::function<void()> at_begin_;
-};
-
-class CountingSource : public MeshSource {
- public:
-  CountingSource(MeshSource* in, Progress* progress) : in_(in), progress_(progress) {}
-  const MeshSchema& schema() const override { return in_->schema(); }
-  const SourceReport& report() const override { return in_->report(); }
-  Status next(MeshItem* item) override {
-    Status s = in_->next(item);
-    if (s.ok() && item->kind == MeshItem::Kind::kTriangle) {
-      ++triangles;
-      progress_->triangle();
-    }
-    return s;
-  }
-  uint64_t triangles = 0;
-
- private:
-  MeshSource* in_;
-  Progress* progress_;
-};
-
-}  // namespace
 
 const char kFilterOptionsHelp[] =
     "  --to FORMAT    output format: psq, ply, obj or drc (needed when OUT is '-';\n"
@@ -99,7 +53,7 @@ std::string parse_filter_options(Args& args, FilterOptions* o) {
 }
 
 FilterRun::~FilterRun() {
-  threaded_.reset();  // joins the encoder's thread before its sink goes
+  chain_.stop();  // joins the encoder's thread before its sink goes
 }
 
 int64_t FilterRun::declared_triangles() const {
@@ -170,25 +124,12 @@ int FilterRun::open(const std::string& command, const FilterOptions& o) {
   s = output_.open(out, o.force);
   if (!s.ok()) return report_error(out, s);
   progress_ = std::make_unique<Progress>(mesh_.stream.get(), !o.quiet);
-  SequenceSink* chain = nullptr;
-  if (out_format_ == MeshFormat::kPsq) {
-    byte_writer_ = std::make_unique<FileWriter>(&output_);
-    encoder_ = std::make_unique<PsqEncoder>(byte_writer_.get(), encode_);
-    chain = encoder_.get();
-    if (o.threads >= 2) {
-      threaded_ = std::make_unique<ThreadedSequenceSink>(encoder_.get());
-      chain = threaded_.get();
-    }
-  } else {
-    WriteOptions w;
-    w.spool_dir = o.tmpdir;
-    w.draco_bits = std::min(encode_.bits, 30);
-    w.lossless = encode_.lossless;
-    w.memory_budget = o.memory;
-    mesh_writer_ = make_mesh_writer(out_format_, &output_, w);
-    adapter_ = std::make_unique<detail::SequenceToMesh>(mesh_writer_.get());
-    chain = adapter_.get();
-  }
+  WriteOptions w;
+  w.spool_dir = o.tmpdir;
+  w.memory_budget = o.memory;
+  chain_.open(&output_, out_format_, encode_, w);
+  // A .psq is encoded on a thread of its own with --threads 2.
+  SequenceSink* chain = chain_.sequence_sink(out_format_ == MeshFormat::kPsq && o.threads >= 2);
   sink_ = std::make_unique<ProgressSequenceSink>(chain, progress_.get());
   return -1;
 }
@@ -208,25 +149,15 @@ int FilterRun::count_psq_triangles(uint64_t* count) {
 }
 
 Status FilterRun::run(SequenceSink* filter, std::function<void(uint64_t)> at_begin) {
-  if (mesh_.decoder) {
-    InputSink input(filter, progress_.get(), [&] {
-      if (at_begin) at_begin(0);
-    });
-    // (Decoding on a thread of its own does not pay: handing every event
-    // over costs about what decoding it does; bench/RESULTS.md.)
-    return mesh_.decoder->pump(input);
-  }
-  CountingSource source(mesh_.source.get(), progress_.get());
-  InputSink input(filter, progress_.get(), [&] {
-    if (at_begin) at_begin(source.triangles);
-  });
-  input.count_progress_ = false;
-  return build_sequence(source, input, build_, &build_report_);
+  // (Decoding a .psq on a thread of its own does not pay: handing every
+  // event over costs about what decoding it does; bench/RESULTS.md.)
+  RunProgress observer(progress_.get());
+  return detail::feed_sequence(mesh_, *filter, build_, &build_report_, &observer, at_begin);
 }
 
 int FilterRun::finish(const Status& run_status, const std::string& summary, const std::vector<std::string>& notes) {
   if (!run_status.ok()) {
-    threaded_.reset();
+    chain_.stop();
     output_.discard();
     return report_pipeline_error(o_.in, o_.out, run_status);
   }

@@ -105,16 +105,58 @@ Status ObservedSequence::triangle(const SequenceTriangle& t) {
   return out_->triangle(t);
 }
 
-Status feed_sequence(OpenedMesh& mesh, SequenceSink& sink, const BuildOptions& build, BuildReport* report,
-                     RunObserver* observer) {
-  if (mesh.decoder) {
-    if (!observer) return mesh.decoder->pump(sink);
-    ObservedSequence observed(&sink, observer);
-    return mesh.decoder->pump(observed);
+namespace {
+
+// Counts a source's triangles.
+class CountingSource : public MeshSource {
+ public:
+  explicit CountingSource(MeshSource* in) : in_(in) {}
+  const MeshSchema& schema() const override { return in_->schema(); }
+  const SourceReport& report() const override { return in_->report(); }
+  Status next(MeshItem* item) override {
+    Status s = in_->next(item);
+    if (s.ok() && item->kind == MeshItem::Kind::kTriangle) ++triangles;
+    return s;
   }
-  if (!observer) return build_sequence(*mesh.source, sink, build, report);
+  uint64_t triangles = 0;
+
+ private:
+  MeshSource* in_;
+};
+
+// Calls a hook right before the sink's begin().
+class BeginHook : public SequenceSink {
+ public:
+  BeginHook(SequenceSink* out, std::function<void()> hook) : out_(out), hook_(std::move(hook)) {}
+  Status begin(const MeshSchema& s) override {
+    hook_();
+    return out_->begin(s);
+  }
+  Status vertex(const SequenceVertex& v) override { return out_->vertex(v); }
+  Status triangle(const SequenceTriangle& t) override { return out_->triangle(t); }
+  Status finalize(uint32_t i) override { return out_->finalize(i); }
+  Status finish() override { return out_->finish(); }
+
+ private:
+  SequenceSink* out_;
+  std::function<void()> hook_;
+};
+
+}  // namespace
+
+Status feed_sequence(OpenedMesh& mesh, SequenceSink& sink, const BuildOptions& build, BuildReport* report,
+                     RunObserver* observer, const std::function<void(uint64_t)>& at_begin) {
+  if (mesh.decoder) {
+    ObservedSequence observed(&sink, observer);
+    if (!at_begin) return mesh.decoder->pump(observed);
+    BeginHook hooked(&observed, [&] { at_begin(0); });
+    return mesh.decoder->pump(hooked);
+  }
   ObservedSource observed(mesh.source.get(), observer);
-  return build_sequence(observed, sink, build, report);
+  if (!at_begin) return build_sequence(observed, sink, build, report);
+  CountingSource counting(&observed);
+  BeginHook hooked(&sink, [&] { at_begin(counting.triangles); });
+  return build_sequence(counting, hooked, build, report);
 }
 
 Status count_triangles(OpenedMesh& mesh, uint64_t* count) {

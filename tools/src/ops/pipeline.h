@@ -6,6 +6,7 @@
 #define PSQ_TOOLS_OPS_PIPELINE_H_
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -131,8 +132,11 @@ class ObservedSequence : public SequenceSink {
 // The processing sequence of an opened input into `sink`: a .psq through
 // its decoder, any other mesh through the sequence builder (`report`
 // filled). With an observer, the triangles read are reported to it.
+// `at_begin`, if set, is called right before the sink's begin() with the
+// triangles the input yielded so far: all of them for a mesh input, which
+// the sequence builder reads completely first; none for a .psq.
 Status feed_sequence(OpenedMesh& mesh, SequenceSink& sink, const BuildOptions& build, BuildReport* report,
-                     RunObserver* observer = nullptr);
+                     RunObserver* observer = nullptr, const std::function<void(uint64_t)>& at_begin = nullptr);
 
 // The triangles of an opened input: its header's count when it declares
 // one, else counted by reading it through (the input is used up then).

@@ -1,0 +1,80 @@
+// SPDX-License-Identifier: Apache-2.0
+// tools/src/ops (see json.h): the output side of a filter (psq simplify,
+// psq smooth, psq.simplify): a .psq through the encoder, or PLY, OBJ or
+// Draco through a mesh writer, fed by a sequence filter (stream edge
+// collapse, smoothing) or by a mesh-stream filter (vertex clustering,
+// whose output the processing-sequence converter orders for the encoder).
+#ifndef PSQ_TOOLS_OPS_FILTER_OUTPUT_H_
+#define PSQ_TOOLS_OPS_FILTER_OUTPUT_H_
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "psq/converter.h"
+#include "psq/mesh_formats.h"
+#include "psq/mesh_stream.h"
+#include "psq/psq_codec.h"
+#include "psq/threaded_mesh_sink.h"
+#include "psq/threaded_sink.h"
+
+namespace psq::detail {
+
+class FilterOutput {
+ public:
+  FilterOutput() = default;
+  ~FilterOutput();  // stops the output's thread first
+  FilterOutput(const FilterOutput&) = delete;
+  FilterOutput& operator=(const FilterOutput&) = delete;
+
+  // The writer of `format` into `file` (which must outlive this): the .psq
+  // encoder with `encode`, else make_mesh_writer() with `write`, whose
+  // Draco bits (at most 30) and losslessness come from `encode`.
+  void open(OutputFile* file, MeshFormat format, const EncodeOptions& encode, WriteOptions write);
+
+  // What a sequence filter writes to: the encoder (with `threaded` on a
+  // thread of its own), or the mesh writer through SequenceToMesh. Once.
+  SequenceSink* sequence_sink(bool threaded);
+
+  // What a mesh-stream filter writes to: the converter into the encoder,
+  // or the mesh writer through DenseMeshSink; with `count_nonmanifold`, for
+  // a mesh format, a converter besides that only counts the output's
+  // non-manifold vertices and edges (converter_stats()). The converters'
+  // lookahead: `lookahead_budget` bytes, at least kLookaheadMinimum
+  // triangles. With `threaded`, all of it runs on a thread of its own.
+  // Once.
+  StreamingMeshSink* mesh_sink(uint64_t lookahead_budget, bool count_nonmanifold, bool threaded);
+
+  // The converter's statistics, or null when there is none.
+  const ConverterStats* converter_stats() const { return converter_ ? &converter_->stats() : nullptr; }
+  // What the mesh writer could not hold (writer_notes()).
+  std::vector<std::string> notes() const;
+  // Stops the output's thread (before a failed output is discarded).
+  void stop();
+
+  // The converter keeps at least this many ready triangles waiting
+  // (psq/converter.h, set_lookahead_minimum()): its default of 65536 and
+  // 32 per open edge made it the largest structure of a run (65 MB peak
+  // for a 50M-triangle foam simplified to 10%). This, with a 64th of
+  // --memory as its cap (4 MB by default), keeps a 200M-triangle foam at
+  // 10% under 57 MB for 0.4% more output bytes than a 32nd.
+  static constexpr uint64_t kLookaheadMinimum = 4096;
+
+ private:
+  MeshFormat format_ = MeshFormat::kUnknown;
+  std::unique_ptr<FileWriter> byte_writer_;
+  std::unique_ptr<PsqEncoder> encoder_;
+  std::unique_ptr<MeshSink> writer_;
+  std::unique_ptr<SequenceSink> to_mesh_;
+  std::unique_ptr<DenseMeshSink> dense_;
+  std::unique_ptr<SequenceSink> discard_;
+  std::unique_ptr<SequenceConverter> converter_;
+  std::unique_ptr<TeeMeshSink> tee_;
+  std::unique_ptr<ThreadedSequenceSink> threaded_sequence_;
+  std::unique_ptr<ThreadedMeshSink> threaded_mesh_;
+};
+
+}  // namespace psq::detail
+
+#endif  // PSQ_TOOLS_OPS_FILTER_OUTPUT_H_
