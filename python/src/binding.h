@@ -18,6 +18,7 @@
 
 #include "psq/indexed_mesh.h"
 #include "psq/io.h"
+#include "psq/mesh_formats.h"
 #include "psq/psq_codec.h"
 #include "psq/psq_memory.h"
 #include "psq/status.h"
@@ -105,6 +106,13 @@ struct WriteParams {
   uint64_t memory = uint64_t{512} << 20;
   std::string tmpdir;
 };
+
+// The .psq encoder's options of `params` (kUsage when bits, profile,
+// chunk_bytes or zstd_level are out of range); `fast_auto`: what profile
+// "auto" means for the input at hand.
+EncodeOptions encode_options(const WriteParams& params, bool fast_auto);
+// The mesh writers' options of `params`.
+WriteOptions write_options(const WriteParams& params);
 
 // Checks the columns against the element counts (kUsage).
 void check_in_mesh(const InMesh& mesh);

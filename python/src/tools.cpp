@@ -93,15 +93,10 @@ std::string convert(const std::string& in, const std::string& out, const Convert
   std::string o = "{\"input\": " + q(in) + ", \"output\": " + q(out) + ", \"input_format\": \"" +
                   format_name(mesh.format) + "\", \"output_format\": \"" + format_name(out_format) + "\"";
   if (out_format == MeshFormat::kPsq) {
-    EncodeOptions e;
-    e.bits = w.bits;
-    e.lossless = w.lossless;
-    e.chunk_bytes = w.chunk_bytes;
-    e.zstd_level = w.zstd_level;
+    EncodeOptions e = encode_options(w, mesh.decoder ? mesh.decoder->header().fast ||
+                                                           detail::auto_fast_profile(mesh.decoder->schema())
+                                                     : detail::auto_fast_profile(mesh.source->schema()));
     e.measure_costs = p.measure_costs;
-    e.fast = w.profile == "fast" ||
-             (w.profile == "auto" && (mesh.decoder ? mesh.decoder->header().fast || detail::auto_fast_profile(mesh.decoder->schema())
-                                                   : detail::auto_fast_profile(mesh.source->schema())));
     FileWriter writer(&output);
     PsqEncoder encoder(&writer, e);
     std::unique_ptr<ThreadedSequenceSink> threaded;
@@ -119,26 +114,12 @@ std::string convert(const std::string& in, const std::string& out, const Convert
     }
     check(output.commit(), out);
     const PsqStats& st = encoder.stats();
-    notes = mesh.source->report().notes;
-    if (report.converter.degenerate_dropped)
-      notes.push_back(std::to_string(report.converter.degenerate_dropped) + " degenerate triangle(s) dropped");
-    const double nv = st.vertices ? static_cast<double>(st.vertices) : 1.0;
+    notes = detail::input_notes(mesh, report);
     o += ", \"vertices\": " + n(st.vertices) + ", \"triangles\": " + n(st.triangles) +
          ", \"bytes_in\": " + n(mesh.stream->offset()) + ", \"bytes_out\": " + n(output.size()) +
-         ", \"bits_per_vertex\": " + json_number(8.0 * st.total_bytes / nv) +
-         ", \"connectivity_bits_per_vertex\": " + json_number(st.connectivity_bits / nv) +
-         ", \"geometry_bits_per_vertex\": " + json_number(st.geometry_bits / nv) +
-         ", \"property_bits_per_vertex\": " + json_number(8.0 * st.property_bytes / nv) +
-         ", \"lossless\": " + (e.lossless ? "true" : "false") + ", \"bits\": " + std::to_string(e.lossless ? 0 : e.bits) +
-         ", \"profile\": \"" + (e.fast ? "fast" : "compact") + "\"";
+         ", " + detail::json_bits_per_vertex(st) + detail::json_encoding(e);
   } else {
-    WriteOptions wo;
-    wo.ascii = w.ascii;
-    wo.spool_dir = w.tmpdir;
-    wo.draco_bits = w.bits;
-    wo.lossless = w.lossless;
-    wo.memory_budget = w.memory;
-    std::unique_ptr<MeshSink> writer = make_mesh_writer(out_format, &output, wo);
+    std::unique_ptr<MeshSink> writer = make_mesh_writer(out_format, &output, write_options(w));
     struct Counter : MeshSink {
       MeshSink* next = nullptr;
       uint64_t vertices = 0, triangles = 0;
@@ -161,14 +142,7 @@ std::string convert(const std::string& in, const std::string& out, const Convert
     }
     check(output.commit(), out);
     notes = mesh.source->report().notes;
-    if (out_format == MeshFormat::kObj)
-      for (const std::string& d : static_cast<ObjWriter*>(writer.get())->dropped())
-        notes.push_back("property '" + d + "' dropped: OBJ cannot hold it");
-    if (out_format == MeshFormat::kDraco) {
-      for (const std::string& d : static_cast<DracoWriter*>(writer.get())->dropped())
-        notes.push_back("property '" + d + "' dropped: Draco output keeps scalar vertex properties only");
-      for (const std::string& x : static_cast<DracoWriter*>(writer.get())->notes()) notes.push_back(x);
-    }
+    for (const std::string& x : detail::writer_notes(out_format, writer.get())) notes.push_back(x);
     o += ", \"vertices\": " + n(counter.vertices) + ", \"triangles\": " + n(counter.triangles) +
          ", \"bytes_in\": " + n(mesh.stream->offset()) + ", \"bytes_out\": " + n(output.size());
   }
@@ -291,6 +265,7 @@ std::string simplify(const std::string& in, const std::string& out, const Simpli
       notes.push_back("the target of " + std::to_string(r.target_triangles) + " triangles was not met (" +
                       std::to_string(r.output_triangles) + "): no more edges could be collapsed");
     if (r.isolated_dropped) notes.push_back(std::to_string(r.isolated_dropped) + " isolated vertices dropped");
+    for (const std::string& x : output.chain.notes()) notes.push_back(x);
     o += ", \"input_vertices\": " + n(r.input_vertices) + ", \"input_triangles\": " + n(r.input_triangles) +
          ", \"output_vertices\": " + n(r.output_vertices) + ", \"output_triangles\": " + n(r.output_triangles) +
          ", \"target_triangles\": " + n(r.target_triangles) + ", \"collapses\": " + n(r.collapses) +
@@ -358,12 +333,7 @@ std::string simplify(const std::string& in, const std::string& out, const Simpli
     check(output.file.commit(), out);
     const ClusteringStats& st = filter.stats();
     notes = mesh.source->report().notes;
-    for (const Property& pr : in_schema.vertex_properties)
-      if (pr.is_list) notes.push_back("vertex property '" + pr.name + "' dropped: lists do not merge");
-    for (const Property& pr : in_schema.face_properties)
-      if (pr.is_list) notes.push_back("face property '" + pr.name + "' dropped: lists do not merge");
-    if (st.triangles_in > 0 && st.triangles_out == 0)
-      notes.push_back("no triangle has its corners in three cells: the output is empty (use a finer grid)");
+    for (const std::string& x : detail::clustering_notes(in_schema, st, output.chain.notes())) notes.push_back(x);
     o += std::string(", \"cells\": \"") + cell_mode_name(co.cells) + "\", \"grid_longest\": " +
          (co.grid > 0 ? json_number(co.grid) : std::string("null")) + ", \"grid\": [" + n(st.grid.dims[0]) + ", " +
          n(st.grid.dims[1]) + ", " + n(st.grid.dims[2]) + "], \"cell_size\": " + json_number(st.grid.cell) +
@@ -373,12 +343,10 @@ std::string simplify(const std::string& in, const std::string& out, const Simpli
          ", \"output_vertices\": " + n(st.vertices_out) + ", \"output_triangles\": " + n(st.triangles_out) +
          ", \"clusters\": " + n(st.clusters) + ", \"filter_peak_bytes\": " + n(st.peak_bytes);
   }
-  for (const std::string& d : output.chain.notes()) notes.push_back(d);
   o += ", \"bytes_in\": " + n(mesh.stream ? mesh.stream->offset() : 0) + ", \"bytes_out\": " + n(output.file.size()) +
        ", \"seconds\": " + json_number(seconds_since(start));
   if (output.format == MeshFormat::kPsq)
-    o += ", \"lossless\": " + std::string(e.lossless ? "true" : "false") + ", \"bits\": " +
-         std::to_string(e.lossless ? 0 : e.bits) + ", \"profile\": \"" + (e.fast ? "fast" : "compact") + "\"";
+    o += detail::json_encoding(e);
   return o + ", \"notes\": " + json_strings(notes) + "}";
 }
 

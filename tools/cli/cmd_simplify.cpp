@@ -421,13 +421,7 @@ int cmd_simplify(int argc, char** argv) {
 
   const ClusteringStats& st = filter.stats();
   for (const std::string& n : mesh.source->report().notes) notes.push_back(n);
-  for (const Property& p : mesh.source->schema().vertex_properties)
-    if (p.is_list) notes.push_back("vertex property '" + p.name + "' dropped: lists do not merge");
-  for (const Property& p : mesh.source->schema().face_properties)
-    if (p.is_list) notes.push_back("face property '" + p.name + "' dropped: lists do not merge");
-  for (const std::string& n : chain.notes()) notes.push_back(n);
-  if (st.triangles_in > 0 && st.triangles_out == 0)
-    notes.push_back("no triangle has its corners in three cells: the output is empty (use a finer grid)");
+  for (const std::string& n : detail::clustering_notes(mesh.source->schema(), st, chain.notes())) notes.push_back(n);
   if (target > 0)
     notes.push_back((ratio > 0 ? "--ratio " + ratio_text + " (" + std::to_string(target) + " triangles)"
                                : "--triangles " + std::to_string(target)) +
@@ -470,8 +464,7 @@ int cmd_simplify(int argc, char** argv) {
                     json_number(seconds > 0 ? static_cast<double>(st.triangles_in) / seconds : 0.0) +
                     ", \"threads\": " + std::to_string(threads);
     if (out_format == MeshFormat::kPsq)
-      o += ", \"lossless\": " + std::string(lossless ? "true" : "false") + ", \"bits\": " +
-           std::to_string(lossless ? 0 : out_bits) + ", \"profile\": \"" + (encode_options.fast ? "fast" : "compact") + "\"";
+      o += detail::json_encoding(encode_options);
     o += ", \"notes\": " + detail::json_strings(notes) + "}\n";
     std::fputs(o.c_str(), stdout);
   }

@@ -67,4 +67,17 @@ Status search_grid(uint64_t* target, double ratio, ClusteringOptions* options, c
   return Status();
 }
 
+std::vector<std::string> clustering_notes(const MeshSchema& input, const ClusteringStats& stats,
+                                          const std::vector<std::string>& writer_notes) {
+  std::vector<std::string> notes;
+  for (const Property& p : input.vertex_properties)
+    if (p.is_list) notes.push_back("vertex property '" + p.name + "' dropped: lists do not merge");
+  for (const Property& p : input.face_properties)
+    if (p.is_list) notes.push_back("face property '" + p.name + "' dropped: lists do not merge");
+  notes.insert(notes.end(), writer_notes.begin(), writer_notes.end());
+  if (stats.triangles_in > 0 && stats.triangles_out == 0)
+    notes.push_back("no triangle has its corners in three cells: the output is empty (use a finer grid)");
+  return notes;
+}
+
 }  // namespace psq::detail

@@ -8,6 +8,8 @@
 
 #include <cstdint>
 #include <functional>
+#include <string>
+#include <vector>
 
 #include "psq/clustering.h"
 #include "psq/psq_codec.h"
@@ -38,6 +40,12 @@ using ClusteringTrial =
 // counts the input and sets `*target`. On return `options->grid` is the
 // grid to write with. Errors: the trial's.
 Status search_grid(uint64_t* target, double ratio, ClusteringOptions* options, const ClusteringTrial& trial);
+
+// The notes of a clustering run: the input's list properties dropped
+// (lists do not merge), `writer_notes` (what the output format could not
+// hold), and why an output is empty.
+std::vector<std::string> clustering_notes(const MeshSchema& input, const ClusteringStats& stats,
+                                          const std::vector<std::string>& writer_notes);
 
 }  // namespace psq::detail
 

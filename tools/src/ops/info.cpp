@@ -63,6 +63,24 @@ class PsqInfoSink : public SequenceSink {
   RunObserver* observer_;
 };
 
+void set_mesh_figures(InfoReport* r, uint64_t vertices, uint64_t triangles, uint64_t unreferenced,
+                      uint64_t degenerate, const double lo[3], const double hi[3]) {
+  r->vertices = vertices;
+  r->triangles = triangles;
+  r->unreferenced = unreferenced;
+  r->degenerate = degenerate;
+  std::copy(lo, lo + 3, r->bbox_min);
+  std::copy(hi, hi + 3, r->bbox_max);
+}
+
+void set_edge_figures(InfoReport* r, uint64_t border, uint64_t nonmanifold_vertices, uint64_t nonmanifold_edges,
+                      uint64_t misoriented) {
+  r->border_edges = border;
+  r->nonmanifold_vertices = nonmanifold_vertices;
+  r->nonmanifold_edges = nonmanifold_edges;
+  r->misoriented_edges = misoriented;
+}
+
 }  // namespace
 
 Status measure_info(OpenedMesh& mesh, const BuildOptions& build, InfoReport* r, RunObserver* observer) {
@@ -76,16 +94,10 @@ Status measure_info(OpenedMesh& mesh, const BuildOptions& build, InfoReport* r, 
     PSQ_RETURN_IF_ERROR(mesh.decoder->pump(sink));
     const SequenceStats& q = sink.counter.stats();
     r->schema = mesh.decoder->schema();
-    r->vertices = q.vertices;
-    r->triangles = q.triangles;
-    r->unreferenced = q.unreferenced_vertices;
-    r->degenerate = q.degenerate_triangles;
-    std::copy(sink.box.lo, sink.box.lo + 3, r->bbox_min);
-    std::copy(sink.box.hi, sink.box.hi + 3, r->bbox_max);
-    r->border_edges = q.mesh_border_edges;
-    r->nonmanifold_vertices = q.nonmanifold_vertices;
-    r->nonmanifold_edges = q.mesh_nonmanifold_edges;
-    r->misoriented_edges = q.mesh_misoriented_edges;
+    set_mesh_figures(r, q.vertices, q.triangles, q.unreferenced_vertices, q.degenerate_triangles, sink.box.lo,
+                     sink.box.hi);
+    set_edge_figures(r, q.mesh_border_edges, q.nonmanifold_vertices, q.mesh_nonmanifold_edges,
+                     q.mesh_misoriented_edges);
     r->sequence = q;
     r->from_file = true;
     r->header = mesh.decoder->header();
@@ -100,16 +112,9 @@ Status measure_info(OpenedMesh& mesh, const BuildOptions& build, InfoReport* r, 
     const MeshStatsResult& m = stats.result();
     const ConverterStats& c = r->build.converter;
     r->schema = m.schema;
-    r->vertices = m.vertices;
-    r->triangles = m.triangles;
-    r->unreferenced = m.unreferenced_vertices;
-    r->degenerate = m.degenerate_triangles;
-    std::copy(m.bbox_min, m.bbox_min + 3, r->bbox_min);
-    std::copy(m.bbox_max, m.bbox_max + 3, r->bbox_max);
-    r->border_edges = c.border_edges;
-    r->nonmanifold_vertices = c.nonmanifold_vertices;
-    r->nonmanifold_edges = c.nonmanifold_edges;
-    r->misoriented_edges = c.misoriented_edges;
+    set_mesh_figures(r, m.vertices, m.triangles, m.unreferenced_vertices, m.degenerate_triangles, m.bbox_min,
+                     m.bbox_max);
+    set_edge_figures(r, c.border_edges, c.nonmanifold_vertices, c.nonmanifold_edges, c.misoriented_edges);
     r->sequence = checker.stats();
   }
   const SourceReport& rep = mesh.source->report();
@@ -164,10 +169,7 @@ std::string info_json(const std::string& file, const InfoReport& r) {
          "\", \"profile\": \"" + (h.fast ? "fast" : "compact") + "\", \"lossless\": " + (h.lossless ? "true" : "false") +
          ", \"bits\": " + std::to_string(h.bits) + ", \"step\": " + json_number(h.step) + ", \"chunks\": " + n(p.chunks) +
          ", \"bytes\": " + n(p.total_bytes) + ", \"sequence_vertices\": " + n(p.vertices) +
-         ", \"bits_per_vertex\": " + json_number(8.0 * p.total_bytes / nv) +
-         ", \"connectivity_bits_per_vertex\": " + json_number(p.connectivity_bits / nv) +
-         ", \"geometry_bits_per_vertex\": " + json_number(p.geometry_bits / nv) +
-         ", \"property_bits_per_vertex\": " + json_number(8.0 * p.property_bytes / nv) +
+         ", " + json_bits_per_vertex(p) +
          ", \"overhead_bits_per_vertex\": " + json_number(8.0 * (p.header_bytes + p.chunk_overhead_bytes) / nv) +
          ", \"gates\": {\"offset_0\": " + n(p.gates[0]) + ", \"offset\": " + n(p.gates[1]) +
          ", \"far_rank\": " + n(p.far_gates[0]) + ", \"far_resume\": " + n(p.far_gates[1]) +

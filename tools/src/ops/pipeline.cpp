@@ -8,9 +8,9 @@
 
 #include <algorithm>
 
+#include "json.h"
 #include "psq/draco.h"
 #include "psq/obj.h"
-#include "psq/psq_codec.h"
 
 namespace psq::detail {
 
@@ -53,6 +53,20 @@ std::vector<std::string> input_notes(const OpenedMesh& mesh, const BuildReport& 
   if (build.converter.degenerate_dropped)
     notes.push_back(std::to_string(build.converter.degenerate_dropped) + " degenerate triangle(s) dropped");
   return notes;
+}
+
+std::string json_encoding(const EncodeOptions& e) {
+  return std::string(", \"lossless\": ") + (e.lossless ? "true" : "false") +
+         ", \"bits\": " + std::to_string(e.lossless ? 0 : e.bits) + ", \"profile\": \"" + (e.fast ? "fast" : "compact") +
+         "\"";
+}
+
+std::string json_bits_per_vertex(const PsqStats& st) {
+  const double nv = st.vertices ? static_cast<double>(st.vertices) : 1.0;
+  return "\"bits_per_vertex\": " + json_number(8.0 * st.total_bytes / nv) +
+         ", \"connectivity_bits_per_vertex\": " + json_number(st.connectivity_bits / nv) +
+         ", \"geometry_bits_per_vertex\": " + json_number(st.geometry_bits / nv) +
+         ", \"property_bits_per_vertex\": " + json_number(8.0 * st.property_bytes / nv);
 }
 
 Status SequenceToMesh::begin(const MeshSchema& schema) {

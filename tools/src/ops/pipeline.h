@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "psq/mesh_formats.h"
+#include "psq/psq_codec.h"
 #include "psq/sequence.h"
 #include "psq/sequence_builder.h"
 
@@ -56,6 +57,14 @@ std::vector<std::string> writer_notes(MeshFormat format, MeshSink* writer);
 // The input's notes: the reader's, and the triangles the sequence builder
 // dropped as degenerate.
 std::vector<std::string> input_notes(const OpenedMesh& mesh, const BuildReport& build);
+
+// The fields of a .psq summary that say how it was encoded, each after
+// ", ": "lossless", "bits" (0 when lossless) and "profile".
+std::string json_encoding(const EncodeOptions& encode);
+// The fields of a .psq's size per vertex (PsqStats), "bits_per_vertex"
+// first, then connectivity, geometry and properties, without a leading
+// ", ".
+std::string json_bits_per_vertex(const PsqStats& stats);
 
 // A processing sequence written as an indexed mesh: vertices in the order
 // they are introduced, re-appearing vertices (non-manifold cuts, paper
