@@ -23,7 +23,6 @@
 #include "psq/converter.h"
 #include "psq/distance.h"
 #include "psq/draco.h"
-#include "psq/memory_budget.h"
 #include "psq/mesh_formats.h"
 #include "psq/mesh_stats.h"
 #include "psq/mesh_stream.h"
@@ -193,13 +192,10 @@ std::string simplify(const std::string& in, const std::string& out, const Simpli
   output.format = output_format(p.format, out);
   if (same_file(in, out)) usage("the input and the output are the same file");
 
-  MemoryBudget budget(p.memory);
+  const detail::ClusteringBudget budget = detail::split_clustering_budget(p.memory);
   BuildOptions build;
   build.tmpdir = p.tmpdir;
-  build.memory_budget = budget.draw(1, 2);
-  const uint64_t filter_budget = budget.draw(1, 4);
-  const uint64_t lookahead = budget.draw(1, 64);
-  const uint64_t draco_budget = budget.draw_rest();
+  build.memory_budget = budget.build;
   OpenOptions oo;
   oo.spool_dir = p.tmpdir;
   oo.memory_budget = build.memory_budget;
@@ -212,14 +208,9 @@ std::string simplify(const std::string& in, const std::string& out, const Simpli
   // .psq input stays lossless: it has no bounding box to quantize on
   // before its first vertex (as psq simplify --method qem); clustering
   // measures the box in a first pass and passes it on.
-  const bool lossless_psq = psq_in && mesh.decoder->header().lossless;
   EncodeOptions e;
-  e.lossless = p.lossless || (lossless_psq && p.method == "qem");
-  e.bits = p.bits ? p.bits : (psq_in && !lossless_psq) ? mesh.decoder->header().bits : 16;
-  if (p.bits && lossless_psq && p.method == "qem")
+  if (!detail::filter_encoding(mesh, p.bits, p.lossless, p.profile, p.method == "qem", &e))
     usage("bits: the input is a lossless .psq, which gives no bounding box to quantize on; use lossless=True");
-  e.fast = p.profile == "fast" || (p.profile == "auto" && (psq_in ? mesh.decoder->header().fast : false)) ||
-           (p.profile == "auto" && p.method == "clustering" && detail::auto_fast_profile(in_schema));
   if (output.format == MeshFormat::kDraco && !e.lossless && e.bits > 30)
     usage("the input's " + std::to_string(e.bits) + " bits are too many for Draco: give bits (1..30)");
 
@@ -240,12 +231,12 @@ std::string simplify(const std::string& in, const std::string& out, const Simpli
     qo.seed = p.seed;
     // As psq simplify --method qem: the decoder and encoder keep their
     // boundaries; the filter gets the rest of the budget.
-    qo.memory_budget = psq_in ? p.memory - std::min<uint64_t>(p.memory / 2, uint64_t{30} << 20) : p.memory / 2;
+    qo.memory_budget = detail::sequence_filter_budget(p.memory, psq_in);
     build.memory_budget = p.memory / 2;
     if (qo.ratio == 0 && qo.target_triangles == 0 && qo.max_error < 0)
       usage("give a target: ratio, triangles or max_error");
     if (qo.target_triangles > 0 && psq_in && in_schema.triangle_count < 0) qo.input_triangles = count_triangles(in, oo);
-    output.open(out, p, e, draco_budget);
+    output.open(out, p, e, budget.writer);
     StreamQem qem(output.chain.sequence_sink(false), qo);
     // The builder reads the whole mesh before the first event: its count
     // is known by the filter's begin().
@@ -280,7 +271,7 @@ std::string simplify(const std::string& in, const std::string& out, const Simpli
     if (p.grid < 0 || p.cell < 0) usage("grid and cell must be positive");
     if (p.border_weight < 0 || !std::isfinite(p.border_weight)) usage("border_weight must be a number >= 0");
     co.border_weight = p.border_weight;
-    co.memory_budget = filter_budget;
+    co.memory_budget = budget.filter;
     if (p.grid > 0) {
       if (!(p.grid >= 1) || !(p.grid < ClusterGrid::kMaxDim)) usage("grid must be 1 to 2097151");
       co.grid = p.grid;
@@ -322,8 +313,8 @@ std::string simplify(const std::string& in, const std::string& out, const Simpli
         pipeline_error(s, in, out);
       }
     }
-    output.open(out, p, e, draco_budget);
-    ClusteringFilter filter(output.chain.mesh_sink(lookahead, false, false), co);
+    output.open(out, p, e, budget.writer);
+    ClusteringFilter filter(output.chain.mesh_sink(budget.lookahead, false, false), co);
     ++passes;
     Status s = detail::feed_sequence(mesh, filter, build, &report);
     if (!s.ok()) {

@@ -21,7 +21,6 @@
 #include "progress.h"
 #include "run_progress.h"
 #include "psq/clustering.h"
-#include "psq/memory_budget.h"
 #include "psq/mesh_formats.h"
 #include "psq/mesh_stream.h"
 #include "psq/psq_codec.h"
@@ -319,13 +318,11 @@ int cmd_simplify(int argc, char** argv) {
     return usage_error("simplify", "refusing to write binary data to a terminal");
 
   // One budget, split here among the stages (psq/memory_budget.h).
-  MemoryBudget budget(memory_bytes);
+  const detail::ClusteringBudget budget = detail::split_clustering_budget(memory_bytes);
   BuildOptions build;
   build.tmpdir = tmpdir;
-  build.memory_budget = budget.draw(1, 2);
-  options.memory_budget = budget.draw(1, 4);
-  const uint64_t lookahead_share = budget.draw(1, 64);
-  const uint64_t draco_share = budget.draw_rest();
+  build.memory_budget = budget.build;
+  options.memory_budget = budget.filter;
   OpenOptions open_options;
   open_options.spool_dir = tmpdir;
   open_options.memory_budget = build.memory_budget;
@@ -385,26 +382,20 @@ int cmd_simplify(int argc, char** argv) {
   }
 
   // The output.
-  const bool psq_input_quantized = mesh.decoder && !mesh.decoder->header().lossless;
-  const int out_bits = bits ? static_cast<int>(bits) : psq_input_quantized ? mesh.decoder->header().bits : 16;
-  if (out_format == MeshFormat::kDraco && !lossless && out_bits > 30)
-    return usage_error("simplify", "the input's " + std::to_string(out_bits) + " bits are too many for Draco: give --bits (1..30)");
   EncodeOptions encode_options;
-  encode_options.bits = out_bits;
-  encode_options.lossless = lossless;
-  if (profile == "fast") encode_options.fast = true;
-  if (profile == "auto")
-    encode_options.fast = mesh.decoder ? mesh.decoder->header().fast || detail::auto_fast_profile(mesh.decoder->schema())
-                                       : detail::auto_fast_profile(mesh.source->schema());
+  detail::filter_encoding(mesh, static_cast<int>(bits), lossless, profile, false, &encode_options);
+  if (out_format == MeshFormat::kDraco && !lossless && encode_options.bits > 30)
+    return usage_error("simplify", "the input's " + std::to_string(encode_options.bits) +
+                                       " bits are too many for Draco: give --bits (1..30)");
   WriteOptions write_options;
   write_options.ascii = ascii;
   write_options.spool_dir = tmpdir;
-  write_options.memory_budget = draco_share;
+  write_options.memory_budget = budget.writer;
   detail::FilterOutput chain;
   chain.open(&output, out_format, encode_options, write_options);
   // With --json the output's non-manifold vertices and edges are counted.
   // With two threads or more, the output side runs on a thread of its own.
-  StreamingMeshSink* sink = chain.mesh_sink(lookahead_share, json, threads > 1);
+  StreamingMeshSink* sink = chain.mesh_sink(budget.lookahead, json, threads > 1);
   ClusteringFilter filter(sink, options);
   Progress progress(mesh.stream.get(), !quiet);
   BuildReport report;

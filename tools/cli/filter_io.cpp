@@ -80,11 +80,12 @@ int FilterRun::open(const std::string& command, const FilterOptions& o) {
   if (out == "-" && o.json) return usage_error(command, "--json needs OUT to be a file (stdout carries the mesh)");
   if (out == "-" && ::isatty(STDOUT_FILENO) && out_format_ != MeshFormat::kObj)
     return usage_error(command, "refusing to write binary data to a terminal");
+  int bits = 0;  // not given
   if (!o.bits.empty()) {
     char* end = nullptr;
     long b = std::strtol(o.bits.c_str(), &end, 10);
     if (*end != 0 || b < 1 || b > 31) return usage_error(command, "bad --bits '" + o.bits + "' (1..31)");
-    encode_.bits = static_cast<int>(b);
+    bits = static_cast<int>(b);
   }
 
   OpenOptions open_options;
@@ -98,28 +99,12 @@ int FilterRun::open(const std::string& command, const FilterOptions& o) {
   // A .psq input keeps its quantization unless told otherwise; a lossless
   // one has no bounding box to quantize on (the grid needs it before the
   // first vertex), so its output stays lossless.
-  encode_.lossless = o.lossless;
-  if (mesh_.decoder) {
-    const PsqHeader& h = mesh_.decoder->header();
-    if (h.lossless && !o.lossless) {
-      if (!o.bits.empty())
-        return usage_error(command, "--bits: the input is a lossless .psq, which gives no bounding box to quantize "
-                                    "on; use --lossless");
-      encode_.lossless = true;
-    }
-    if (!h.lossless && o.bits.empty()) encode_.bits = h.bits;
-    encode_.fast = o.profile == "fast" || (o.profile == "auto" && h.fast);
-  } else {
-    encode_.fast = o.profile == "fast";
-  }
-  // The sequence builder reads a mesh input completely first, within half
-  // the budget. The decoder of a .psq and the encoder keep their
-  // boundaries and a chunk each, with the process about 30 MB on a
-  // 200M-triangle foam ball (bench/RESULTS.md, "Simplification: stream edge
-  // collapse"); the filter gets the rest.
+  if (!detail::filter_encoding(mesh_, bits, o.lossless, o.profile, true, &encode_))
+    return usage_error(command, "--bits: the input is a lossless .psq, which gives no bounding box to quantize "
+                                "on; use --lossless");
   build_.tmpdir = o.tmpdir;
   build_.memory_budget = o.memory / 2;
-  filter_budget_ = mesh_.decoder ? o.memory - std::min<uint64_t>(o.memory / 2, uint64_t{30} << 20) : o.memory / 2;
+  filter_budget_ = detail::sequence_filter_budget(o.memory, static_cast<bool>(mesh_.decoder));
 
   s = output_.open(out, o.force);
   if (!s.ok()) return report_error(out, s);

@@ -5,6 +5,7 @@
 #include <algorithm>
 
 #include "pipeline.h"
+#include "psq/memory_budget.h"
 
 namespace psq::detail {
 namespace {
@@ -20,6 +21,31 @@ class DiscardSequence : public SequenceSink {
 };
 
 }  // namespace
+
+bool filter_encoding(const OpenedMesh& input, int bits, bool lossless, const std::string& profile,
+                     bool sequence_filter, EncodeOptions* e) {
+  const PsqHeader* h = input.decoder ? &input.decoder->header() : nullptr;
+  if (h && h->lossless && sequence_filter && bits && !lossless) return false;
+  e->lossless = lossless || (h && h->lossless && sequence_filter);
+  e->bits = bits ? bits : (h && !h->lossless) ? h->bits : 16;
+  const bool large = !sequence_filter && auto_fast_profile(h ? input.decoder->schema() : input.source->schema());
+  e->fast = profile == "fast" || (profile == "auto" && ((h && h->fast) || large));
+  return true;
+}
+
+ClusteringBudget split_clustering_budget(uint64_t memory) {
+  MemoryBudget budget(memory);
+  ClusteringBudget b;
+  b.build = budget.draw(1, 2);
+  b.filter = budget.draw(1, 4);
+  b.lookahead = budget.draw(1, 64);
+  b.writer = budget.draw_rest();
+  return b;
+}
+
+uint64_t sequence_filter_budget(uint64_t memory, bool psq_input) {
+  return psq_input ? memory - std::min<uint64_t>(memory / 2, uint64_t{30} << 20) : memory / 2;
+}
 
 FilterOutput::~FilterOutput() { stop(); }
 

@@ -21,6 +21,34 @@
 
 namespace psq::detail {
 
+// How a filter's .psq output is encoded, from its input and options:
+// `bits` when given (not 0), else a quantized .psq input's bits, else 16;
+// lossless when asked, or for a sequence filter (`sequence_filter`) over
+// a lossless .psq, which gives no bounding box to quantize on before its
+// first vertex; profile "fast", "compact" or "auto": fast when the input is
+// a fast .psq or, for a mesh-stream filter (clustering), a large mesh
+// (auto_fast_profile()). False when `bits` was given for a sequence filter
+// over a lossless .psq (the caller words the usage error).
+bool filter_encoding(const OpenedMesh& input, int bits, bool lossless, const std::string& profile,
+                     bool sequence_filter, EncodeOptions* encode);
+
+// How psq simplify's --memory is split among the stages of a clustering
+// run (psq/memory_budget.h): half for the sequence builder (a mesh
+// input), a quarter for the filter, a 64th for the output converter's
+// lookahead, the rest for an in-core writer (Draco).
+struct ClusteringBudget {
+  uint64_t build = 0, filter = 0, lookahead = 0, writer = 0;
+};
+ClusteringBudget split_clustering_budget(uint64_t memory);
+
+// A sequence filter's share of `memory` (psq simplify --method qem,
+// psq smooth): the sequence builder reads a mesh input within half of it;
+// the decoder of a .psq and the encoder keep their boundaries and a chunk
+// each, the process about 30 MB on a 200M-triangle foam ball
+// (bench/RESULTS.md, "Simplification: stream edge collapse"); the filter
+// gets the rest.
+uint64_t sequence_filter_budget(uint64_t memory, bool psq_input);
+
 class FilterOutput {
  public:
   FilterOutput() = default;
