@@ -22,6 +22,7 @@
 #include "psq/psq_codec.h"
 #include "psq/psq_memory.h"
 #include "psq/status.h"
+#include "psq/stream_qem.h"
 
 namespace psq::python {
 
@@ -185,12 +186,9 @@ struct SimplifyParams {
   double cell = 0;
   std::string cells = "connected";
   double border_weight = 1;
-  // qem
-  double max_error = -1;
-  uint32_t buffer = 0;
-  int candidates = 8;
-  bool lock_border = false;
-  uint64_t seed = 1;
+  // qem: max_error, buffer_triangles, candidates, lock_border, seed (its
+  // ratio, target and budget come from the fields here)
+  QemOptions qem;
   // output
   std::string format;
   int bits = 0;                       // 0: the input's (a quantized .psq), else 16

@@ -416,11 +416,11 @@ PYBIND11_MODULE(_psq, m) {
     if (get("cell")) p.cell = o["cell"].cast<double>();
     if (get("cells")) p.cells = o["cells"].cast<std::string>();
     if (get("border_weight")) p.border_weight = o["border_weight"].cast<double>();
-    if (get("max_error")) p.max_error = o["max_error"].cast<double>();
-    if (get("buffer")) p.buffer = o["buffer"].cast<uint32_t>();
-    if (get("candidates")) p.candidates = o["candidates"].cast<int>();
-    if (get("lock_border")) p.lock_border = o["lock_border"].cast<bool>();
-    if (get("seed")) p.seed = o["seed"].cast<uint64_t>();
+    if (get("max_error")) p.qem.max_error = o["max_error"].cast<double>();
+    if (get("buffer")) p.qem.buffer_triangles = o["buffer"].cast<uint32_t>();
+    if (get("candidates")) p.qem.candidates = o["candidates"].cast<int>();
+    if (get("lock_border")) p.qem.lock_border = o["lock_border"].cast<bool>();
+    if (get("seed")) p.qem.seed = o["seed"].cast<uint64_t>();
     if (get("format")) p.format = o["format"].cast<std::string>();
     if (get("bits")) p.bits = o["bits"].cast<int>();
     if (get("lossless")) p.lossless = o["lossless"].cast<bool>();

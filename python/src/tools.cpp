@@ -1,10 +1,11 @@
 // SPDX-License-Identifier: Apache-2.0
 // python/src/tools.cpp: psq.convert, psq.simplify, psq.info and
-// psq.distance. They assemble the library's pipelines as the psq command
-// does (tools/cli/cmd_*.cpp) and return the JSON object that command
-// prints with --json, with the same fields, so that scripts can move
-// between the two. Progress lines and notes on stderr are the command's
-// business and are left out; notes come back in the object.
+// psq.distance. psq.info and psq.distance return the JSON text psq info
+// --json and psq distance --json print (tools/src/ops, shared with the
+// command); psq.convert and psq.simplify assemble their pipelines from
+// the same pieces and return the command's fields, so that scripts can
+// move between the two. Progress lines and notes on stderr are the
+// command's business and are left out; notes come back in the object.
 #include <algorithm>
 #include <charconv>
 #include <chrono>
@@ -221,14 +222,9 @@ std::string simplify(const std::string& in, const std::string& out, const Simpli
                   "\", \"method\": \"" + p.method + "\"";
 
   if (p.method == "qem") {
-    QemOptions qo;
+    QemOptions qo = p.qem;
     qo.ratio = p.ratio;
     qo.target_triangles = p.triangles;
-    qo.max_error = p.max_error;
-    qo.buffer_triangles = p.buffer;
-    qo.candidates = p.candidates;
-    qo.lock_border = p.lock_border;
-    qo.seed = p.seed;
     // As psq simplify --method qem: the decoder and encoder keep their
     // boundaries; the filter gets the rest of the budget.
     qo.memory_budget = detail::sequence_filter_budget(p.memory, psq_in);
