@@ -6,12 +6,8 @@
 // the same pieces and return the command's fields, so that scripts can
 // move between the two. Progress lines and notes on stderr are the
 // command's business and are left out; notes come back in the object.
-#include <algorithm>
-#include <charconv>
 #include <chrono>
 #include <cmath>
-#include <cstdio>
-#include <thread>
 
 #include "binding.h"
 #include "clustering_run.h"
@@ -21,16 +17,10 @@
 #include "json.h"
 #include "pipeline.h"
 #include "psq/clustering.h"
-#include "psq/converter.h"
 #include "psq/distance.h"
-#include "psq/draco.h"
 #include "psq/mesh_formats.h"
-#include "psq/mesh_stats.h"
 #include "psq/mesh_stream.h"
-#include "psq/obj.h"
 #include "psq/sequence_builder.h"
-#include "psq/sequence_check.h"
-#include "psq/sequence_count.h"
 #include "psq/stream_qem.h"
 #include "psq/threaded_sink.h"
 

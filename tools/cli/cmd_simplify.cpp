@@ -15,8 +15,8 @@
 #include <vector>
 
 #include "cli_util.h"
-#include "commands.h"
 #include "clustering_run.h"
+#include "commands.h"
 #include "filter_output.h"
 #include "progress.h"
 #include "run_progress.h"
