@@ -247,13 +247,16 @@ def _size(v) -> int:
         raise UsageError(f"bad size '{v}' (e.g. 256M, 2G)") from None
 
 
-def _write_options(bits, lossless, profile, chunk_bytes, zstd_level, format, ascii, overwrite, memory, tmpdir):
-    return dict(bits=int(bits), lossless=bool(lossless), profile=str(profile), chunk_bytes=_size(chunk_bytes),
+def _write_options(bits, lossless, profile, chunk_bytes, zstd_level, format, ascii, overwrite, memory, tmpdir,
+                   normal_bits=0, uv_bits=0):
+    return dict(bits=int(bits), lossless=bool(lossless), normal_bits=int(normal_bits), uv_bits=int(uv_bits),
+                profile=str(profile), chunk_bytes=_size(chunk_bytes),
                 zstd_level=int(zstd_level), format=format, ascii=bool(ascii), overwrite=bool(overwrite),
                 memory=_size(memory), tmpdir=None if tmpdir is None else _path(tmpdir))
 
 
 def write(path: PathLike, positions, faces=None, *, bits: int = 16, lossless: bool = False,
+          normal_bits: int = 0, uv_bits: int = 0,
           vertex_properties: Optional[Mapping[str, Any]] = None,
           face_properties: Optional[Mapping[str, Any]] = None, format: Optional[str] = None,
           profile: str = "auto", chunk_bytes: Union[int, str] = 1 << 20, zstd_level: int = 9,
@@ -266,7 +269,10 @@ def write(path: PathLike, positions, faces=None, *, bits: int = 16, lossless: bo
     place; other integer types are converted). Arrays already C-contiguous
     in a dtype psq stores are read in place, without copies.
     bits: quantization bits per coordinate (.psq 1..31, .drc 1..30);
-    lossless: keep positions bit-exact; profile: .psq "compact", "fast" or
+    lossless: keep positions bit-exact; normal_bits, uv_bits: quantize the
+    normals (nx ny nz; octahedral, 2..16 bits) and texture coordinates (u v,
+    s t; a grid of 2^-uv_bits) of a .psq, 0 (the default) keeping them
+    exact; profile: .psq "compact", "fast" or
     "auto" (fast from 131072 triangles); ascii: ascii PLY. The file is
     written to a temporary file and renamed on success; overwrite=False
     refuses to replace an existing file (UsageError). What the format
@@ -275,7 +281,8 @@ def write(path: PathLike, positions, faces=None, *, bits: int = 16, lossless: bo
     """
     positions, faces, vp, fp = _geometry(positions, faces)
     p, f = _arrays(positions, faces)
-    opts = _write_options(bits, lossless, profile, chunk_bytes, zstd_level, format, ascii, overwrite, memory, tmpdir)
+    opts = _write_options(bits, lossless, profile, chunk_bytes, zstd_level, format, ascii, overwrite, memory, tmpdir,
+                          normal_bits, uv_bits)
     notes = _psq.write(_path(path), p, f,
                        _columns(vertex_properties if vertex_properties is not None else vp, "vertex"),
                        _columns(face_properties if face_properties is not None else fp, "face"), opts)
@@ -284,6 +291,7 @@ def write(path: PathLike, positions, faces=None, *, bits: int = 16, lossless: bo
 
 
 def encode(positions, faces=None, *, bits: int = 16, lossless: bool = False,
+           normal_bits: int = 0, uv_bits: int = 0,
            vertex_properties: Optional[Mapping[str, Any]] = None,
            face_properties: Optional[Mapping[str, Any]] = None, profile: str = "auto",
            chunk_bytes: Union[int, str] = 1 << 20, zstd_level: int = 9, memory: Union[int, str] = "512M",
@@ -291,7 +299,8 @@ def encode(positions, faces=None, *, bits: int = 16, lossless: bool = False,
     """Encodes a mesh to .psq bytes; the arguments are write()'s."""
     positions, faces, vp, fp = _geometry(positions, faces)
     p, f = _arrays(positions, faces)
-    opts = _write_options(bits, lossless, profile, chunk_bytes, zstd_level, "psq", False, True, memory, tmpdir)
+    opts = _write_options(bits, lossless, profile, chunk_bytes, zstd_level, "psq", False, True, memory, tmpdir,
+                          normal_bits, uv_bits)
     return _psq.encode(p, f, _columns(vertex_properties if vertex_properties is not None else vp, "vertex"),
                        _columns(face_properties if face_properties is not None else fp, "face"), opts)
 
@@ -413,7 +422,7 @@ def _json(text: str) -> Dict[str, Any]:
 
 
 def convert(src: PathLike, dst: PathLike, *, to: Optional[str] = None, bits: int = 16, lossless: bool = False,
-            profile: str = "auto", chunk_bytes: Union[int, str] = "1M", ascii: bool = False,
+            normal_bits: int = 10, uv_bits: int = 12, weld: Optional[str] = None, profile: str = "auto", chunk_bytes: Union[int, str] = "1M", ascii: bool = False,
             memory: Union[int, str] = "512M", tmpdir: Optional[PathLike] = None, threads: int = 1,
             overwrite: bool = True, measure_costs: bool = False, zstd_level: int = 9) -> Dict[str, Any]:
     """Converts a mesh file to another format, streaming, as `psq convert` does.
@@ -424,10 +433,15 @@ def convert(src: PathLike, dst: PathLike, *, to: Optional[str] = None, bits: int
     encodes on a second thread. measure_costs splits the bits into
     connectivity and geometry (slower). Returns the summary `psq convert
     --json` prints (vertices, triangles, bytes_in, bytes_out, ...). The GIL
-    is released throughout.
+    is released throughout. normal_bits and uv_bits quantize normals
+    (octahedral) and texture coordinates (a grid of 2^-uv_bits) in a .psq,
+    as `psq convert --normal-bits/--uv-bits` (0 keeps them exact; lossless
+    keeps everything exact); weld="all" or "positions" merges identical
+    vertices first, as `psq convert --weld`.
     """
-    opts = _write_options(bits, lossless, profile, chunk_bytes, zstd_level, to, ascii, overwrite, memory, tmpdir)
-    opts.update(threads=int(threads), measure_costs=bool(measure_costs))
+    opts = _write_options(bits, lossless, profile, chunk_bytes, zstd_level, to, ascii, overwrite, memory, tmpdir,
+                          normal_bits, uv_bits)
+    opts.update(threads=int(threads), measure_costs=bool(measure_costs), weld="off" if weld is None else str(weld))
     return _json(_psq.convert(_path(src), _path(dst), opts))
 
 

@@ -18,9 +18,11 @@
 
 #include "psq/indexed_mesh.h"
 #include "psq/io.h"
+#include "psq/mesh_formats.h"
 #include "psq/psq_codec.h"
 #include "psq/psq_memory.h"
 #include "psq/status.h"
+#include "psq/stream_qem.h"
 
 namespace psq::python {
 
@@ -97,6 +99,8 @@ struct WriteParams {
   std::string format;     // "psq", "ply", "obj", "drc"; empty: from the path
   int bits = 16;
   bool lossless = false;
+  int normal_bits = 0;           // normals: octahedral bits (2..16), 0 exact
+  int uv_bits = 0;               // texture coordinates: a grid of 2^-uv_bits (1..24), 0 exact
   std::string profile = "auto";  // compact, fast, auto
   uint32_t chunk_bytes = 1u << 20;
   int zstd_level = 9;
@@ -105,6 +109,13 @@ struct WriteParams {
   uint64_t memory = uint64_t{512} << 20;
   std::string tmpdir;
 };
+
+// The .psq encoder's options of `params` (kUsage when bits, profile,
+// chunk_bytes or zstd_level are out of range); `fast_auto`: what profile
+// "auto" means for the input at hand.
+EncodeOptions encode_options(const WriteParams& params, bool fast_auto);
+// The mesh writers' options of `params`.
+WriteOptions write_options(const WriteParams& params);
 
 // Checks the columns against the element counts (kUsage).
 void check_in_mesh(const InMesh& mesh);
@@ -163,6 +174,7 @@ class StreamReader {
 // with --json (module.cpp parses it into a dict).
 struct ConvertParams {
   WriteParams write;
+  std::string weld = "off";  // "all" or "positions": psq convert --weld
   int threads = 2;
   bool measure_costs = false;
 };
@@ -177,12 +189,9 @@ struct SimplifyParams {
   double cell = 0;
   std::string cells = "connected";
   double border_weight = 1;
-  // qem
-  double max_error = -1;
-  uint32_t buffer = 0;
-  int candidates = 8;
-  bool lock_border = false;
-  uint64_t seed = 1;
+  // qem: max_error, buffer_triangles, candidates, lock_border, seed (its
+  // ratio, target and budget come from the fields here)
+  QemOptions qem;
   // output
   std::string format;
   int bits = 0;                       // 0: the input's (a quantized .psq), else 16
@@ -209,10 +218,6 @@ struct DistanceParams {
   std::string tmpdir;
 };
 std::string distance(const std::string& a, const std::string& b, const DistanceParams& params);
-
-// JSON helpers (as the psq command writes them).
-std::string json_escape(const std::string& s);
-std::string json_number(double v);
 
 }  // namespace psq::python
 

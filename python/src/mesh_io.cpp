@@ -8,9 +8,8 @@
 #include <limits>
 
 #include "binding.h"
-#include "psq/draco.h"
+#include "pipeline.h"
 #include "psq/mesh_formats.h"
-#include "psq/obj.h"
 #include "psq/sequence_builder.h"
 
 namespace psq::python {
@@ -289,24 +288,36 @@ void check_columns(const std::vector<InColumn>& cols, uint64_t elements, const c
   }
 }
 
-bool auto_fast(int64_t triangles) { return triangles >= 131072; }
+}  // namespace
 
-EncodeOptions encode_options(const WriteParams& p, int64_t triangles) {
+EncodeOptions encode_options(const WriteParams& p, bool fast_auto) {
   EncodeOptions o;
   if (!p.lossless && (p.bits < 1 || p.bits > 31)) usage("bits must be 1..31, not " + std::to_string(p.bits));
   if (p.profile != "auto" && p.profile != "fast" && p.profile != "compact")
     usage("profile must be 'auto', 'fast' or 'compact', not '" + p.profile + "'");
   if (p.chunk_bytes < 1 || p.chunk_bytes > (1u << 24)) usage("chunk_bytes must be 1 to 16M");
   if (p.zstd_level < 1 || p.zstd_level > 22) usage("zstd_level must be 1..22");
+  if (p.normal_bits < 0 || p.normal_bits == 1 || p.normal_bits > 16) usage("normal_bits must be 0 or 2..16");
+  if (p.uv_bits < 0 || p.uv_bits > 24) usage("uv_bits must be 0..24");
   o.bits = p.bits;
   o.lossless = p.lossless;
-  o.fast = p.profile == "fast" || (p.profile == "auto" && auto_fast(triangles));
+  o.normal_bits = p.normal_bits;
+  o.uv_bits = p.uv_bits;
+  o.fast = p.profile == "fast" || (p.profile == "auto" && fast_auto);
   o.chunk_bytes = p.chunk_bytes;
   o.zstd_level = p.zstd_level;
   return o;
 }
 
-}  // namespace
+WriteOptions write_options(const WriteParams& p) {
+  WriteOptions w;
+  w.ascii = p.ascii;
+  w.spool_dir = p.tmpdir;
+  w.draco_bits = p.bits;
+  w.lossless = p.lossless;
+  w.memory_budget = p.memory;
+  return w;
+}
 
 void check_in_mesh(const InMesh& mesh) {
   if (mesh.vertices >= 0xffffffffull) check(Status(ErrorCode::kLimit, "more than 4294967294 vertices"), "");
@@ -316,7 +327,7 @@ void check_in_mesh(const InMesh& mesh) {
 
 std::vector<std::string> write_path(const InMesh& mesh, const std::string& path, const WriteParams& params) {
   check_in_mesh(mesh);
-  const MeshFormat format = params.format.empty() ? format_from_extension(path) : format_from_name(params.format);
+  const MeshFormat format = detail::output_format(params.format, path);
   if (format == MeshFormat::kUnknown) {
     if (!params.format.empty()) usage("unknown format '" + params.format + "' (psq, ply, obj or drc)");
     usage("cannot tell the format from '" + path + "': give format='psq', 'ply', 'obj' or 'drc'");
@@ -328,7 +339,7 @@ std::vector<std::string> write_path(const InMesh& mesh, const std::string& path,
   Status s;
   if (format == MeshFormat::kPsq) {
     FileWriter writer(&output);
-    PsqEncoder encoder(&writer, encode_options(params, static_cast<int64_t>(mesh.triangles)));
+    PsqEncoder encoder(&writer, encode_options(params, detail::auto_fast_profile(source.schema())));
     BuildOptions build;
     build.memory_budget = params.memory;
     build.tmpdir = params.tmpdir;
@@ -339,22 +350,9 @@ std::vector<std::string> write_path(const InMesh& mesh, const std::string& path,
                       " degenerate triangle(s) dropped (a repeated vertex index)");
   } else {
     if (format == MeshFormat::kDraco && !params.lossless && params.bits > 30) usage("bits must be 1..30 for Draco");
-    WriteOptions w;
-    w.ascii = params.ascii;
-    w.spool_dir = params.tmpdir;
-    w.draco_bits = params.bits;
-    w.lossless = params.lossless;
-    w.memory_budget = params.memory;
-    std::unique_ptr<MeshSink> writer = make_mesh_writer(format, &output, w);
+    std::unique_ptr<MeshSink> writer = make_mesh_writer(format, &output, write_options(params));
     s = pump(source, *writer);
-    if (s.ok() && format == MeshFormat::kObj)
-      for (const std::string& d : static_cast<ObjWriter*>(writer.get())->dropped())
-        notes.push_back("property '" + d + "' dropped: OBJ cannot hold it");
-    if (s.ok() && format == MeshFormat::kDraco) {
-      for (const std::string& d : static_cast<DracoWriter*>(writer.get())->dropped())
-        notes.push_back("property '" + d + "' dropped: Draco output keeps scalar vertex properties only");
-      for (const std::string& n : static_cast<DracoWriter*>(writer.get())->notes()) notes.push_back(n);
-    }
+    if (s.ok()) notes = detail::writer_notes(format, writer.get());
   }
   if (!s.ok()) {
     output.discard();
@@ -368,7 +366,7 @@ void encode_bytes(const InMesh& mesh, const WriteParams& params, std::vector<uin
   check_in_mesh(mesh);
   ArraySource source(mesh);
   VectorWriter writer(out);
-  PsqEncoder encoder(&writer, encode_options(params, static_cast<int64_t>(mesh.triangles)));
+  PsqEncoder encoder(&writer, encode_options(params, detail::auto_fast_profile(source.schema())));
   BuildOptions build;
   build.memory_budget = params.memory;
   build.tmpdir = params.tmpdir;

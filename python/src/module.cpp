@@ -186,6 +186,8 @@ WriteParams write_params(const py::dict& o) {
   if (o.contains("format") && !o["format"].is_none()) w.format = o["format"].cast<std::string>();
   if (o.contains("bits")) w.bits = o["bits"].cast<int>();
   if (o.contains("lossless")) w.lossless = o["lossless"].cast<bool>();
+  if (o.contains("normal_bits")) w.normal_bits = o["normal_bits"].cast<int>();
+  if (o.contains("uv_bits")) w.uv_bits = o["uv_bits"].cast<int>();
   if (o.contains("profile")) w.profile = o["profile"].cast<std::string>();
   if (o.contains("chunk_bytes")) w.chunk_bytes = o["chunk_bytes"].cast<uint32_t>();
   if (o.contains("zstd_level")) w.zstd_level = o["zstd_level"].cast<int>();
@@ -398,6 +400,7 @@ PYBIND11_MODULE(_psq, m) {
     ConvertParams p;
     p.write = write_params(o);
     if (o.contains("threads")) p.threads = o["threads"].cast<int>();
+    if (o.contains("weld")) p.weld = o["weld"].cast<std::string>();
     if (o.contains("measure_costs")) p.measure_costs = o["measure_costs"].cast<bool>();
     std::string json;
     {
@@ -416,11 +419,11 @@ PYBIND11_MODULE(_psq, m) {
     if (get("cell")) p.cell = o["cell"].cast<double>();
     if (get("cells")) p.cells = o["cells"].cast<std::string>();
     if (get("border_weight")) p.border_weight = o["border_weight"].cast<double>();
-    if (get("max_error")) p.max_error = o["max_error"].cast<double>();
-    if (get("buffer")) p.buffer = o["buffer"].cast<uint32_t>();
-    if (get("candidates")) p.candidates = o["candidates"].cast<int>();
-    if (get("lock_border")) p.lock_border = o["lock_border"].cast<bool>();
-    if (get("seed")) p.seed = o["seed"].cast<uint64_t>();
+    if (get("max_error")) p.qem.max_error = o["max_error"].cast<double>();
+    if (get("buffer")) p.qem.buffer_triangles = o["buffer"].cast<uint32_t>();
+    if (get("candidates")) p.qem.candidates = o["candidates"].cast<int>();
+    if (get("lock_border")) p.qem.lock_border = o["lock_border"].cast<bool>();
+    if (get("seed")) p.qem.seed = o["seed"].cast<uint64_t>();
     if (get("format")) p.format = o["format"].cast<std::string>();
     if (get("bits")) p.bits = o["bits"].cast<int>();
     if (get("lossless")) p.lossless = o["lossless"].cast<bool>();

@@ -135,3 +135,34 @@ def test_simplify_of_a_lossless_psq(tmp_path, ply):
         psq.simplify(src, tmp_path / "q2.psq", method="qem", ratio=0.5, bits=12)
     for out in ("c.psq", "q.psq"):
         assert len(psq.read(tmp_path / out).faces) > 0
+
+
+def test_convert_welds_a_soup_and_quantizes_normals(tmp_path, psq_binary):
+    # A soup of a closed grid (each triangle its own three vertices), with a
+    # normal per vertex: weld merges the copies (same position and normal),
+    # as psq convert --weld does, and normals are quantized at normal_bits.
+    grid, grid_faces = grid_mesh(12)
+    corners = grid_faces.reshape(-1)
+    positions = grid[corners]
+    lifted = positions.astype(np.float64) + [0, 0, 5]
+    normals = (lifted / np.linalg.norm(lifted, axis=1, keepdims=True)).astype(np.float32)
+    faces = np.arange(len(corners), dtype=np.uint32).reshape(-1, 3)
+    soup = tmp_path / "soup.ply"
+    psq.write(soup, positions, faces, lossless=True,
+              vertex_properties={"nx": normals[:, 0].copy(), "ny": normals[:, 1].copy(), "nz": normals[:, 2].copy()})
+    ours = psq.convert(soup, tmp_path / "w.psq", weld="all", normal_bits=8, measure_costs=True)
+    assert ours["weld"] == "all" and ours["input_vertices"] == len(corners)
+    assert ours["vertices"] == len(grid) and ours["welded_vertices"] == len(corners) - len(grid)
+    back = psq.read(tmp_path / "w.psq")
+    n = np.stack([back.vertex_properties[k] for k in ("nx", "ny", "nz")], axis=1)
+    assert np.all(np.abs(np.linalg.norm(n, axis=1) - 1) < 0.02)
+    if psq_binary is not None:
+        cli = json.loads(subprocess.run([psq_binary, "convert", str(soup), str(tmp_path / "c.psq"), "--json", "-q",
+                                         "--weld", "--normal-bits", "8", "--threads", "1"],
+                                        capture_output=True, text=True, check=True).stdout)
+        for key, value in cli.items():
+            if key not in ("input", "output"):
+                assert ours[key] == value, key
+        assert (tmp_path / "w.psq").read_bytes() == (tmp_path / "c.psq").read_bytes()
+    with pytest.raises(psq.UsageError):
+        psq.convert(soup, tmp_path / "w.ply", weld="all")

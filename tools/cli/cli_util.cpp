@@ -26,11 +26,7 @@ int report_error(const std::string& file, const Status& status) {
 }
 
 int report_pipeline_error(const std::string& in, const std::string& out, const Status& status) {
-  // A write fails with kIo; every other error is about the data, which
-  // comes from IN (a position the output cannot hold, a mesh over a limit).
-  bool about_input = status.line() != Status::kNoPlace || status.offset() != Status::kNoPlace ||
-                     status.code() != ErrorCode::kIo;
-  return report_error(about_input ? in : out, status);
+  return report_error(detail::error_is_about_output(status) ? out : in, status);
 }
 
 int usage_error(const std::string& command, const std::string& message) {
@@ -110,35 +106,6 @@ std::vector<std::string> Args::positionals() {
   return out;
 }
 
-std::string json_escape(const std::string& s) {
-  std::string out;
-  for (unsigned char c : s) {
-    switch (c) {
-      case '"': out += "\\\""; break;
-      case '\\': out += "\\\\"; break;
-      case '\n': out += "\\n"; break;
-      case '\r': out += "\\r"; break;
-      case '\t': out += "\\t"; break;
-      default:
-        if (c < 0x20) {
-          char buf[8];
-          std::snprintf(buf, sizeof buf, "\\u%04x", c);
-          out += buf;
-        } else {
-          out += static_cast<char>(c);
-        }
-    }
-  }
-  return out;
-}
-
-std::string json_number(double v) {
-  if (!std::isfinite(v)) return "null";
-  char buf[64];
-  auto r = std::to_chars(buf, buf + sizeof buf, v);
-  return std::string(buf, r.ptr);
-}
-
 bool parse_size(const std::string& text, uint64_t* bytes) {
   uint64_t n = 0;
   const char* b = text.data();
@@ -172,14 +139,6 @@ bool parse_ratio(const std::string& text, double* ratio) {
   if (!(r > 0 && r <= 1)) return false;
   *ratio = r;
   return true;
-}
-
-bool same_file(const std::string& a, const std::string& b) {
-  if (a == "-" || b == "-") return false;
-  if (a == b) return true;
-  struct stat sa, sb;
-  if (::stat(a.c_str(), &sa) != 0 || ::stat(b.c_str(), &sb) != 0) return false;
-  return sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
 }
 
 namespace {

@@ -9,6 +9,8 @@
 #include <string>
 #include <vector>
 
+#include "json.h"
+#include "pipeline.h"
 #include "psq/status.h"
 
 namespace psq::cli {
@@ -59,10 +61,9 @@ class Args {
   bool options_ended_at(size_t i) const;
 };
 
-// Escapes `s` for a JSON string literal (without the quotes).
-std::string json_escape(const std::string& s);
-// Formats a double so that it reads back exactly and is valid JSON.
-std::string json_number(double v);
+// JSON text (tools/src/ops/json.h).
+using detail::json_escape;
+using detail::json_number;
 
 // Parses a byte size: a number with an optional K, M, G or T suffix (powers
 // of 1024; "MiB", "MB" and "M" all mean 2^20). False when malformed or zero.
@@ -71,8 +72,8 @@ bool parse_size(const std::string& text, uint64_t* bytes);
 // when malformed or out of range.
 bool parse_ratio(const std::string& text, double* ratio);
 
-// Whether two paths name the same existing file.
-bool same_file(const std::string& a, const std::string& b);
+// Whether two paths name the same existing file (tools/src/ops/pipeline.h).
+using detail::same_file;
 
 // Installs SIGINT/SIGTERM/SIGHUP handlers that remove pending temporary
 // outputs and exit with 128 + the signal (130, 143, 129).

@@ -11,6 +11,7 @@
 #include "cli_util.h"
 #include "progress.h"
 #include "commands.h"
+#include "pipeline.h"
 #include "psq/draco.h"
 #include "psq/mesh_formats.h"
 #include "psq/obj.h"
@@ -95,14 +96,6 @@ bool auto_fast(const MeshSchema& schema) {
   return schema.vertex_count != MeshSchema::kUnknown && schema.vertex_count >= kAutoFastVertices;
 }
 
-// The share of duplicated positions above which convert suggests --weld:
-// "most vertices" (a soup of a closed mesh repeats about 5 in 6).
-constexpr double kSuggestWeld = 0.5;
-
-const char* weld_name(WeldMode m) {
-  return m == WeldMode::kOff ? "off" : m == WeldMode::kAll ? "all" : "positions";
-}
-
 // IN (any mesh, or .psq) to a .psq OUT: the processing sequence of the
 // mesh, or the decoded sequence of a .psq, into the encoder.
 int to_psq(const std::string& in, const std::string& out, OpenedMesh& mesh, OutputFile& output,
@@ -131,18 +124,9 @@ int to_psq(const std::string& in, const std::string& out, OpenedMesh& mesh, Outp
   s = output.commit();
   if (!s.ok()) return report_error(out, s);
   const PsqStats& st = encoder.stats();
-  std::vector<std::string> notes = mesh.source->report().notes;
-  if (report.converter.degenerate_dropped)
-    notes.push_back(std::to_string(report.converter.degenerate_dropped) + " degenerate triangle(s) dropped");
+  std::vector<std::string> notes = detail::input_notes(mesh, report);
+  for (std::string& n : detail::weld_notes(build_options.weld, report)) notes.push_back(std::move(n));
   const bool welded = build_options.weld != WeldMode::kOff;
-  if (welded) {
-    notes.push_back("--weld merged " + std::to_string(report.welded_vertices) + " of " +
-                    std::to_string(report.input_vertices) + " vertices and dropped " +
-                    std::to_string(report.weld_dropped) + " triangle(s) it made degenerate");
-  } else if (report.duplicate_share > kSuggestWeld) {
-    notes.push_back("about " + std::to_string(static_cast<int>(100 * report.duplicate_share + 0.5)) +
-                    "% of the vertices repeat another vertex's position (a triangle soup?): --weld would merge them");
-  }
   if (!quiet)
     for (const std::string& n : notes) note(in, n);
   const double nv = st.vertices ? static_cast<double>(st.vertices) : 1.0;
@@ -166,13 +150,7 @@ int to_psq(const std::string& in, const std::string& out, OpenedMesh& mesh, Outp
                     ", \"property_bits_per_vertex\": " + json_number(8.0 * st.property_bytes / nv) +
                     ", \"lossless\": " + (encode_options.lossless ? "true" : "false") +
                     ", \"bits\": " + std::to_string(encode_options.lossless ? 0 : encode_options.bits) +
-                    ", \"weld\": \"" + weld_name(build_options.weld) + "\"";
-    if (!mesh.decoder) {
-      o += ", \"input_vertices\": " + std::to_string(report.input_vertices) +
-           ", \"input_triangles\": " + std::to_string(report.input_triangles) +
-           ", \"welded_vertices\": " + std::to_string(report.welded_vertices) +
-           ", \"weld_dropped_triangles\": " + std::to_string(report.weld_dropped);
-    }
+                    detail::json_weld(build_options.weld, report, !mesh.decoder);
     o += ", \"notes\": [";
     for (size_t i = 0; i < notes.size(); ++i) o += (i ? ", \"" : "\"") + json_escape(notes[i]) + "\"";
     o += "]}\n";
@@ -329,17 +307,7 @@ int cmd_convert(int argc, char** argv) {
   if (!s.ok()) return report_error(out, s);
 
   std::vector<std::string> notes = mesh.source->report().notes;
-  if (out_format == MeshFormat::kObj) {
-    for (const std::string& d : static_cast<ObjWriter*>(writer.get())->dropped()) {
-      notes.push_back("property '" + d + "' dropped: OBJ cannot hold it");
-    }
-  }
-  if (out_format == MeshFormat::kDraco) {
-    for (const std::string& d : static_cast<DracoWriter*>(writer.get())->dropped()) {
-      notes.push_back("property '" + d + "' dropped: Draco output keeps scalar vertex properties only");
-    }
-    for (const std::string& n : static_cast<DracoWriter*>(writer.get())->notes()) notes.push_back(n);
-  }
+  for (std::string& n : detail::writer_notes(out_format, writer.get())) notes.push_back(std::move(n));
   if (!quiet) {
     for (const std::string& n : notes) note(in, n);
   }

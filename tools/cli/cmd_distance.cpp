@@ -1,16 +1,12 @@
 // SPDX-License-Identifier: Apache-2.0
 // psq distance: Metro's surface distance between two meshes (psq/distance.h).
-#include <unistd.h>
-
 #include <charconv>
-#include <cmath>
 #include <cstdio>
 #include <string>
 
 #include "cli_util.h"
 #include "commands.h"
-#include "psq/distance.h"
-#include "psq/mesh_formats.h"
+#include "distance_report.h"
 
 namespace psq::cli {
 namespace {
@@ -76,34 +72,6 @@ bool parse_count(const std::string& text, uint64_t* n) {
   return true;
 }
 
-// The triangles a mesh will have: its header's count, or a guess from its
-// size (about 25 bytes a triangle for text formats), or unknown (a pipe).
-uint64_t estimated_triangles(const OpenedMesh& m) {
-  const int64_t t = m.source->schema().triangle_count;
-  if (t >= 0) return static_cast<uint64_t>(t);
-  const int64_t size = m.stream->size();
-  if (size >= 0) return static_cast<uint64_t>(size) / 25;
-  return UINT64_MAX;
-}
-
-std::string json_stats(const DirectionDistance& d, double div, bool counts) {
-  std::string s = "{";
-  if (counts) {
-    s += "\"samples\": " + std::to_string(d.samples) + ", \"vertex_samples\": " + std::to_string(d.vertex_samples) +
-         ", ";
-  }
-  s += "\"max\": " + json_number(d.max / div) + ", \"mean\": " + json_number(d.mean / div) +
-       ", \"rms\": " + json_number(d.rms / div) + "}";
-  return s;
-}
-
-std::string json_mesh(const std::string& file, const MeshDistanceSummary& m) {
-  return "{\"file\": \"" + json_escape(file) + "\", \"vertices\": " + std::to_string(m.vertices) +
-         ", \"used_vertices\": " + std::to_string(m.used_vertices) + ", \"triangles\": " +
-         std::to_string(m.triangles) + ", \"area\": " + json_number(m.area) + ", \"held\": " +
-         (m.held ? "true" : "false") + "}";
-}
-
 void text_row(const char* name, const DirectionDistance& d, double div, bool counts) {
   if (counts) std::printf("%-10s %12llu", name, static_cast<unsigned long long>(d.samples));
   else std::printf("%-10s %12s", name, "");
@@ -157,45 +125,20 @@ int cmd_distance(int argc, char** argv) {
   if (!s.ok()) return report_error(files[0], s);
   s = open_mesh(files[1], open_options, &b);
   if (!s.ok()) return report_error(files[1], s);
-  if (options.hold == DistanceHold::kAuto) {
-    // Counts the headers do not give are estimated from the file sizes.
-    const uint64_t ta = estimated_triangles(a), tb = estimated_triangles(b);
-    if (std::max(ta, tb) <= kAutoInMemoryTriangles) options.hold = DistanceHold::kBoth;
-    else options.hold = ta < tb ? DistanceHold::kA : DistanceHold::kB;
-  }
+  // Counts the headers do not give are estimated from the file sizes.
+  if (options.hold == DistanceHold::kAuto) options.hold = detail::auto_hold(a, b);
 
   DistanceResult r;
   s = measure_distance(*a.source, *b.source, options, &r);
-  if (!s.ok()) {
-    if (r.error_input == 0) return report_error(options.tmpdir.empty() ? "temporary file" : options.tmpdir, s);
-    return report_error(files[r.error_input - 1], s);
-  }
-  DirectionDistance sym;
-  sym.max = r.hausdorff;
-  sym.mean = std::max(r.a_to_b.mean, r.b_to_a.mean);
-  sym.rms = std::max(r.a_to_b.rms, r.b_to_a.rms);
-  const uint64_t total = r.a_to_b.samples + r.b_to_a.samples;
-  const double rate = r.seconds > 0 ? static_cast<double>(total) / r.seconds : 0;
-  const int threads = options.threads > 0 ? options.threads : static_cast<int>(std::max(1L, sysconf(_SC_NPROCESSORS_ONLN)));
-  // Relative values are undefined when A's bounding box is a point.
-  const double diag = r.diagonal > 0 ? r.diagonal : std::nan("");
+  if (!s.ok()) return report_error(detail::distance_error_file(r, files[0], files[1], options.tmpdir), s);
+  const detail::DistanceSummary sum = detail::summarize_distance(r, options);
+  const DirectionDistance& sym = sum.symmetric;
+  const double diag = sum.diagonal;
+  const double rate = sum.samples_per_second;
+  const int threads = sum.threads;
 
   if (json) {
-    std::string o = "{\n";
-    o += "  \"a\": " + json_mesh(files[0], r.a) + ",\n";
-    o += "  \"b\": " + json_mesh(files[1], r.b) + ",\n";
-    o += "  \"seed\": " + std::to_string(options.seed) + ",\n";
-    o += "  \"a_to_b\": " + json_stats(r.a_to_b, 1, true) + ",\n";
-    o += "  \"b_to_a\": " + json_stats(r.b_to_a, 1, true) + ",\n";
-    o += "  \"hausdorff\": " + json_number(r.hausdorff) + ",\n";
-    o += "  \"symmetric\": " + json_stats(sym, 1, false) + ",\n";
-    o += "  \"diagonal\": " + json_number(r.diagonal) + ",\n";
-    o += "  \"relative\": {\"a_to_b\": " + json_stats(r.a_to_b, diag, false) + ", \"b_to_a\": " +
-         json_stats(r.b_to_a, diag, false) + ", \"hausdorff\": " + json_number(r.hausdorff / diag) +
-         ", \"symmetric\": " + json_stats(sym, diag, false) + "},\n";
-    o += "  \"timing\": {\"seconds\": " + json_number(r.seconds) + ", \"samples_per_second\": " + json_number(rate) +
-         ", \"threads\": " + std::to_string(threads) + "}\n}\n";
-    std::fputs(o.c_str(), stdout);
+    std::fputs(detail::distance_json(files[0], files[1], options, r).c_str(), stdout);
   } else {
     std::printf("A  %s: %llu triangles, %s\n", files[0] == "-" ? "<stdin>" : files[0].c_str(),
                 static_cast<unsigned long long>(r.a.triangles), r.a.held ? "held" : "streamed");

@@ -15,18 +15,16 @@
 #include <vector>
 
 #include "cli_util.h"
+#include "clustering_run.h"
 #include "commands.h"
+#include "filter_output.h"
 #include "progress.h"
+#include "run_progress.h"
 #include "psq/clustering.h"
-#include "psq/converter.h"
-#include "psq/draco.h"
-#include "psq/memory_budget.h"
 #include "psq/mesh_formats.h"
 #include "psq/mesh_stream.h"
-#include "psq/obj.h"
 #include "psq/psq_codec.h"
 #include "psq/sequence_builder.h"
-#include "psq/threaded_mesh_sink.h"
 #include "psq/threaded_sink.h"
 
 namespace psq::cli {
@@ -106,67 +104,6 @@ const char kHelp[] =
     "                      vertices and edges, the filter's peak memory, time\n"
     "  -h, --help          show this help\n";
 
-// The output converter keeps at least this many ready triangles waiting
-// (psq/converter.h, set_lookahead_minimum()): the converter's default of
-// 65536 and 32 per open edge made it the largest structure of a run (65 MB
-// peak for a 50M-triangle foam simplified to 10%). This, with a 64th of
-// --memory as its cap (4 MB by default), keeps a 200M-triangle foam at 10%
-// under 57 MB for 0.4% more output bytes than a 32nd.
-constexpr uint64_t kOutputLookahead = 4096;
-
-// As psq convert's --profile auto.
-constexpr int64_t kAutoFastTriangles = 131072;
-constexpr int64_t kAutoFastVertices = 65536;
-
-// Counts the input's triangles for the progress line, on the thread that
-// reads the input.
-class InputProgress : public SequenceSink {
- public:
-  InputProgress(SequenceSink* out, Progress* progress) : out_(out), progress_(progress) {}
-  Status begin(const MeshSchema& s) override { return out_->begin(s); }
-  Status vertex(const SequenceVertex& v) override { return out_->vertex(v); }
-  Status triangle(const SequenceTriangle& t) override {
-    progress_->triangle();
-    return out_->triangle(t);
-  }
-  Status finalize(uint32_t i) override { return out_->finalize(i); }
-  Status finish() override { return out_->finish(); }
-
- private:
-  SequenceSink* out_;
-  Progress* progress_;
-};
-
-// Drops a sequence: the converter in front of it only counts the output's
-// non-manifold elements (--json with a mesh format).
-class NullSequenceSink : public SequenceSink {
- public:
-  Status begin(const MeshSchema&) override { return Status(); }
-  Status vertex(const SequenceVertex&) override { return Status(); }
-  Status triangle(const SequenceTriangle&) override { return Status(); }
-  Status finalize(uint32_t) override { return Status(); }
-  Status finish() override { return Status(); }
-};
-
-// The bounding box of a sequence's vertices (a lossless .psq declares none).
-class BoxSink : public SequenceSink {
- public:
-  Status begin(const MeshSchema&) override { return Status(); }
-  Status vertex(const SequenceVertex& v) override {
-    for (int a = 0; a < 3; ++a) {
-      lo[a] = any ? std::min(lo[a], v.position[a]) : v.position[a];
-      hi[a] = any ? std::max(hi[a], v.position[a]) : v.position[a];
-    }
-    any = true;
-    return Status();
-  }
-  Status triangle(const SequenceTriangle&) override { return Status(); }
-  Status finalize(uint32_t) override { return Status(); }
-  Status finish() override { return Status(); }
-  bool any = false;
-  double lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
-};
-
 // The input, opened once per pass. Standard input that must be read more
 // than once (a trial pass, or a lossless .psq whose bounding box takes a
 // pass of its own) is spooled to an unlinked temporary file first.
@@ -232,19 +169,8 @@ Status feed(OpenedMesh& mesh, SequenceSink& filter, const BuildOptions& build, P
     threaded = std::make_unique<ThreadedSequenceSink>(&filter);
     next = threaded.get();
   }
-  if (mesh.decoder) {
-    InputProgress counted(next, &progress);
-    return mesh.decoder->pump(counted);
-  }
-  ProgressSource source(mesh.source.get(), &progress);
-  return build_sequence(source, *next, build, report);
-}
-
-// Errors of a pipeline: a place in the input, or a filter's complaint about
-// the sequence, is about IN; a write failure about OUT.
-int report_simplify_error(const std::string& in, const std::string& out, const Status& s) {
-  const bool about_out = s.line() == Status::kNoPlace && s.offset() == Status::kNoPlace && s.code() == ErrorCode::kIo;
-  return report_error(about_out ? out : in, s);
+  RunProgress observer(&progress);
+  return detail::feed_sequence(mesh, *next, build, report, &observer);
 }
 
 // --merge NAME=RULE[,NAME=RULE...]: the rule of the vertex and face
@@ -379,7 +305,7 @@ int cmd_simplify(int argc, char** argv) {
   if (!bits_text.empty() && (!parse_uint(bits_text, 31, &bits) || bits < 1))
     return usage_error("simplify", "bad --bits '" + bits_text + "' (1..31)");
 
-  const MeshFormat out_format = to.empty() ? format_from_extension(out) : format_from_name(to);
+  const MeshFormat out_format = detail::output_format(to, out);
   if (out_format == MeshFormat::kUnknown) {
     if (!to.empty()) return usage_error("simplify", "unknown output format '" + to + "' (psq, ply, obj or drc)");
     return usage_error("simplify", "cannot tell the output format from '" + out + "': use --to psq|ply|obj|drc");
@@ -392,13 +318,11 @@ int cmd_simplify(int argc, char** argv) {
     return usage_error("simplify", "refusing to write binary data to a terminal");
 
   // One budget, split here among the stages (psq/memory_budget.h).
-  MemoryBudget budget(memory_bytes);
+  const detail::ClusteringBudget budget = detail::split_clustering_budget(memory_bytes);
   BuildOptions build;
   build.tmpdir = tmpdir;
-  build.memory_budget = budget.draw(1, 2);
-  options.memory_budget = budget.draw(1, 4);
-  const uint64_t lookahead_share = budget.draw(1, 64);
-  const uint64_t draco_share = budget.draw_rest();
+  build.memory_budget = budget.build;
+  options.memory_budget = budget.filter;
   OpenOptions open_options;
   open_options.spool_dir = tmpdir;
   open_options.memory_budget = build.memory_budget;
@@ -422,13 +346,9 @@ int cmd_simplify(int argc, char** argv) {
   }
   // A lossless .psq declares no bounding box: a first pass measures it.
   if (mesh.decoder && !mesh.decoder->schema().has_bounds) {
-    BoxSink box;
     ++passes;
-    s = mesh.decoder->pump(box);
+    s = detail::measure_bounds(*mesh.decoder, &options);
     if (!s.ok()) return report_error(in, s);
-    options.has_bounds = true;
-    std::copy(box.lo, box.lo + 3, options.bounds_min);
-    std::copy(box.hi, box.hi + 3, options.bounds_max);
     mesh = OpenedMesh();
     s = input.open(open_options, &mesh);
     if (!s.ok()) return report_error(in, s);
@@ -437,128 +357,54 @@ int cmd_simplify(int argc, char** argv) {
   // by its header or else counted by the first trial pass.
   if (ratio > 0) {
     const MeshSchema& schema = mesh.decoder ? mesh.decoder->schema() : mesh.source->schema();
-    if (schema.triangle_count > 0) {
-      target = std::max<uint64_t>(1, std::llround(ratio * static_cast<double>(schema.triangle_count)));
-      options.grid = first_grid_for_triangles(target);
-    }
+    target = detail::ratio_target(ratio, schema.triangle_count);
+    if (target > 0) options.grid = first_grid_for_triangles(target);
   }
-  // --triangles: trial passes count the output of a grid (T grows about
-  // as the grid squared: one trial, a second only when the first was far
-  // off, then the final grid interpolated in log-log).
+  // --triangles: trial passes count the output of a grid.
   if (target > 0 || ratio > 0) {
-    double trial_grid[2] = {options.grid, 0};
-    uint64_t trial_triangles[2] = {0, 0};
-    for (int t = 0; t < 2; ++t) {
-      ClusteringOptions trial = options;
-      trial.grid = trial_grid[t];
+    bool reopening = false;  // an error of opening IN again, not of a pass
+    s = detail::search_grid(&target, ratio, &options, [&](const ClusteringOptions& trial, uint64_t* tin, uint64_t* tout) {
       CountingMeshSink count;
       ClusteringFilter filter(&count, trial);
       Progress none(nullptr, false);
       BuildReport report;
       ++passes;
-      s = feed(mesh, filter, build, none, threads, &report);
-      if (!s.ok()) return report_simplify_error(in, out, s);
-      trial_triangles[t] = count.triangles;
+      PSQ_RETURN_IF_ERROR(feed(mesh, filter, build, none, threads, &report));
+      *tin = filter.stats().triangles_in;
+      *tout = count.triangles;
       mesh = OpenedMesh();
-      s = input.open(open_options, &mesh);
-      if (!s.ok()) return report_error(in, s);
-      if (target == 0) {
-        // --ratio of an input that declares no count: this pass counted
-        // it, and the trials start over from the grid the target implies.
-        target = std::max<uint64_t>(1, std::llround(ratio * static_cast<double>(filter.stats().triangles_in)));
-        options.grid = trial_grid[0] = first_grid_for_triangles(target);
-        t = -1;
-        continue;
-      }
-      const double off = std::fabs(static_cast<double>(count.triangles) - static_cast<double>(target)) / static_cast<double>(target);
-      if (off <= 0.02) {
-        options.grid = trial_grid[t];
-        break;
-      }
-      if (t == 0) {
-        options.grid = corrected_grid_for_triangles(target, trial_grid[0], trial_triangles[0]);
-        // Close enough for the square law to hold: no second trial.
-        const double change = options.grid / trial_grid[0];
-        if (change > 0.8 && change < 1.25) break;
-        trial_grid[1] = options.grid;
-      } else if (trial_triangles[0] > 0 && trial_triangles[1] > 0 && trial_triangles[0] != trial_triangles[1]) {
-        // Interpolated in log-log through both trials.
-        const double slope = std::log(static_cast<double>(trial_triangles[1]) / trial_triangles[0]) /
-                             std::log(trial_grid[1] / trial_grid[0]);
-        options.grid = slope > 0.5 ? trial_grid[1] * std::pow(static_cast<double>(target) / trial_triangles[1], 1 / slope)
-                                   : corrected_grid_for_triangles(target, trial_grid[1], trial_triangles[1]);
-        options.grid = std::min<double>(ClusterGrid::kMaxDim - 1, std::max(1.0, options.grid));
-      } else {
-        options.grid = corrected_grid_for_triangles(target, trial_grid[1], trial_triangles[1]);
-      }
-    }
+      reopening = true;
+      PSQ_RETURN_IF_ERROR(input.open(open_options, &mesh));
+      reopening = false;
+      return Status();
+    });
+    if (!s.ok()) return reopening ? report_error(in, s) : report_pipeline_error(in, out, s);
   }
 
   // The output.
-  const bool psq_input_quantized = mesh.decoder && !mesh.decoder->header().lossless;
-  const int out_bits = bits ? static_cast<int>(bits) : psq_input_quantized ? mesh.decoder->header().bits : 16;
-  if (out_format == MeshFormat::kDraco && !lossless && out_bits > 30)
-    return usage_error("simplify", "the input's " + std::to_string(out_bits) + " bits are too many for Draco: give --bits (1..30)");
   EncodeOptions encode_options;
-  encode_options.bits = out_bits;
-  encode_options.lossless = lossless;
-  if (profile == "fast") encode_options.fast = true;
-  if (profile == "auto") {
-    const MeshSchema& sc = mesh.source->schema();
-    encode_options.fast = mesh.decoder ? mesh.decoder->header().fast ||
-                                             mesh.decoder->schema().triangle_count >= kAutoFastTriangles
-                                       : sc.triangle_count >= kAutoFastTriangles ||
-                                             (sc.triangle_count == MeshSchema::kUnknown && sc.vertex_count >= kAutoFastVertices);
-  }
-  FileWriter file_writer(&output);
-  std::unique_ptr<PsqEncoder> encoder;
-  std::unique_ptr<MeshSink> writer;
-  std::unique_ptr<DenseMeshSink> dense;
-  NullSequenceSink null_sink;
-  std::unique_ptr<SequenceConverter> converter;
-  std::unique_ptr<TeeMeshSink> tee;
-  StreamingMeshSink* sink = nullptr;
-  if (out_format == MeshFormat::kPsq) {
-    encoder = std::make_unique<PsqEncoder>(&file_writer, encode_options);
-    converter = std::make_unique<SequenceConverter>(encoder.get());
-    converter->set_lookahead_budget(lookahead_share);
-    converter->set_lookahead_minimum(kOutputLookahead);
-    sink = converter.get();
-  } else {
-    WriteOptions write_options;
-    write_options.ascii = ascii;
-    write_options.spool_dir = tmpdir;
-    write_options.draco_bits = out_bits;
-    write_options.lossless = lossless;
-    write_options.memory_budget = draco_share;
-    writer = make_mesh_writer(out_format, &output, write_options);
-    dense = std::make_unique<DenseMeshSink>(writer.get());
-    sink = dense.get();
-    if (json) {
-      // The converter counts the output's non-manifold vertices and edges.
-      converter = std::make_unique<SequenceConverter>(&null_sink);
-      converter->set_lookahead_budget(lookahead_share);
-      converter->set_lookahead_minimum(kOutputLookahead);
-      tee = std::make_unique<TeeMeshSink>(dense.get(), converter.get());
-      sink = tee.get();
-    }
-  }
-  // With two threads or more, the output side runs on a thread of its own:
-  // only the filter's output crosses, a tenth or less of its input.
-  std::unique_ptr<ThreadedMeshSink> threaded_out;
-  if (threads > 1) {
-    threaded_out = std::make_unique<ThreadedMeshSink>(sink);
-    sink = threaded_out.get();
-  }
+  detail::filter_encoding(mesh, static_cast<int>(bits), lossless, profile, false, &encode_options);
+  if (out_format == MeshFormat::kDraco && !lossless && encode_options.bits > 30)
+    return usage_error("simplify", "the input's " + std::to_string(encode_options.bits) +
+                                       " bits are too many for Draco: give --bits (1..30)");
+  WriteOptions write_options;
+  write_options.ascii = ascii;
+  write_options.spool_dir = tmpdir;
+  write_options.memory_budget = budget.writer;
+  detail::FilterOutput chain;
+  chain.open(&output, out_format, encode_options, write_options);
+  // With --json the output's non-manifold vertices and edges are counted.
+  // With two threads or more, the output side runs on a thread of its own.
+  StreamingMeshSink* sink = chain.mesh_sink(budget.lookahead, json, threads > 1);
   ClusteringFilter filter(sink, options);
   Progress progress(mesh.stream.get(), !quiet);
   BuildReport report;
   ++passes;
   s = feed(mesh, filter, build, progress, threads, &report);
   if (!s.ok()) {
-    threaded_out.reset();  // stops the output's thread before the output goes
+    chain.stop();  // stops the output's thread before the output goes
     output.discard();
-    return report_simplify_error(in, out, s);
+    return report_pipeline_error(in, out, s);
   }
   s = output.commit();
   if (!s.ok()) return report_error(out, s);
@@ -566,20 +412,7 @@ int cmd_simplify(int argc, char** argv) {
 
   const ClusteringStats& st = filter.stats();
   for (const std::string& n : mesh.source->report().notes) notes.push_back(n);
-  for (const Property& p : mesh.source->schema().vertex_properties)
-    if (p.is_list) notes.push_back("vertex property '" + p.name + "' dropped: lists do not merge");
-  for (const Property& p : mesh.source->schema().face_properties)
-    if (p.is_list) notes.push_back("face property '" + p.name + "' dropped: lists do not merge");
-  if (out_format == MeshFormat::kObj)
-    for (const std::string& d : static_cast<ObjWriter*>(writer.get())->dropped())
-      notes.push_back("property '" + d + "' dropped: OBJ cannot hold it");
-  if (out_format == MeshFormat::kDraco) {
-    for (const std::string& d : static_cast<DracoWriter*>(writer.get())->dropped())
-      notes.push_back("property '" + d + "' dropped: Draco output keeps scalar vertex properties only");
-    for (const std::string& n : static_cast<DracoWriter*>(writer.get())->notes()) notes.push_back(n);
-  }
-  if (st.triangles_in > 0 && st.triangles_out == 0)
-    notes.push_back("no triangle has its corners in three cells: the output is empty (use a finer grid)");
+  for (const std::string& n : detail::clustering_notes(mesh.source->schema(), st, chain.notes())) notes.push_back(n);
   if (target > 0)
     notes.push_back((ratio > 0 ? "--ratio " + ratio_text + " (" + std::to_string(target) + " triangles)"
                                : "--triangles " + std::to_string(target)) +
@@ -596,7 +429,7 @@ int cmd_simplify(int argc, char** argv) {
     progress.finish(in, out, summary);
   }
   if (json) {
-    const ConverterStats* cs = converter ? &converter->stats() : nullptr;
+    const ConverterStats* cs = chain.converter_stats();
     auto num = [](uint64_t v) { return std::to_string(v); };
     std::string o = "{\"input\": \"" + json_escape(in) + "\", \"output\": \"" + json_escape(out) +
                     "\", \"input_format\": \"" + format_name(mesh.format) + "\", \"output_format\": \"" +
@@ -622,11 +455,8 @@ int cmd_simplify(int argc, char** argv) {
                     json_number(seconds > 0 ? static_cast<double>(st.triangles_in) / seconds : 0.0) +
                     ", \"threads\": " + std::to_string(threads);
     if (out_format == MeshFormat::kPsq)
-      o += ", \"lossless\": " + std::string(lossless ? "true" : "false") + ", \"bits\": " +
-           std::to_string(lossless ? 0 : out_bits) + ", \"profile\": \"" + (encode_options.fast ? "fast" : "compact") + "\"";
-    o += ", \"notes\": [";
-    for (size_t i = 0; i < notes.size(); ++i) o += (i ? ", \"" : "\"") + json_escape(notes[i]) + "\"";
-    o += "]}\n";
+      o += detail::json_encoding(encode_options);
+    o += ", \"notes\": " + detail::json_strings(notes) + "}\n";
     std::fputs(o.c_str(), stdout);
   }
   return kExitOk;

@@ -8,108 +8,9 @@
 #include <cstdlib>
 #include <thread>
 
+#include "run_progress.h"
+
 namespace psq::cli {
-namespace {
-
-// A processing sequence written as an indexed mesh: vertices in the order
-// they are introduced, re-appearing vertices (non-manifold cuts) merged back
-// into the vertex they re-appear.
-class SequenceMeshAdapter : public SequenceSink {
- public:
-  explicit SequenceMeshAdapter(MeshSink* out) : out_(out) {}
-  Status begin(const MeshSchema& schema) override {
-    MeshSchema s = schema;
-    s.vertex_count = MeshSchema::kUnknown;
-    s.triangle_count = MeshSchema::kUnknown;
-    return out_->begin(s);
-  }
-  Status vertex(const SequenceVertex& v) override {
-    if (v.reappears != kNoVertex) {
-      reappearing_.push_back(v.index);
-      first_.push_back(mesh_index(v.reappears));
-      return Status();
-    }
-    return out_->vertex(v.position, v.values);
-  }
-  Status triangle(const SequenceTriangle& t) override {
-    const uint32_t index[3] = {mesh_index(t.v[0]), mesh_index(t.v[1]), mesh_index(t.v[2])};
-    return out_->triangle(index, t.values);
-  }
-  Status finalize(uint32_t) override { return Status(); }
-  Status finish() override { return out_->finish(); }
-
- private:
-  // Dense sequence index to mesh index: minus the re-appearances before it,
-  // or the index of the vertex it re-appears.
-  uint32_t mesh_index(uint32_t dense) const {
-    auto it = std::lower_bound(reappearing_.begin(), reappearing_.end(), dense);
-    if (it != reappearing_.end() && *it == dense) return first_[static_cast<size_t>(it - reappearing_.begin())];
-    return dense - static_cast<uint32_t>(it - reappearing_.begin());
-  }
-
-  MeshSink* out_;
-  std::vector<uint32_t> reappearing_, first_;
-};
-
-// Counts the input's triangles for the progress line and calls a hook
-// before the filter's begin().
-class InputSink : public SequenceSink {
- public:
-  InputSink(SequenceSink* out, Progress* progress, std::function<void()> at_begin)
-      : out_(out), progress_(progress), at_begin_(std::move(at_begin)) {}
-  Status begin(const MeshSchema& s) override {
-    if (at_begin_) at_begin_();
-    return out_->begin(s);
-  }
-  Status vertex(const SequenceVertex& v) override { return out_->vertex(v); }
-  Status triangle(const SequenceTriangle& t) override {
-    if (count_progress_) progress_->triangle();
-    return out_->triangle(t);
-  }
-  Status finalize(uint32_t i) override { return out_->finalize(i); }
-  Status finish() override { return out_->finish(); }
-  bool count_progress_ = true;
-
- private:
-  SequenceSink* out_;
-  Progress* progress_;
-  std::function<void()> at_begin_;
-};
-
-class CountingSource : public MeshSource {
- public:
-  CountingSource(MeshSource* in, Progress* progress) : in_(in), progress_(progress) {}
-  const MeshSchema& schema() const override { return in_->schema(); }
-  const SourceReport& report() const override { return in_->report(); }
-  Status next(MeshItem* item) override {
-    Status s = in_->next(item);
-    if (s.ok() && item->kind == MeshItem::Kind::kTriangle) {
-      ++triangles;
-      progress_->triangle();
-    }
-    return s;
-  }
-  uint64_t triangles = 0;
-
- private:
-  MeshSource* in_;
-  Progress* progress_;
-};
-
-class NullSink : public SequenceSink {
- public:
-  Status begin(const MeshSchema&) override { return Status(); }
-  Status vertex(const SequenceVertex&) override { return Status(); }
-  Status triangle(const SequenceTriangle&) override {
-    ++triangles;
-    return Status();
-  }
-  Status finalize(uint32_t) override { return Status(); }
-  Status finish() override { return Status(); }
-  uint64_t triangles = 0;
-};
-
-}  // namespace
 
 const char kFilterOptionsHelp[] =
     "  --to FORMAT    output format: psq, ply, obj or drc (needed when OUT is '-';\n"
@@ -152,7 +53,7 @@ std::string parse_filter_options(Args& args, FilterOptions* o) {
 }
 
 FilterRun::~FilterRun() {
-  threaded_.reset();  // joins the encoder's thread before its sink goes
+  chain_.stop();  // joins the encoder's thread before its sink goes
 }
 
 int64_t FilterRun::declared_triangles() const {
@@ -161,10 +62,7 @@ int64_t FilterRun::declared_triangles() const {
 }
 
 std::vector<std::string> FilterRun::input_notes() const {
-  std::vector<std::string> notes = mesh_.source->report().notes;
-  if (build_report_.converter.degenerate_dropped)
-    notes.push_back(std::to_string(build_report_.converter.degenerate_dropped) + " degenerate triangle(s) dropped");
-  return notes;
+  return detail::input_notes(mesh_, build_report_);
 }
 
 uint64_t FilterRun::bytes_in() const { return mesh_.stream ? mesh_.stream->offset() : 0; }
@@ -173,7 +71,7 @@ int FilterRun::open(const std::string& command, const FilterOptions& o) {
   o_ = o;
   const std::string& in = o.in;
   const std::string& out = o.out;
-  out_format_ = o.to.empty() ? format_from_extension(out) : format_from_name(o.to);
+  out_format_ = detail::output_format(o.to, out);
   if (out_format_ == MeshFormat::kUnknown) {
     if (!o.to.empty()) return usage_error(command, "unknown output format '" + o.to + "' (psq, ply, obj or drc)");
     return usage_error(command, "cannot tell the output format from '" + out + "': use --to psq|ply|obj|drc");
@@ -182,11 +80,12 @@ int FilterRun::open(const std::string& command, const FilterOptions& o) {
   if (out == "-" && o.json) return usage_error(command, "--json needs OUT to be a file (stdout carries the mesh)");
   if (out == "-" && ::isatty(STDOUT_FILENO) && out_format_ != MeshFormat::kObj)
     return usage_error(command, "refusing to write binary data to a terminal");
+  int bits = 0;  // not given
   if (!o.bits.empty()) {
     char* end = nullptr;
     long b = std::strtol(o.bits.c_str(), &end, 10);
     if (*end != 0 || b < 1 || b > 31) return usage_error(command, "bad --bits '" + o.bits + "' (1..31)");
-    encode_.bits = static_cast<int>(b);
+    bits = static_cast<int>(b);
   }
 
   OpenOptions open_options;
@@ -200,51 +99,22 @@ int FilterRun::open(const std::string& command, const FilterOptions& o) {
   // A .psq input keeps its quantization unless told otherwise; a lossless
   // one has no bounding box to quantize on (the grid needs it before the
   // first vertex), so its output stays lossless.
-  encode_.lossless = o.lossless;
-  if (mesh_.decoder) {
-    const PsqHeader& h = mesh_.decoder->header();
-    if (h.lossless && !o.lossless) {
-      if (!o.bits.empty())
-        return usage_error(command, "--bits: the input is a lossless .psq, which gives no bounding box to quantize "
-                                    "on; use --lossless");
-      encode_.lossless = true;
-    }
-    if (!h.lossless && o.bits.empty()) encode_.bits = h.bits;
-    encode_.fast = o.profile == "fast" || (o.profile == "auto" && h.fast);
-  } else {
-    encode_.fast = o.profile == "fast";
-  }
-  // The sequence builder reads a mesh input completely first, within half
-  // the budget. The decoder of a .psq and the encoder keep their
-  // boundaries and a chunk each, with the process about 30 MB on a
-  // 200M-triangle foam ball (bench/RESULTS.md, "Simplification: stream edge
-  // collapse"); the filter gets the rest.
+  if (!detail::filter_encoding(mesh_, bits, o.lossless, o.profile, true, &encode_))
+    return usage_error(command, "--bits: the input is a lossless .psq, which gives no bounding box to quantize "
+                                "on; use --lossless");
   build_.tmpdir = o.tmpdir;
   build_.memory_budget = o.memory / 2;
-  filter_budget_ = mesh_.decoder ? o.memory - std::min<uint64_t>(o.memory / 2, uint64_t{30} << 20) : o.memory / 2;
+  filter_budget_ = detail::sequence_filter_budget(o.memory, static_cast<bool>(mesh_.decoder));
 
   s = output_.open(out, o.force);
   if (!s.ok()) return report_error(out, s);
   progress_ = std::make_unique<Progress>(mesh_.stream.get(), !o.quiet);
-  SequenceSink* chain = nullptr;
-  if (out_format_ == MeshFormat::kPsq) {
-    byte_writer_ = std::make_unique<FileWriter>(&output_);
-    encoder_ = std::make_unique<PsqEncoder>(byte_writer_.get(), encode_);
-    chain = encoder_.get();
-    if (o.threads >= 2) {
-      threaded_ = std::make_unique<ThreadedSequenceSink>(encoder_.get());
-      chain = threaded_.get();
-    }
-  } else {
-    WriteOptions w;
-    w.spool_dir = o.tmpdir;
-    w.draco_bits = std::min(encode_.bits, 30);
-    w.lossless = encode_.lossless;
-    w.memory_budget = o.memory;
-    mesh_writer_ = make_mesh_writer(out_format_, &output_, w);
-    adapter_ = std::make_unique<SequenceMeshAdapter>(mesh_writer_.get());
-    chain = adapter_.get();
-  }
+  WriteOptions w;
+  w.spool_dir = o.tmpdir;
+  w.memory_budget = o.memory;
+  chain_.open(&output_, out_format_, encode_, w);
+  // A .psq is encoded on a thread of its own with --threads 2.
+  SequenceSink* chain = chain_.sequence_sink(out_format_ == MeshFormat::kPsq && o.threads >= 2);
   sink_ = std::make_unique<ProgressSequenceSink>(chain, progress_.get());
   return -1;
 }
@@ -256,7 +126,7 @@ int FilterRun::count_psq_triangles(uint64_t* count) {
   open_options.spool_dir = o_.tmpdir;
   Status s = open_mesh(o_.in, open_options, &again);
   if (s.ok() && !again.decoder) s = Status(ErrorCode::kUnknownFormat, "not a .psq any more");
-  NullSink counter;
+  detail::SequenceBox counter;
   if (s.ok()) s = again.decoder->pump(counter);
   if (!s.ok()) return report_error(o_.in, s);
   *count = counter.triangles;
@@ -264,25 +134,15 @@ int FilterRun::count_psq_triangles(uint64_t* count) {
 }
 
 Status FilterRun::run(SequenceSink* filter, std::function<void(uint64_t)> at_begin) {
-  if (mesh_.decoder) {
-    InputSink input(filter, progress_.get(), [&] {
-      if (at_begin) at_begin(0);
-    });
-    // (Decoding on a thread of its own does not pay: handing every event
-    // over costs about what decoding it does; bench/RESULTS.md.)
-    return mesh_.decoder->pump(input);
-  }
-  CountingSource source(mesh_.source.get(), progress_.get());
-  InputSink input(filter, progress_.get(), [&] {
-    if (at_begin) at_begin(source.triangles);
-  });
-  input.count_progress_ = false;
-  return build_sequence(source, input, build_, &build_report_);
+  // (Decoding a .psq on a thread of its own does not pay: handing every
+  // event over costs about what decoding it does; bench/RESULTS.md.)
+  RunProgress observer(progress_.get());
+  return detail::feed_sequence(mesh_, *filter, build_, &build_report_, &observer, at_begin);
 }
 
 int FilterRun::finish(const Status& run_status, const std::string& summary, const std::vector<std::string>& notes) {
   if (!run_status.ok()) {
-    threaded_.reset();
+    chain_.stop();
     output_.discard();
     return report_pipeline_error(o_.in, o_.out, run_status);
   }

@@ -14,12 +14,12 @@
 #include <vector>
 
 #include "cli_util.h"
+#include "filter_output.h"
 #include "progress.h"
 #include "psq/mesh_formats.h"
 #include "psq/psq_codec.h"
 #include "psq/sequence.h"
 #include "psq/sequence_builder.h"
-#include "psq/threaded_sink.h"
 
 namespace psq::cli {
 
@@ -90,11 +90,7 @@ class FilterRun {
   std::string input_format_, output_format_;
   uint64_t filter_budget_ = 0;
   std::unique_ptr<Progress> progress_;
-  std::unique_ptr<ByteWriter> byte_writer_;
-  std::unique_ptr<PsqEncoder> encoder_;
-  std::unique_ptr<MeshSink> mesh_writer_;
-  std::unique_ptr<SequenceSink> adapter_;
-  std::unique_ptr<ThreadedSequenceSink> threaded_;
+  detail::FilterOutput chain_;
   std::unique_ptr<SequenceSink> sink_;
 };
 
