@@ -23,34 +23,7 @@ namespace {
 using test::Mesh;
 using Tri = std::array<uint32_t, 3>;
 
-// Keeps every event of a sequence.
-struct Events : SequenceSink {
-  MeshSchema schema;
-  std::vector<SequenceEvent> events;
-  Status begin(const MeshSchema& s) override {
-    schema = s;
-    return Status();
-  }
-  Status vertex(const SequenceVertex& v) override {
-    events.emplace_back();
-    events.back().kind = SequenceEvent::Kind::kVertex;
-    events.back().vertex = v;
-    return Status();
-  }
-  Status triangle(const SequenceTriangle& t) override {
-    events.emplace_back();
-    events.back().kind = SequenceEvent::Kind::kTriangle;
-    events.back().triangle = t;
-    return Status();
-  }
-  Status finalize(uint32_t i) override {
-    events.emplace_back();
-    events.back().kind = SequenceEvent::Kind::kFinalize;
-    events.back().finalized = i;
-    return Status();
-  }
-  Status finish() override { return Status(); }
-};
+using Events = test::EventLog;
 
 // Positions of a float mesh must be floats.
 Mesh as_float(Mesh m) {

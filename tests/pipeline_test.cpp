@@ -24,51 +24,7 @@ namespace {
 
 using test::Mesh;
 
-// Records a sequence's events; replays them as a SequenceSource.
-class EventLog : public SequenceSink, public SequenceSource {
- public:
-  Status begin(const MeshSchema& s) override {
-    schema_ = s;
-    return Status();
-  }
-  Status vertex(const SequenceVertex& v) override {
-    SequenceEvent e;
-    e.kind = SequenceEvent::Kind::kVertex;
-    e.vertex = v;
-    events.push_back(e);
-    return Status();
-  }
-  Status triangle(const SequenceTriangle& t) override {
-    SequenceEvent e;
-    e.kind = SequenceEvent::Kind::kTriangle;
-    e.triangle = t;
-    events.push_back(e);
-    return Status();
-  }
-  Status finalize(uint32_t i) override {
-    SequenceEvent e;
-    e.kind = SequenceEvent::Kind::kFinalize;
-    e.finalized = i;
-    events.push_back(e);
-    return Status();
-  }
-  Status finish() override { return Status(); }
-  const MeshSchema& schema() const override { return schema_; }
-  Status next(SequenceEvent* e) override {
-    if (at_ < events.size()) {
-      *e = events[at_++];
-    } else {
-      e->kind = SequenceEvent::Kind::kEnd;
-    }
-    return Status();
-  }
-
-  std::vector<SequenceEvent> events;
-
- private:
-  MeshSchema schema_;
-  size_t at_ = 0;
-};
+using test::EventLog;
 
 // The triangles as position triples, each rotated to start at its
 // smallest corner, sorted: compares meshes whatever their vertex order.
@@ -179,7 +135,8 @@ TEST(StreamingMeshSink, ConverterAndDenseSinkGiveTheSameMesh) {
     }
     for (uint32_t i = 0; i < sphere.positions.size(); ++i) ASSERT_TRUE(sink->finalize(1000 + 3 * i).ok());
     ASSERT_TRUE(sink->finish().ok());
-    Mesh got = which == 0 ? sequence_to_mesh(log) : direct.mesh;
+    test::EventReplay replay(log);
+    Mesh got = which == 0 ? sequence_to_mesh(replay) : direct.mesh;
     EXPECT_EQ(got.positions.size(), sphere.positions.size());
     EXPECT_EQ(position_triangles(got), position_triangles(sphere));
   }
@@ -273,7 +230,8 @@ TEST(SequenceMeshSource, MergesReappearingVertices) {
   for (const SequenceEvent& e : log.events)
     reappearing += e.kind == SequenceEvent::Kind::kVertex && e.vertex.reappears != kNoVertex;
   EXPECT_EQ(reappearing, 1u);
-  Mesh got = sequence_to_mesh(log);
+  test::EventReplay replay(log);
+  Mesh got = sequence_to_mesh(replay);
   EXPECT_EQ(got.positions.size(), 6u);  // the isolated vertex too
   // Same triangles over the same positions.
   ASSERT_EQ(got.triangles.size(), 2u);
@@ -296,7 +254,8 @@ TEST(SequenceMeshSource, RejectsBrokenReferences) {
     SequenceTriangle t;
     t.v[0] = 0, t.v[1] = 1, t.v[2] = which == 2 ? 7 : 0;  // 2: a vertex never introduced
     ASSERT_TRUE(log.triangle(t).ok());
-    SequenceMeshSource mesh(&log);
+    test::EventReplay replay(log);
+    SequenceMeshSource mesh(&replay);
     MeshItem item;
     Status s;
     for (int i = 0; i < 8 && s.ok(); ++i) s = mesh.next(&item);

@@ -128,76 +128,6 @@ Mesh make_torus(int rings, int segments, double r_big, double r_small) {
 
 // ----------------------------------------------------------------- helpers
 
-// Records a sequence; replays it as a SequenceSource (any number of times).
-class EventLog : public SequenceSink, public SequenceSource {
- public:
-  Status begin(const MeshSchema& s) override {
-    schema_ = s;
-    return Status();
-  }
-  Status vertex(const SequenceVertex& v) override {
-    events.emplace_back();
-    events.back().kind = SequenceEvent::Kind::kVertex;
-    events.back().vertex = v;
-    return Status();
-  }
-  Status triangle(const SequenceTriangle& t) override {
-    events.emplace_back();
-    events.back().kind = SequenceEvent::Kind::kTriangle;
-    events.back().triangle = t;
-    return Status();
-  }
-  Status finalize(uint32_t i) override {
-    events.emplace_back();
-    events.back().kind = SequenceEvent::Kind::kFinalize;
-    events.back().finalized = i;
-    return Status();
-  }
-  Status finish() override {
-    finished = true;
-    return Status();
-  }
-  const MeshSchema& schema() const override { return schema_; }
-  Status next(SequenceEvent* e) override {
-    if (at_ < events.size()) {
-      *e = events[at_++];
-    } else {
-      e->kind = SequenceEvent::Kind::kEnd;
-    }
-    return Status();
-  }
-  void rewind() { at_ = 0; }
-  // Every field of every event, for comparisons of runs.
-  std::string text() const {
-    std::string s;
-    char buf[256];
-    for (const SequenceEvent& e : events) {
-      if (e.kind == SequenceEvent::Kind::kVertex) {
-        std::snprintf(buf, sizeof buf, "v %u %u %.17g %.17g %.17g", e.vertex.index, e.vertex.reappears,
-                      e.vertex.position[0], e.vertex.position[1], e.vertex.position[2]);
-        s += buf;
-        for (double x : e.vertex.values) s += " " + std::to_string(x);
-      } else if (e.kind == SequenceEvent::Kind::kTriangle) {
-        std::snprintf(buf, sizeof buf, "t %u %u %u %d %d", e.triangle.v[0], e.triangle.v[1], e.triangle.v[2],
-                      static_cast<int>(e.triangle.op), e.triangle.border_mask);
-        s += buf;
-        for (double x : e.triangle.values) s += " " + std::to_string(x);
-      } else {
-        s += "x " + std::to_string(e.finalized);
-      }
-      s += "\n";
-    }
-    return s;
-  }
-
-  std::vector<SequenceEvent> events;
-  bool finished = false;
-
- private:
-  MeshSchema schema_;
-  size_t at_ = 0;
-};
-
 struct Result {
   Status status;
   ClusteringStats stats;
@@ -213,7 +143,7 @@ struct Result {
 Result simplify(const Mesh& m, const ClusteringOptions& o, bool threaded = false) {
   Result r;
   test::MemorySource source(m);
-  EventLog log;
+  test::EventLog log;
   SequenceConverter converter(&log);
   ClusteringFilter filter(&converter, o);
   std::unique_ptr<ThreadedSequenceSink> thread;
@@ -230,10 +160,11 @@ Result simplify(const Mesh& m, const ClusteringOptions& o, bool threaded = false
   if (!r.status.ok()) return r;
   EXPECT_TRUE(log.finished);
   SequenceChecker checker;
-  r.check = pump_sequence(log, checker);
+  test::EventReplay replay(log);
+  r.check = pump_sequence(replay, checker);
   r.sequence = checker.stats();
-  log.rewind();
-  SequenceMeshSource mesh(&log);
+  test::EventReplay again(log);
+  SequenceMeshSource mesh(&again);
   test::MemorySink sink;
   Status s = pump(mesh, sink);
   EXPECT_TRUE(s.ok()) << s.to_string();

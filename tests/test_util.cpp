@@ -263,4 +263,66 @@ Mesh make_torus(int around, int across, double thickness) {
   return m;
 }
 
+Status EventLog::begin(const MeshSchema& s) {
+  schema = s;
+  return Status();
+}
+
+Status EventLog::vertex(const SequenceVertex& v) {
+  events.emplace_back();
+  events.back().kind = SequenceEvent::Kind::kVertex;
+  events.back().vertex = v;
+  return Status();
+}
+
+Status EventLog::triangle(const SequenceTriangle& t) {
+  events.emplace_back();
+  events.back().kind = SequenceEvent::Kind::kTriangle;
+  events.back().triangle = t;
+  return Status();
+}
+
+Status EventLog::finalize(uint32_t i) {
+  events.emplace_back();
+  events.back().kind = SequenceEvent::Kind::kFinalize;
+  events.back().finalized = i;
+  return Status();
+}
+
+Status EventLog::finish() {
+  finished = true;
+  return Status();
+}
+
+std::string EventLog::text() const {
+  std::string s;
+  char buf[256];
+  for (const SequenceEvent& e : events) {
+    if (e.kind == SequenceEvent::Kind::kVertex) {
+      std::snprintf(buf, sizeof buf, "v %u %u %.17g %.17g %.17g", e.vertex.index, e.vertex.reappears,
+                    e.vertex.position[0], e.vertex.position[1], e.vertex.position[2]);
+      s += buf;
+      for (double x : e.vertex.values) s += " " + std::to_string(x);
+    } else if (e.kind == SequenceEvent::Kind::kTriangle) {
+      std::snprintf(buf, sizeof buf, "t %u %u %u %d %d", e.triangle.v[0], e.triangle.v[1], e.triangle.v[2],
+                    static_cast<int>(e.triangle.op), e.triangle.border_mask);
+      s += buf;
+      for (double x : e.triangle.values) s += " " + std::to_string(x);
+    } else {
+      s += "x " + std::to_string(e.finalized);
+    }
+    s += "\n";
+  }
+  return s;
+}
+
+Status EventReplay::next(SequenceEvent* e) {
+  if (at_ < log_.events.size()) {
+    *e = log_.events[at_++];
+  } else {
+    e->kind = SequenceEvent::Kind::kEnd;
+  }
+  return Status();
+}
+
 }  // namespace psq::test

@@ -11,6 +11,7 @@
 
 #include "psq/indexed_mesh.h"
 #include "psq/io.h"
+#include "psq/sequence.h"
 
 namespace psq::test {
 
@@ -99,6 +100,33 @@ std::vector<std::array<uint32_t, 3>> canonical_triangles(const Mesh& mesh);
 // A closed genus-1 mesh: a torus (radii 1 and `thickness`) of `around` x
 // `across` quads split in triangles, float positions, counts set.
 Mesh make_torus(int around, int across, double thickness = 0.3);
+
+// Records every event of a sequence, and its schema.
+struct EventLog : SequenceSink {
+  Status begin(const MeshSchema& s) override;
+  Status vertex(const SequenceVertex& v) override;
+  Status triangle(const SequenceTriangle& t) override;
+  Status finalize(uint32_t i) override;
+  Status finish() override;
+  // Every field of every event, one line each, for comparisons of runs.
+  std::string text() const;
+
+  MeshSchema schema;
+  std::vector<SequenceEvent> events;
+  bool finished = false;
+};
+
+// Replays a recorded sequence as a SequenceSource.
+class EventReplay : public SequenceSource {
+ public:
+  explicit EventReplay(const EventLog& log) : log_(log) {}
+  const MeshSchema& schema() const override { return log_.schema; }
+  Status next(SequenceEvent* e) override;
+
+ private:
+  const EventLog& log_;
+  size_t at_ = 0;
+};
 
 }  // namespace psq::test
 
