@@ -117,21 +117,7 @@ std::string convert(const std::string& in, const std::string& out, const Convert
          detail::json_weld(weld, report, !mesh.decoder);
   } else {
     std::unique_ptr<MeshSink> writer = make_mesh_writer(out_format, &output, write_options(w));
-    struct Counter : MeshSink {
-      MeshSink* next = nullptr;
-      uint64_t vertices = 0, triangles = 0;
-      Status begin(const MeshSchema& sc) override { return next->begin(sc); }
-      Status vertex(const double pos[3], const PropertyValues& v) override {
-        ++vertices;
-        return next->vertex(pos, v);
-      }
-      Status triangle(const uint32_t i[3], const PropertyValues& v) override {
-        ++triangles;
-        return next->triangle(i, v);
-      }
-      Status finish() override { return next->finish(); }
-    } counter;
-    counter.next = writer.get();
+    detail::MeshCounter counter(writer.get());
     Status s = pump(*mesh.source, counter);
     if (!s.ok()) {
       output.discard();

@@ -275,25 +275,10 @@ int cmd_convert(int argc, char** argv) {
   write_options.memory_budget = build_options.memory_budget;
   std::unique_ptr<MeshSink> writer = make_mesh_writer(out_format, &output, write_options);
 
-  // Count what passes through for the summary.
-  struct Counter : MeshSink {
-    MeshSink* next = nullptr;
-    uint64_t vertices = 0, triangles = 0;
-    Status begin(const MeshSchema& sc) override { return next->begin(sc); }
-    Status vertex(const double p[3], const PropertyValues& v) override {
-      ++vertices;
-      return next->vertex(p, v);
-    }
-    Status triangle(const uint32_t i[3], const PropertyValues& v) override {
-      ++triangles;
-      return next->triangle(i, v);
-    }
-    Status finish() override { return next->finish(); }
-  } counter;
   // One thread: a writer's work per element is too small to pay for
   // handing elements to another core (bench/RESULTS.md, "Two threads in
   // psq convert").
-  counter.next = writer.get();
+  detail::MeshCounter counter(writer.get());
 
   Progress progress(mesh.stream.get(), !quiet);
   ProgressSource source(mesh.source.get(), &progress);

@@ -97,6 +97,25 @@ class SequenceToMesh : public SequenceSink {
   std::vector<uint32_t> reappearing_, first_;
 };
 
+// Passes a mesh on to `next`, counting its vertices and triangles (the
+// summary of a conversion to a mesh format).
+struct MeshCounter : MeshSink {
+  explicit MeshCounter(MeshSink* to) : next(to) {}
+  Status begin(const MeshSchema& schema) override { return next->begin(schema); }
+  Status vertex(const double position[3], const PropertyValues& values) override {
+    ++vertices;
+    return next->vertex(position, values);
+  }
+  Status triangle(const uint32_t index[3], const PropertyValues& values) override {
+    ++triangles;
+    return next->triangle(index, values);
+  }
+  Status finish() override { return next->finish(); }
+
+  MeshSink* next;
+  uint64_t vertices = 0, triangles = 0;
+};
+
 // Takes a sequence's bounding box and counts its triangles, keeping
 // nothing else (a lossless .psq declares no box; an input's count).
 class SequenceBox : public SequenceSink {
