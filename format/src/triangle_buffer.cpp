@@ -277,23 +277,7 @@ Status TriangleBuffer::triangle(const SequenceTriangle& t, uint32_t* id) {
     vert[pick] = v;
   }
 
-  uint32_t tri;
-  if (!free_triangles_.empty()) {
-    tri = free_triangles_.back();
-    free_triangles_.pop_back();
-  } else {
-    tri = static_cast<uint32_t>(alive_flag_.size());
-    corners_.resize(corners_.size() + 3);
-    alive_flag_.push_back(0);
-    out_count_.push_back(0);
-    open_count_.push_back(0);
-    out_pos_.push_back(0);
-    arrival_when_.push_back(0);
-    if (has_face_values_) face_values_.emplace_back();
-  }
-  alive_flag_[tri] = 1;
-  out_count_[tri] = 0;
-  open_count_[tri] = 3;
+  const uint32_t tri = allocate_triangle(3);
   ++band_;
   ++alive_;
   if (has_face_values_) face_values_[tri] = t.values;
@@ -620,7 +604,7 @@ uint32_t TriangleBuffer::clone_vertex(uint32_t v) {
   return w;
 }
 
-uint32_t TriangleBuffer::new_cap(uint32_t v0, uint32_t v1, uint32_t v2, uint32_t values_from) {
+uint32_t TriangleBuffer::allocate_triangle(uint8_t open) {
   uint32_t tri;
   if (!free_triangles_.empty()) {
     tri = free_triangles_.back();
@@ -637,7 +621,12 @@ uint32_t TriangleBuffer::new_cap(uint32_t v0, uint32_t v1, uint32_t v2, uint32_t
   }
   alive_flag_[tri] = 1;
   out_count_[tri] = 0;
-  open_count_[tri] = 0;
+  open_count_[tri] = open;
+  return tri;
+}
+
+uint32_t TriangleBuffer::new_cap(uint32_t v0, uint32_t v1, uint32_t v2, uint32_t values_from) {
+  const uint32_t tri = allocate_triangle(0);
   ++alive_;
   if (has_face_values_) face_values_[tri] = face_values_[values_from];
   const uint32_t vs[3] = {v0, v1, v2};

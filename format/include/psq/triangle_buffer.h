@@ -230,6 +230,8 @@ class TriangleBuffer {
   uint32_t new_vertex(const SequenceVertex& v);
   uint32_t clone_vertex(uint32_t v);
   uint32_t new_cap(uint32_t v0, uint32_t v1, uint32_t v2, uint32_t values_from);
+  // A triangle number, reused or new, marked alive with `open` open edges.
+  uint32_t allocate_triangle(uint8_t open);
   bool left_fan(uint32_t v, uint32_t from, uint32_t to, std::vector<uint32_t>* corners) const;
   void free_vertex_record(uint32_t v);
   void add_corner(uint32_t v, uint32_t c);
