@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <map>
 #include <set>
 
 #include "psq/mesh_formats.h"
@@ -632,6 +633,63 @@ TEST(TaubinSmoother, ReducesNoiseOnAMeshLargerThanTheBuffer) {
     EXPECT_EQ(c->checker.stats().components, 1u);
     EXPECT_EQ(c->checker.stats().border_edges, 0u);
   }
+}
+
+// A closed cube of n x n squares a face, outward: flat faces meet at
+// creases.
+Mesh subdivided_cube(int n) {
+  std::map<std::array<int, 3>, uint32_t> index;
+  std::vector<std::array<double, 3>> positions;
+  std::vector<std::array<uint32_t, 3>> triangles;
+  auto id = [&](const std::array<int, 3>& c) {
+    auto it = index.find(c);
+    if (it != index.end()) return it->second;
+    const uint32_t i = static_cast<uint32_t>(positions.size());
+    index[c] = i;
+    positions.push_back({static_cast<double>(c[0]) / n, static_cast<double>(c[1]) / n, static_cast<double>(c[2]) / n});
+    return i;
+  };
+  for (int axis = 0; axis < 3; ++axis)
+    for (int side = 0; side < 2; ++side)
+      for (int a = 0; a < n; ++a)
+        for (int b = 0; b < n; ++b) {
+          auto at = [&](int u, int v) {
+            std::array<int, 3> c;
+            c[axis] = side * n;
+            c[(axis + 1) % 3] = u;
+            c[(axis + 2) % 3] = v;
+            return id(c);
+          };
+          const uint32_t p00 = at(a, b), p10 = at(a + 1, b), p11 = at(a + 1, b + 1), p01 = at(a, b + 1);
+          if (side == 1) {
+            triangles.push_back({p00, p10, p11});
+            triangles.push_back({p00, p11, p01});
+          } else {
+            triangles.push_back({p00, p11, p10});
+            triangles.push_back({p00, p01, p11});
+          }
+        }
+  return test::make_mesh(positions, triangles);
+}
+
+TEST(TaubinSmoother, VerticesStayInTheInputsBox) {
+  // The output's quantization grid is the input's box. Next to a crease,
+  // a vertex of a flat face keeps its place in the lambda step while its
+  // neighbours on the crease move in; the mu step then pushes it past the
+  // face, and it must stay on it.
+  const Mesh m = subdivided_cube(12);
+  SmoothOptions o;
+  o.iterations = 4;
+  Collected out;
+  TaubinSmoother s(&out, o);
+  ASSERT_TRUE(run(m, s).ok());
+  ASSERT_TRUE(out.schema.has_bounds);
+  ASSERT_EQ(out.positions.size(), m.positions.size());
+  for (const Pos& p : out.positions)
+    for (int i = 0; i < 3; ++i) {
+      EXPECT_GE(p[i], out.schema.bounds_min[i]);
+      EXPECT_LE(p[i], out.schema.bounds_max[i]);
+    }
 }
 
 TEST(TaubinSmoother, BorderVerticesStay) {

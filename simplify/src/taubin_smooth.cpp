@@ -46,6 +46,10 @@ struct TaubinSmoother::Impl {
   SmoothOptions opt;
   SmoothReport report;
   detail::SinkState state;
+  // The input's declared bounding box: the output's quantization grid
+  // (psq/sequence.h), which a vertex must not leave.
+  bool bounded = false;
+  double box_lo[3] = {0, 0, 0}, box_hi[3] = {0, 0, 0};
   uint32_t capacity = 0, low = 0;
 
   // Per vertex: the steps taken, whether it stopped for good, and its
@@ -102,6 +106,9 @@ Status TaubinSmoother::Impl::begin(const MeshSchema& schema) {
   stopped.reserve(vertices);
   before.reserve(vertices);
   queued.reserve(room);
+  bounded = schema.has_bounds;
+  std::copy(schema.bounds_min, schema.bounds_min + 3, box_lo);
+  std::copy(schema.bounds_max, schema.bounds_max + 3, box_hi);
   return buffer.begin(schema);
 }
 
@@ -132,6 +139,11 @@ void TaubinSmoother::Impl::advance(uint32_t v) {
     const double* p = buffer.position(v);
     double q[3];
     for (int i = 0; i < 3; ++i) q[i] = p[i] + f * (sum[i] / n - p[i]);
+    // Taubin's mu step moves a vertex outward: one on the box's face may
+    // step past it, where the output's grid (the input's box) cannot hold
+    // it. It stays on the face.
+    if (bounded)
+      for (int i = 0; i < 3; ++i) q[i] = std::min(box_hi[i], std::max(box_lo[i], q[i]));
     if (!(std::isfinite(q[0]) && std::isfinite(q[1]) && std::isfinite(q[2]))) {
       stopped[v] = 1;
       break;
