@@ -154,9 +154,9 @@ void expect_within(const Events& in, const Events& out, int normal_bits, int uv_
   const MeshSchema& s = in.schema;
   ASSERT_EQ(s.vertex_properties, out.schema.vertex_properties);
   const int nx = index_of(s, "nx");
-  const int c = (1 << (normal_bits - 1)) - 1;
   // Spec 8.3: at most about 1.41 / c radians (measured over random unit
-  // vectors), and the decoder's rounding to float.
+  // vectors), and the decoder's rounding to float; exact at 0 bits.
+  const int c = normal_bits ? (1 << (normal_bits - 1)) - 1 : 1;
   const double angle = normal_bits ? 1.5 / c + 1e-6 : 0;
   double worst_angle = 0, worst_uv = 0;
   size_t vertices = 0;
