@@ -10,9 +10,9 @@
 // finalization of whichever end comes first) and stored on its triangles as
 // a partner reference (triangle * 4 + edge), and fans are walked through
 // those references. A waiting triangle and a waiting vertex take one cache
-// line each; a vertex's triangles form a list linked through the triangles
-// (Tri::next), property values live in side arrays touched only when there
-// are any.
+// line each; a vertex's corners are stored with it, contiguous (Vert), so
+// that walking them overlaps the loads of its triangles; positions and
+// property values live in side arrays touched only at emission.
 #include "psq/converter.h"
 
 #include "flat_map.h"
@@ -59,7 +59,6 @@ struct alignas(64) Tri {
   uint32_t seg[3];      // fan (dense vertex slot) of each corner, once settled
   uint32_t partner[3];  // across edge k (corner k to k+1): partner slot * 4 + its edge, or kNone
   uint32_t eslot[3];    // boundary slot of edge k once its partner entered it
-  uint32_t next[3];     // corner k's successor in its vertex's corner list (slot * 4 + corner)
   uint8_t cut_mask;     // edge k is cut: non-manifold, or a link a fan split broke
   uint8_t nm_mask;      // edge k is non-manifold (more than two triangles, or misoriented)
   uint8_t done_mask;    // edge k's partner was emitted
@@ -70,13 +69,21 @@ struct alignas(64) Tri {
   bool emitted() const { return state & kEmitted; }
   int completed() const { return (done_mask & 1) + ((done_mask >> 1) & 1) + (done_mask >> 2); }
   void reset() {
-    for (int k = 0; k < 3; ++k) vs[k] = seg[k] = partner[k] = eslot[k] = next[k] = kNone;
+    for (int k = 0; k < 3; ++k) vs[k] = seg[k] = partner[k] = eslot[k] = kNone;
     cut_mask = nm_mask = done_mask = state = 0;
   }
 };
 static_assert(sizeof(Tri) == 64, "a triangle fills one cache line");
 
-// A waiting vertex: one cache line, values in Impl::vert_values.
+// A waiting vertex: one cache line, holding its corners (the triangles
+// around it, slot * 4 + corner, in input order, until settled) up to
+// kInlineCorners, the rest in Impl::vert_spill. Finalization walks that list
+// (decide_spokes, settle): kept contiguous, next to the counters that the
+// same steps touch, its triangles' addresses are all known at once and their
+// loads overlap, where a list linked through the triangles costs one
+// dependent cache miss per corner. Its position is cold (read when it is
+// emitted: Impl::vert_pos), its values in Impl::vert_values.
+constexpr uint32_t kInlineCorners = 8;
 struct alignas(64) Vert {
   uint32_t stamp = 0;              // scratch: `spoke` is valid while stamp == visit_stamp
   uint32_t spoke = 0;              // scratch: its spoke around the vertex being finalized
@@ -84,13 +91,12 @@ struct alignas(64) Vert {
   uint32_t unemitted = 0;          // incident triangles not yet emitted
   uint32_t first_dense = kNone;    // dense index of its first fan emitted
   uint32_t id = kNone;
-  uint32_t head = kNone;           // its corners (slot * 4 + corner) in input order, until settled:
-  uint32_t tail = kNone;           // a list linked through Tri::next
   bool finalized = false;
   bool settled = false;
   bool has_data = false;
   bool has_values = false;
-  double position[3] = {0, 0, 0};
+  uint32_t n_corners = 0;
+  uint32_t corner[kInlineCorners];  // the first corners; the rest in Impl::vert_spill
 };
 static_assert(sizeof(Vert) == 64, "a vertex fills one cache line");
 
@@ -102,6 +108,15 @@ struct Spoke {
   uint32_t n_out;
   uint32_t n_in;
   bool cut;             // non-manifold: cut on all its triangles
+};
+
+// A side of a corner, in decide_spokes(): the neighbour across one of the
+// corner's two edges, and that edge (slot * 4 + edge), out of the vertex or
+// into it.
+struct Side {
+  uint32_t ws;
+  uint32_t edge;
+  bool outgoing;
 };
 
 struct Seg {
@@ -273,6 +288,8 @@ struct SequenceConverter::Impl {
   IdMap ids;                 // input id -> slot in vpool
   FinalizedIds finalized_ids;
   std::vector<Vert> vpool;
+  std::vector<std::array<double, 3>> vert_pos;  // per vpool slot
+  std::vector<std::vector<uint32_t>> vert_spill;  // per vpool slot: corners past kInlineCorners
   std::vector<PropertyValues> vert_values;  // per vpool slot, when has_values
   std::vector<uint32_t> free_verts;
   std::vector<Tri> tris;
@@ -302,6 +319,7 @@ struct SequenceConverter::Impl {
 
   // Scratch.
   std::vector<Spoke> spokes;                // of the vertex being finalized: the first n_spokes
+  std::vector<Side> sides;                  // decide_spokes: two per corner
   uint32_t n_spokes = 0;
   std::vector<uint32_t> to_settle;
   std::vector<uint32_t> local_of;           // triangle slot -> index in the vertex's corner list (split_fans)
@@ -338,15 +356,37 @@ struct SequenceConverter::Impl {
   uint32_t new_seg();
   void add_corner(uint32_t vslot, uint32_t e) {
     Vert& v = vpool[vslot];
-    tris[e >> 2].next[e & 3] = kNone;
-    if (v.tail == kNone) {
-      v.head = e;
+    if (v.n_corners < kInlineCorners) {
+      v.corner[v.n_corners] = e;
     } else {
-      tris[v.tail >> 2].next[v.tail & 3] = e;
+      vert_spill[vslot].push_back(e);
     }
-    v.tail = e;
+    ++v.n_corners;
   }
-  uint32_t next_corner(uint32_t e) const { return tris[e >> 2].next[e & 3]; }
+  // Calls f(corner) for the corners of vertex `vslot`, in input order.
+  template <class F>
+  void for_each_corner(uint32_t vslot, F f) {
+    const Vert& v = vpool[vslot];
+    const uint32_t n = std::min(v.n_corners, kInlineCorners);
+    for (uint32_t i = 0; i < n; ++i) f(v.corner[i]);
+    if (v.n_corners > kInlineCorners) {
+      for (uint32_t e : vert_spill[vslot]) f(e);
+    }
+  }
+  void clear_corners(uint32_t vslot) {
+    Vert& v = vpool[vslot];
+    if (v.n_corners > kInlineCorners) {
+      std::vector<uint32_t>& spill = vert_spill[vslot];
+      // A vertex of very high valence does not leave its list's memory to
+      // the slot's later vertices.
+      if (spill.capacity() > 1024) {
+        std::vector<uint32_t>().swap(spill);
+      } else {
+        spill.clear();
+      }
+    }
+    v.n_corners = 0;
+  }
 };
 
 uint32_t SequenceConverter::Impl::new_seg() {
@@ -379,6 +419,8 @@ uint32_t SequenceConverter::Impl::vertex_slot(uint32_t id) {
   } else {
     slot = static_cast<uint32_t>(vpool.size());
     vpool.emplace_back();
+    vert_pos.emplace_back();
+    vert_spill.emplace_back();
     vert_values.emplace_back();
   }
   vpool[slot].id = id;
@@ -396,7 +438,7 @@ void SequenceConverter::Impl::release_vertex(uint32_t slot) {
     vert_values[slot].clear();
     v.has_values = false;
   }
-  v.head = v.tail = kNone;
+  clear_corners(slot);
   v.waiting_neighbors = 0;
   v.first_dense = kNone;
   v.unemitted = 0;
@@ -452,9 +494,7 @@ bool SequenceConverter::Impl::vertex(uint32_t id, const double position[3], cons
   Vert& v = vpool[slot];
   if (v.has_data || v.finalized) return fail(Status(ErrorCode::kBadIndex, "vertex " + std::to_string(id) + " given twice"));
   v.has_data = true;
-  v.position[0] = position[0];
-  v.position[1] = position[1];
-  v.position[2] = position[2];
+  vert_pos[slot] = {position[0], position[1], position[2]};
   if (!values.empty()) {
     vert_values[slot] = values;
     v.has_values = true;
@@ -517,7 +557,6 @@ bool SequenceConverter::Impl::triangle(const uint32_t id[3], const PropertyValue
 // whether any edge at the vertex is non-manifold; counts the neighbours not
 // finalized into *waiting_neighbors.
 bool SequenceConverter::Impl::decide_spokes(uint32_t vslot, uint32_t* waiting_neighbors) {
-  Vert& v = vpool[vslot];
   const uint32_t stamp = ++visit_stamp;
   n_spokes = 0;
   uint32_t waiting_nb = 0;
@@ -544,25 +583,37 @@ bool SequenceConverter::Impl::decide_spokes(uint32_t vslot, uint32_t* waiting_ne
       if (sp.n_in++ == 0) sp.in_edge = edge;
     }
   };
-  for (uint32_t e = v.head; e != kNone; e = next_corner(e)) {
+  // In passes, so that the cache misses of one pass overlap instead of
+  // waiting one behind the other: the triangles are requested, then read
+  // (their neighbours' records requested), then the spokes grouped.
+  for_each_corner(vslot, [&](uint32_t e) { __builtin_prefetch(&tris[e >> 2]); });
+  const uint32_t n_sides = 2 * vpool[vslot].n_corners;
+  if (sides.size() < n_sides) sides.resize(n_sides);
+  uint32_t n = 0;
+  auto add_side = [&](uint32_t ws, bool outgoing, uint32_t edge) {
+    __builtin_prefetch(&vpool[ws], 1);
+    sides[n++] = Side{ws, edge, outgoing};
+  };
+  for_each_corner(vslot, [&](uint32_t e) {
     const Tri& t = tris[e >> 2];
     const uint32_t base = e & ~3u;
     nm |= t.nm_mask & kEdgesAt[e & 3];
     switch (e & 3) {
       case 0:
-        side(t.vs[1], true, base | 0);
-        side(t.vs[2], false, base | 2);
+        add_side(t.vs[1], true, base | 0);
+        add_side(t.vs[2], false, base | 2);
         break;
       case 1:
-        side(t.vs[0], false, base | 0);
-        side(t.vs[2], true, base | 1);
+        add_side(t.vs[0], false, base | 0);
+        add_side(t.vs[2], true, base | 1);
         break;
       default:
-        side(t.vs[0], true, base | 2);
-        side(t.vs[1], false, base | 1);
+        add_side(t.vs[0], true, base | 2);
+        add_side(t.vs[1], false, base | 1);
         break;
     }
-  }
+  });
+  for (uint32_t i = 0; i < n_sides; ++i) side(sides[i].ws, sides[i].outgoing, sides[i].edge);
   *waiting_neighbors = waiting_nb;
   bool any_cut = false;
   for (uint32_t i = 0; i < n_spokes; ++i) {
@@ -582,7 +633,7 @@ bool SequenceConverter::Impl::decide_spokes(uint32_t vslot, uint32_t* waiting_ne
     }
   }
   if (!any_cut) return nm != 0;
-  for (uint32_t e = v.head; e != kNone; e = next_corner(e)) {
+  for_each_corner(vslot, [&](uint32_t e) {
     Tri& t = tris[e >> 2];
     uint32_t c = e & 3;
     const Vert& wn = vpool[t.vs[kNext[c]]];
@@ -595,7 +646,7 @@ bool SequenceConverter::Impl::decide_spokes(uint32_t vslot, uint32_t* waiting_ne
       t.cut_mask |= static_cast<uint8_t>(1u << kPrev[c]);
       t.nm_mask |= static_cast<uint8_t>(1u << kPrev[c]);
     }
-  }
+  });
   return true;
 }
 
@@ -614,7 +665,7 @@ void SequenceConverter::Impl::break_link(uint32_t t, uint32_t edge) {
 // non-manifold spoke; otherwise both would use the same edge of the sequence.
 void SequenceConverter::Impl::split_fans(uint32_t vslot) {
   fan_corners.clear();
-  for (uint32_t e = vpool[vslot].head; e != kNone; e = next_corner(e)) fan_corners.push_back(e);
+  for_each_corner(vslot, [&](uint32_t e) { fan_corners.push_back(e); });
   const std::vector<uint32_t>& corners = fan_corners;
   size_t n = corners.size();
   if (local_of.size() < tris.size()) local_of.resize(tris.size());
@@ -708,9 +759,10 @@ bool SequenceConverter::Impl::emit_vertex(uint32_t vslot, uint32_t sg) {
   sv.slot = sg;
   sv.reappears = v.first_dense;
   if (v.first_dense == kNone) v.first_dense = sv.index;
-  sv.position[0] = v.position[0];
-  sv.position[1] = v.position[1];
-  sv.position[2] = v.position[2];
+  const std::array<double, 3>& pos = vert_pos[vslot];
+  sv.position[0] = pos[0];
+  sv.position[1] = pos[1];
+  sv.position[2] = pos[2];
   PropertyValues& values = vert_values[vslot];
   if (v.has_values) sv.values.swap(values);  // lent to the sink, and back
   Status s = out->vertex(sv);
@@ -723,7 +775,7 @@ bool SequenceConverter::Impl::emit_vertex(uint32_t vslot, uint32_t sg) {
 bool SequenceConverter::Impl::settle(uint32_t vslot) {
   Vert& v = vpool[vslot];
   v.settled = true;
-  if (v.head == kNone) {
+  if (v.n_corners == 0) {
     // An isolated vertex: introduced and finalized with no triangle. It
     // takes a slot like any vertex (free again at once).
     uint32_t sg = new_seg();
@@ -740,9 +792,9 @@ bool SequenceConverter::Impl::settle(uint32_t vslot) {
   // the vertex is the partner's corner after the shared edge's start; across
   // an in-edge it is that edge's start.
   uint32_t fans = 0;
-  for (uint32_t start = v.head; start != kNone; start = next_corner(start)) {
+  for_each_corner(vslot, [&](uint32_t start) {
     Tri& t0 = tris[start >> 2];
-    if (t0.seg[start & 3] != kNone) continue;
+    if (t0.seg[start & 3] != kNone) return;
     uint32_t sg = new_seg();
     ++fans;
     t0.seg[start & 3] = sg;
@@ -769,14 +821,12 @@ bool SequenceConverter::Impl::settle(uint32_t vslot) {
       }
     }
     segs[sg].remaining = count;
-  }
-  for (uint32_t e = v.head; e != kNone;) {
-    uint32_t next = next_corner(e);
+  });
+  for_each_corner(vslot, [&](uint32_t e) {
     Tri& t = tris[e >> 2];
     if ((++t.state & Tri::kSettledMask) == 3) make_ready(e >> 2);
-    e = next;
-  }
-  v.head = v.tail = kNone;
+  });
+  clear_corners(vslot);
   if (fans > 1) ++stats.nonmanifold_vertices;
   return true;
 }
