@@ -252,15 +252,18 @@ class SlotQueue {
     }
     return x;
   }
-  // Keeps the items for which keep(x) holds, in order. touch(x) is called
-  // on the item 8 places further on first: it prefetches what keep() will
-  // read, so that the scan does not wait for one cache miss per item.
-  template <class Keep, class Touch>
-  void filter(Keep keep, Touch touch) {
-    constexpr size_t kAhead = 8;
+  // Keeps the items for which keep(x) holds, in order. keep() reads two
+  // levels of records (a triangle, then what it points to): touch(x) is
+  // called on the item 16 places further on, touch_next(x) on the item 8
+  // places further on, to prefetch the first and the second level, so that
+  // the scan does not wait for cache misses one item after the other.
+  template <class Keep, class Touch, class TouchNext>
+  void filter(Keep keep, Touch touch, TouchNext touch_next) {
+    constexpr size_t kAhead = 16, kAheadNext = 8;
     size_t n = 0;
     for (size_t i = head_; i < items_.size(); ++i) {
       if (i + kAhead < items_.size()) touch(items_[i + kAhead]);
+      if (i + kAheadNext < items_.size()) touch_next(items_[i + kAheadNext]);
       if (keep(items_[i])) items_[n++] = items_[i];
     }
     items_.resize(n);
@@ -320,6 +323,8 @@ struct SequenceConverter::Impl {
   // Scratch.
   std::vector<Spoke> spokes;                // of the vertex being finalized: the first n_spokes
   std::vector<Side> sides;                  // decide_spokes: two per corner
+  std::vector<uint32_t> now_ready;          // settle: the triangles it makes ready, the first n_now_ready
+  uint32_t n_now_ready = 0;
   uint32_t n_spokes = 0;
   std::vector<uint32_t> to_settle;
   std::vector<uint32_t> local_of;           // triangle slot -> index in the vertex's corner list (split_fans)
@@ -348,6 +353,11 @@ struct SequenceConverter::Impl {
   void break_link(uint32_t t, uint32_t edge);
   bool settle(uint32_t vslot);
   void make_ready(uint32_t t);
+  // Requests the fans that classify(t) reads (those of a settled triangle).
+  void prefetch_segs(const Tri& t) const {
+    if ((t.state & Tri::kSettledMask) != 3) return;
+    for (int k = 0; k < 3; ++k) __builtin_prefetch(&segs[t.seg[k]]);
+  }
   int classify(const Tri& t) const;
   // Emits triangle `t`, whose classify() is `cls` (0..4).
   bool emit(uint32_t t, int cls);
@@ -786,6 +796,8 @@ bool SequenceConverter::Impl::settle(uint32_t vslot) {
     release_vertex(vslot);
     return true;
   }
+  // The corners' triangles are all read below: request them at once.
+  for_each_corner(vslot, [&](uint32_t e) { __builtin_prefetch(&tris[e >> 2], 1); });
   // One segment per fan. A fan is a path or a cycle of triangles linked
   // across the vertex's edges: walk it from its first triangle forwards (out
   // edges) and, unless it closed, backwards (in edges). Across an out-edge
@@ -822,10 +834,17 @@ bool SequenceConverter::Impl::settle(uint32_t vslot) {
     }
     segs[sg].remaining = count;
   });
+  // The triangles settled now are classified: request their fans first.
+  n_now_ready = 0;
+  if (now_ready.size() < v.n_corners) now_ready.resize(v.n_corners);
   for_each_corner(vslot, [&](uint32_t e) {
     Tri& t = tris[e >> 2];
-    if ((++t.state & Tri::kSettledMask) == 3) make_ready(e >> 2);
+    if ((++t.state & Tri::kSettledMask) == 3) {
+      prefetch_segs(t);
+      now_ready[n_now_ready++] = e >> 2;
+    }
   });
+  for (uint32_t i = 0; i < n_now_ready; ++i) make_ready(now_ready[i]);
   clear_corners(vslot);
   if (fans > 1) ++stats.nonmanifold_vertices;
   return true;
@@ -849,7 +868,7 @@ void SequenceConverter::Impl::make_ready(uint32_t slot) {
             const Tri& tx = tris[x];
             return !tx.emitted() && tx.ready() && classify(tx) == c;
           },
-          [&](uint32_t x) { __builtin_prefetch(&tris[x]); });
+          [&](uint32_t x) { __builtin_prefetch(&tris[x]); }, [&](uint32_t x) { prefetch_segs(tris[x]); });
     }
   } else if (c == 4) {
     // A triangle that is no start candidate now never becomes one (it
@@ -864,7 +883,7 @@ void SequenceConverter::Impl::make_ready(uint32_t slot) {
             const Tri& tx = tris[x];
             return !tx.emitted() && tx.ready() && classify(tx) == 4;
           },
-          [&](uint32_t x) { __builtin_prefetch(&tris[x]); });
+          [&](uint32_t x) { __builtin_prefetch(&tris[x]); }, [&](uint32_t x) { prefetch_segs(tris[x]); });
     }
   }
 }
@@ -884,10 +903,15 @@ bool SequenceConverter::Impl::emit(uint32_t slot, int cls) {
   if (cls < 0) return fail(Status(ErrorCode::kInternal, "converter emitted a triangle that is none of the five ops"));
   st.op = kOps[cls];
   // The partners across this triangle's edges are marked below, after the
-  // sink's work on the triangle: start loading their cache lines now (most
-  // of emit()'s time went to those loads).
-  for (uint32_t k = 0; k < 3; ++k)
+  // sink's work on the triangle, and its vertices' records, positions and
+  // fans are read and updated: start loading all their cache lines now,
+  // so that the misses overlap (most of emit()'s time went to those loads).
+  for (uint32_t k = 0; k < 3; ++k) {
     if (t.partner[k] != kNone) __builtin_prefetch(&tris[t.partner[k] >> 2], 1);
+    __builtin_prefetch(&segs[t.seg[k]], 1);
+    __builtin_prefetch(&vpool[t.vs[k]], 1);
+    __builtin_prefetch(&vert_pos[t.vs[k]]);
+  }
   uint32_t new_mask = 0, final_mask = 0, border_mask = 0, nonmanifold_mask = 0, leaving_mask = 0, entering_mask = 0;
   for (uint32_t k = 0; k < 3; ++k) {
     Seg& s = segs[t.seg[k]];
