@@ -289,6 +289,25 @@ struct SequenceConverter::Impl {
   Status error;              // the first error; every later call returns it
   ConverterStats stats;
   IdMap ids;                 // input id -> slot in vpool
+  // In front of `ids`: a direct-mapped cache of input id -> slot, indexed by
+  // the id's low bits. The triangles of a coherent input use ids that are
+  // dense and close together in time, which the map's hash scatters over a
+  // table as large as the waiting area's vertices (beyond the L2 cache);
+  // here they share cache lines. An entry holds kNone or a waiting vertex.
+  struct IdCacheEntry {
+    uint32_t id = kNone;
+    uint32_t slot = kNone;
+  };
+  static constexpr uint32_t kIdCacheSize = 1u << 16;
+  std::vector<IdCacheEntry> id_cache = std::vector<IdCacheEntry>(kIdCacheSize);
+  // The slot of waiting vertex `id`, or kNone.
+  uint32_t find_slot(uint32_t id) {
+    IdCacheEntry& c = id_cache[id & (kIdCacheSize - 1)];
+    if (c.id == id) return c.slot;
+    const uint32_t slot = ids.find(id);
+    if (slot != kNone) c = IdCacheEntry{id, slot};
+    return slot;
+  }
   FinalizedIds finalized_ids;
   std::vector<Vert> vpool;
   std::vector<std::array<double, 3>> vert_pos;  // per vpool slot
@@ -435,6 +454,7 @@ uint32_t SequenceConverter::Impl::vertex_slot(uint32_t id) {
   }
   vpool[slot].id = id;
   ids.insert(id, slot);
+  id_cache[id & (kIdCacheSize - 1)] = IdCacheEntry{id, slot};
   stats.max_waiting_vertices = std::max<uint64_t>(stats.max_waiting_vertices, ids.size());
   return slot;
 }
@@ -442,6 +462,8 @@ uint32_t SequenceConverter::Impl::vertex_slot(uint32_t id) {
 void SequenceConverter::Impl::release_vertex(uint32_t slot) {
   Vert& v = vpool[slot];
   ids.erase(v.id);
+  IdCacheEntry& c = id_cache[v.id & (kIdCacheSize - 1)];
+  if (c.id == v.id) c = IdCacheEntry();
   v.id = kNone;
   v.has_data = v.finalized = v.settled = false;
   if (v.has_values) {
@@ -496,7 +518,7 @@ Status SequenceConverter::finish() {
 }
 
 bool SequenceConverter::Impl::vertex(uint32_t id, const double position[3], const PropertyValues& values) {
-  uint32_t slot = ids.find(id);
+  uint32_t slot = find_slot(id);
   if (slot == kNone) {
     if (!check_unknown_id(id)) return false;
     slot = vertex_slot(id);
@@ -517,7 +539,7 @@ bool SequenceConverter::Impl::triangle(const uint32_t id[3], const PropertyValue
   ++stats.triangles_in;
   uint32_t vs[3];
   for (int k = 0; k < 3; ++k) {
-    vs[k] = ids.find(id[k]);
+    vs[k] = find_slot(id[k]);
     if (vs[k] == kNone) {
       if (!check_unknown_id(id[k])) return false;
     } else if (vpool[vs[k]].finalized) {
@@ -740,7 +762,7 @@ void SequenceConverter::Impl::split_fans(uint32_t vslot) {
 }
 
 bool SequenceConverter::Impl::finalize(uint32_t id) {
-  uint32_t slot = ids.find(id);
+  uint32_t slot = find_slot(id);
   if (slot == kNone || vpool[slot].finalized) {
     bool twice = slot != kNone || (id != kNone && finalized_ids.contains(id));
     return fail(Status(ErrorCode::kBadIndex,
