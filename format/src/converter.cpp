@@ -293,7 +293,9 @@ struct SequenceConverter::Impl {
   // the id's low bits. The triangles of a coherent input use ids that are
   // dense and close together in time, which the map's hash scatters over a
   // table as large as the waiting area's vertices (beyond the L2 cache);
-  // here they share cache lines. An entry holds kNone or a waiting vertex.
+  // here they share cache lines. An entry may be stale (its vertex left):
+  // it counts only while the slot still holds that id, which the callers
+  // read next anyway, so that releasing a vertex need not touch the cache.
   struct IdCacheEntry {
     uint32_t id = kNone;
     uint32_t slot = kNone;
@@ -303,7 +305,7 @@ struct SequenceConverter::Impl {
   // The slot of waiting vertex `id`, or kNone.
   uint32_t find_slot(uint32_t id) {
     IdCacheEntry& c = id_cache[id & (kIdCacheSize - 1)];
-    if (c.id == id) return c.slot;
+    if (c.id == id && c.slot != kNone && vpool[c.slot].id == id) return c.slot;
     const uint32_t slot = ids.find(id);
     if (slot != kNone) c = IdCacheEntry{id, slot};
     return slot;
@@ -462,8 +464,6 @@ uint32_t SequenceConverter::Impl::vertex_slot(uint32_t id) {
 void SequenceConverter::Impl::release_vertex(uint32_t slot) {
   Vert& v = vpool[slot];
   ids.erase(v.id);
-  IdCacheEntry& c = id_cache[v.id & (kIdCacheSize - 1)];
-  if (c.id == v.id) c = IdCacheEntry();
   v.id = kNone;
   v.has_data = v.finalized = v.settled = false;
   if (v.has_values) {
