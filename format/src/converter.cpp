@@ -1006,6 +1006,13 @@ bool SequenceConverter::Impl::emit(uint32_t slot, int cls) {
     Tri& pt = tris[p >> 2];
     pt.done_mask |= static_cast<uint8_t>(1u << (p & 3));
     pt.eslot[p & 3] = st.eslot[k];
+    // The next triangle is most often one of these (prefer): the only
+    // vertex it may introduce is the one off the shared edge, whose record
+    // and position emit_vertex() reads. Request them now, a whole sink
+    // call ahead.
+    const uint32_t off = pt.vs[kPrev[p & 3]];
+    __builtin_prefetch(&vpool[off], 1);
+    __builtin_prefetch(&vert_pos[off]);
     if (pt.ready()) {
       int c = classify(pt);
       if (c >= 0 && c < 4) buckets[c].push(p >> 2);
