@@ -10,9 +10,9 @@
 // finalization of whichever end comes first) and stored on its triangles as
 // a partner reference (triangle * 4 + edge), and fans are walked through
 // those references. A waiting triangle and a waiting vertex take one cache
-// line each; a vertex's triangles form a list linked through the triangles
-// (Tri::next), property values live in side arrays touched only when there
-// are any.
+// line each; a vertex's corners are stored with it, contiguous (Vert), so
+// that walking them overlaps the loads of its triangles; positions and
+// property values live in side arrays touched only at emission.
 #include "psq/converter.h"
 
 #include "flat_map.h"
@@ -59,7 +59,6 @@ struct alignas(64) Tri {
   uint32_t seg[3];      // fan (dense vertex slot) of each corner, once settled
   uint32_t partner[3];  // across edge k (corner k to k+1): partner slot * 4 + its edge, or kNone
   uint32_t eslot[3];    // boundary slot of edge k once its partner entered it
-  uint32_t next[3];     // corner k's successor in its vertex's corner list (slot * 4 + corner)
   uint8_t cut_mask;     // edge k is cut: non-manifold, or a link a fan split broke
   uint8_t nm_mask;      // edge k is non-manifold (more than two triangles, or misoriented)
   uint8_t done_mask;    // edge k's partner was emitted
@@ -70,13 +69,21 @@ struct alignas(64) Tri {
   bool emitted() const { return state & kEmitted; }
   int completed() const { return (done_mask & 1) + ((done_mask >> 1) & 1) + (done_mask >> 2); }
   void reset() {
-    for (int k = 0; k < 3; ++k) vs[k] = seg[k] = partner[k] = eslot[k] = next[k] = kNone;
+    for (int k = 0; k < 3; ++k) vs[k] = seg[k] = partner[k] = eslot[k] = kNone;
     cut_mask = nm_mask = done_mask = state = 0;
   }
 };
 static_assert(sizeof(Tri) == 64, "a triangle fills one cache line");
 
-// A waiting vertex: one cache line, values in Impl::vert_values.
+// A waiting vertex: one cache line, holding its corners (the triangles
+// around it, slot * 4 + corner, in input order, until settled) up to
+// kInlineCorners, the rest in Impl::vert_spill. Finalization walks that list
+// (decide_spokes, settle): kept contiguous, next to the counters that the
+// same steps touch, its triangles' addresses are all known at once and their
+// loads overlap, where a list linked through the triangles costs one
+// dependent cache miss per corner. Its position is cold (read when it is
+// emitted: Impl::vert_pos), its values in Impl::vert_values.
+constexpr uint32_t kInlineCorners = 8;
 struct alignas(64) Vert {
   uint32_t stamp = 0;              // scratch: `spoke` is valid while stamp == visit_stamp
   uint32_t spoke = 0;              // scratch: its spoke around the vertex being finalized
@@ -84,13 +91,12 @@ struct alignas(64) Vert {
   uint32_t unemitted = 0;          // incident triangles not yet emitted
   uint32_t first_dense = kNone;    // dense index of its first fan emitted
   uint32_t id = kNone;
-  uint32_t head = kNone;           // its corners (slot * 4 + corner) in input order, until settled:
-  uint32_t tail = kNone;           // a list linked through Tri::next
   bool finalized = false;
   bool settled = false;
   bool has_data = false;
   bool has_values = false;
-  double position[3] = {0, 0, 0};
+  uint32_t n_corners = 0;
+  uint32_t corner[kInlineCorners];  // the first corners; the rest in Impl::vert_spill
 };
 static_assert(sizeof(Vert) == 64, "a vertex fills one cache line");
 
@@ -102,6 +108,15 @@ struct Spoke {
   uint32_t n_out;
   uint32_t n_in;
   bool cut;             // non-manifold: cut on all its triangles
+};
+
+// A side of a corner, in decide_spokes(): the neighbour across one of the
+// corner's two edges, and that edge (slot * 4 + edge), out of the vertex or
+// into it.
+struct Side {
+  uint32_t ws;
+  uint32_t edge;
+  bool outgoing;
 };
 
 struct Seg {
@@ -237,15 +252,18 @@ class SlotQueue {
     }
     return x;
   }
-  // Keeps the items for which keep(x) holds, in order. touch(x) is called
-  // on the item 8 places further on first: it prefetches what keep() will
-  // read, so that the scan does not wait for one cache miss per item.
-  template <class Keep, class Touch>
-  void filter(Keep keep, Touch touch) {
-    constexpr size_t kAhead = 8;
+  // Keeps the items for which keep(x) holds, in order. keep() reads two
+  // levels of records (a triangle, then what it points to): touch(x) is
+  // called on the item 16 places further on, touch_next(x) on the item 8
+  // places further on, to prefetch the first and the second level, so that
+  // the scan does not wait for cache misses one item after the other.
+  template <class Keep, class Touch, class TouchNext>
+  void filter(Keep keep, Touch touch, TouchNext touch_next) {
+    constexpr size_t kAhead = 16, kAheadNext = 8;
     size_t n = 0;
     for (size_t i = head_; i < items_.size(); ++i) {
       if (i + kAhead < items_.size()) touch(items_[i + kAhead]);
+      if (i + kAheadNext < items_.size()) touch_next(items_[i + kAheadNext]);
       if (keep(items_[i])) items_[n++] = items_[i];
     }
     items_.resize(n);
@@ -271,8 +289,31 @@ struct SequenceConverter::Impl {
   Status error;              // the first error; every later call returns it
   ConverterStats stats;
   IdMap ids;                 // input id -> slot in vpool
+  // In front of `ids`: a direct-mapped cache of input id -> slot, indexed by
+  // the id's low bits. The triangles of a coherent input use ids that are
+  // dense and close together in time, which the map's hash scatters over a
+  // table as large as the waiting area's vertices (beyond the L2 cache);
+  // here they share cache lines. An entry may be stale (its vertex left):
+  // it counts only while the slot still holds that id, which the callers
+  // read next anyway, so that releasing a vertex need not touch the cache.
+  struct IdCacheEntry {
+    uint32_t id = kNone;
+    uint32_t slot = kNone;
+  };
+  static constexpr uint32_t kIdCacheSize = 1u << 16;
+  std::vector<IdCacheEntry> id_cache = std::vector<IdCacheEntry>(kIdCacheSize);
+  // The slot of waiting vertex `id`, or kNone.
+  uint32_t find_slot(uint32_t id) {
+    IdCacheEntry& c = id_cache[id & (kIdCacheSize - 1)];
+    if (c.id == id && c.slot != kNone && vpool[c.slot].id == id) return c.slot;
+    const uint32_t slot = ids.find(id);
+    if (slot != kNone) c = IdCacheEntry{id, slot};
+    return slot;
+  }
   FinalizedIds finalized_ids;
   std::vector<Vert> vpool;
+  std::vector<std::array<double, 3>> vert_pos;  // per vpool slot
+  std::vector<std::vector<uint32_t>> vert_spill;  // per vpool slot: corners past kInlineCorners
   std::vector<PropertyValues> vert_values;  // per vpool slot, when has_values
   std::vector<uint32_t> free_verts;
   std::vector<Tri> tris;
@@ -303,6 +344,9 @@ struct SequenceConverter::Impl {
 
   // Scratch.
   std::vector<Spoke> spokes;                // of the vertex being finalized: the first n_spokes
+  std::vector<Side> sides;                  // decide_spokes: two per corner
+  std::vector<uint32_t> now_ready;          // settle: the triangles it makes ready, the first n_now_ready
+  uint32_t n_now_ready = 0;
   uint32_t n_spokes = 0;
   std::vector<uint32_t> to_settle;
   std::vector<uint32_t> local_of;           // triangle slot -> index in the vertex's corner list (split_fans)
@@ -331,6 +375,11 @@ struct SequenceConverter::Impl {
   void break_link(uint32_t t, uint32_t edge);
   bool settle(uint32_t vslot);
   void make_ready(uint32_t t);
+  // Requests the fans that classify(t) reads (those of a settled triangle).
+  void prefetch_segs(const Tri& t) const {
+    if ((t.state & Tri::kSettledMask) != 3) return;
+    for (int k = 0; k < 3; ++k) __builtin_prefetch(&segs[t.seg[k]]);
+  }
   int classify(const Tri& t) const;
   // Emits triangle `t`, whose classify() is `cls` (0..4).
   bool emit(uint32_t t, int cls);
@@ -339,15 +388,37 @@ struct SequenceConverter::Impl {
   uint32_t new_seg();
   void add_corner(uint32_t vslot, uint32_t e) {
     Vert& v = vpool[vslot];
-    tris[e >> 2].next[e & 3] = kNone;
-    if (v.tail == kNone) {
-      v.head = e;
+    if (v.n_corners < kInlineCorners) {
+      v.corner[v.n_corners] = e;
     } else {
-      tris[v.tail >> 2].next[v.tail & 3] = e;
+      vert_spill[vslot].push_back(e);
     }
-    v.tail = e;
+    ++v.n_corners;
   }
-  uint32_t next_corner(uint32_t e) const { return tris[e >> 2].next[e & 3]; }
+  // Calls f(corner) for the corners of vertex `vslot`, in input order.
+  template <class F>
+  void for_each_corner(uint32_t vslot, F f) {
+    const Vert& v = vpool[vslot];
+    const uint32_t n = std::min(v.n_corners, kInlineCorners);
+    for (uint32_t i = 0; i < n; ++i) f(v.corner[i]);
+    if (v.n_corners > kInlineCorners) {
+      for (uint32_t e : vert_spill[vslot]) f(e);
+    }
+  }
+  void clear_corners(uint32_t vslot) {
+    Vert& v = vpool[vslot];
+    if (v.n_corners > kInlineCorners) {
+      std::vector<uint32_t>& spill = vert_spill[vslot];
+      // A vertex of very high valence does not leave its list's memory to
+      // the slot's later vertices.
+      if (spill.capacity() > 1024) {
+        std::vector<uint32_t>().swap(spill);
+      } else {
+        spill.clear();
+      }
+    }
+    v.n_corners = 0;
+  }
 };
 
 uint32_t SequenceConverter::Impl::new_seg() {
@@ -380,10 +451,13 @@ uint32_t SequenceConverter::Impl::vertex_slot(uint32_t id) {
   } else {
     slot = static_cast<uint32_t>(vpool.size());
     vpool.emplace_back();
+    vert_pos.emplace_back();
+    vert_spill.emplace_back();
     vert_values.emplace_back();
   }
   vpool[slot].id = id;
   ids.insert(id, slot);
+  id_cache[id & (kIdCacheSize - 1)] = IdCacheEntry{id, slot};
   stats.max_waiting_vertices = std::max<uint64_t>(stats.max_waiting_vertices, ids.size());
   return slot;
 }
@@ -397,7 +471,7 @@ void SequenceConverter::Impl::release_vertex(uint32_t slot) {
     vert_values[slot].clear();
     v.has_values = false;
   }
-  v.head = v.tail = kNone;
+  clear_corners(slot);
   v.waiting_neighbors = 0;
   v.first_dense = kNone;
   v.unemitted = 0;
@@ -445,7 +519,7 @@ Status SequenceConverter::finish() {
 }
 
 bool SequenceConverter::Impl::vertex(uint32_t id, const double position[3], const PropertyValues& values) {
-  uint32_t slot = ids.find(id);
+  uint32_t slot = find_slot(id);
   if (slot == kNone) {
     if (!check_unknown_id(id)) return false;
     slot = vertex_slot(id);
@@ -453,9 +527,7 @@ bool SequenceConverter::Impl::vertex(uint32_t id, const double position[3], cons
   Vert& v = vpool[slot];
   if (v.has_data || v.finalized) return fail(Status(ErrorCode::kBadIndex, "vertex " + std::to_string(id) + " given twice"));
   v.has_data = true;
-  v.position[0] = position[0];
-  v.position[1] = position[1];
-  v.position[2] = position[2];
+  vert_pos[slot] = {position[0], position[1], position[2]};
   if (!values.empty()) {
     vert_values[slot] = values;
     v.has_values = true;
@@ -468,7 +540,7 @@ bool SequenceConverter::Impl::triangle(const uint32_t id[3], const PropertyValue
   ++stats.triangles_in;
   uint32_t vs[3];
   for (int k = 0; k < 3; ++k) {
-    vs[k] = ids.find(id[k]);
+    vs[k] = find_slot(id[k]);
     if (vs[k] == kNone) {
       if (!check_unknown_id(id[k])) return false;
     } else if (vpool[vs[k]].finalized) {
@@ -518,7 +590,6 @@ bool SequenceConverter::Impl::triangle(const uint32_t id[3], const PropertyValue
 // whether any edge at the vertex is non-manifold; counts the neighbours not
 // finalized into *waiting_neighbors.
 bool SequenceConverter::Impl::decide_spokes(uint32_t vslot, uint32_t* waiting_neighbors) {
-  Vert& v = vpool[vslot];
   const uint32_t stamp = ++visit_stamp;
   n_spokes = 0;
   uint32_t waiting_nb = 0;
@@ -545,25 +616,37 @@ bool SequenceConverter::Impl::decide_spokes(uint32_t vslot, uint32_t* waiting_ne
       if (sp.n_in++ == 0) sp.in_edge = edge;
     }
   };
-  for (uint32_t e = v.head; e != kNone; e = next_corner(e)) {
+  // In passes, so that the cache misses of one pass overlap instead of
+  // waiting one behind the other: the triangles are requested, then read
+  // (their neighbours' records requested), then the spokes grouped.
+  for_each_corner(vslot, [&](uint32_t e) { __builtin_prefetch(&tris[e >> 2]); });
+  const uint32_t n_sides = 2 * vpool[vslot].n_corners;
+  if (sides.size() < n_sides) sides.resize(n_sides);
+  uint32_t n = 0;
+  auto add_side = [&](uint32_t ws, bool outgoing, uint32_t edge) {
+    __builtin_prefetch(&vpool[ws], 1);
+    sides[n++] = Side{ws, edge, outgoing};
+  };
+  for_each_corner(vslot, [&](uint32_t e) {
     const Tri& t = tris[e >> 2];
     const uint32_t base = e & ~3u;
     nm |= t.nm_mask & kEdgesAt[e & 3];
     switch (e & 3) {
       case 0:
-        side(t.vs[1], true, base | 0);
-        side(t.vs[2], false, base | 2);
+        add_side(t.vs[1], true, base | 0);
+        add_side(t.vs[2], false, base | 2);
         break;
       case 1:
-        side(t.vs[0], false, base | 0);
-        side(t.vs[2], true, base | 1);
+        add_side(t.vs[0], false, base | 0);
+        add_side(t.vs[2], true, base | 1);
         break;
       default:
-        side(t.vs[0], true, base | 2);
-        side(t.vs[1], false, base | 1);
+        add_side(t.vs[0], true, base | 2);
+        add_side(t.vs[1], false, base | 1);
         break;
     }
-  }
+  });
+  for (uint32_t i = 0; i < n_sides; ++i) side(sides[i].ws, sides[i].outgoing, sides[i].edge);
   *waiting_neighbors = waiting_nb;
   bool any_cut = false;
   for (uint32_t i = 0; i < n_spokes; ++i) {
@@ -583,7 +666,7 @@ bool SequenceConverter::Impl::decide_spokes(uint32_t vslot, uint32_t* waiting_ne
     }
   }
   if (!any_cut) return nm != 0;
-  for (uint32_t e = v.head; e != kNone; e = next_corner(e)) {
+  for_each_corner(vslot, [&](uint32_t e) {
     Tri& t = tris[e >> 2];
     uint32_t c = e & 3;
     const Vert& wn = vpool[t.vs[kNext[c]]];
@@ -596,7 +679,7 @@ bool SequenceConverter::Impl::decide_spokes(uint32_t vslot, uint32_t* waiting_ne
       t.cut_mask |= static_cast<uint8_t>(1u << kPrev[c]);
       t.nm_mask |= static_cast<uint8_t>(1u << kPrev[c]);
     }
-  }
+  });
   return true;
 }
 
@@ -615,7 +698,7 @@ void SequenceConverter::Impl::break_link(uint32_t t, uint32_t edge) {
 // non-manifold spoke; otherwise both would use the same edge of the sequence.
 void SequenceConverter::Impl::split_fans(uint32_t vslot) {
   fan_corners.clear();
-  for (uint32_t e = vpool[vslot].head; e != kNone; e = next_corner(e)) fan_corners.push_back(e);
+  for_each_corner(vslot, [&](uint32_t e) { fan_corners.push_back(e); });
   const std::vector<uint32_t>& corners = fan_corners;
   size_t n = corners.size();
   if (local_of.size() < tris.size()) local_of.resize(tris.size());
@@ -680,7 +763,7 @@ void SequenceConverter::Impl::split_fans(uint32_t vslot) {
 }
 
 bool SequenceConverter::Impl::finalize(uint32_t id) {
-  uint32_t slot = ids.find(id);
+  uint32_t slot = find_slot(id);
   if (slot == kNone || vpool[slot].finalized) {
     bool twice = slot != kNone || (id != kNone && finalized_ids.contains(id));
     return fail(Status(ErrorCode::kBadIndex,
@@ -688,24 +771,27 @@ bool SequenceConverter::Impl::finalize(uint32_t id) {
   }
   // Coherent input is finalized in increasing id order (build_sequence's
   // one pass), and a finalization waits on cache misses: the vertex, its
-  // corner list (linked through the triangles) and its neighbours. Start
-  // loading those of later ids in stages, each stage reading only lines an
-  // earlier stage asked for: the vertex 12 ids on, the first triangle of
-  // the one 6 on, and that triangle's successor in the list and its
-  // corners' vertices for the one 3 on. Hints only: nothing changes. Only
-  // while the ids come in order (not on the sort path's order, where the
-  // lookups would be wasted).
+  // corners' triangles and its neighbours. Start loading those of later
+  // ids in stages, each stage reading only lines an earlier stage asked
+  // for: the vertex 12 ids on, the triangles of the one 6 on, and those
+  // triangles' vertices for the one 3 on. Hints only: nothing changes.
+  // Only while the ids come in order (not on the sort path's order, where
+  // the lookups would be wasted).
   if (id == last_finalized + 1) {
-    const uint32_t far = ids.find(id + 12);
+    const uint32_t far = find_slot(id + 12);
     if (far != kNone) __builtin_prefetch(&vpool[far]);
-    const uint32_t mid = ids.find(id + 6);
-    if (mid != kNone && vpool[mid].head != kNone) __builtin_prefetch(&tris[vpool[mid].head >> 2]);
-    const uint32_t near = ids.find(id + 3);
-    if (near != kNone && vpool[near].head != kNone) {
-      const uint32_t e = vpool[near].head;
-      const Tri& t = tris[e >> 2];
-      for (int k = 0; k < 3; ++k) __builtin_prefetch(&vpool[t.vs[k]]);
-      if (t.next[e & 3] != kNone) __builtin_prefetch(&tris[t.next[e & 3] >> 2]);
+    const uint32_t mid = find_slot(id + 6);
+    if (mid != kNone) {
+      const Vert& m = vpool[mid];
+      for (uint32_t k = 0; k < std::min(m.n_corners, kInlineCorners); ++k) __builtin_prefetch(&tris[m.corner[k] >> 2]);
+    }
+    const uint32_t near = find_slot(id + 3);
+    if (near != kNone) {
+      const Vert& n = vpool[near];
+      for (uint32_t k = 0; k < std::min(n.n_corners, kInlineCorners); ++k) {
+        const Tri& t = tris[n.corner[k] >> 2];
+        for (int j = 0; j < 3; ++j) __builtin_prefetch(&vpool[t.vs[j]]);
+      }
     }
   }
   last_finalized = id;
@@ -732,9 +818,10 @@ bool SequenceConverter::Impl::emit_vertex(uint32_t vslot, uint32_t sg) {
   sv.slot = sg;
   sv.reappears = v.first_dense;
   if (v.first_dense == kNone) v.first_dense = sv.index;
-  sv.position[0] = v.position[0];
-  sv.position[1] = v.position[1];
-  sv.position[2] = v.position[2];
+  const std::array<double, 3>& pos = vert_pos[vslot];
+  sv.position[0] = pos[0];
+  sv.position[1] = pos[1];
+  sv.position[2] = pos[2];
   PropertyValues& values = vert_values[vslot];
   if (v.has_values) sv.values.swap(values);  // lent to the sink, and back
   Status s = out->vertex(sv);
@@ -747,7 +834,7 @@ bool SequenceConverter::Impl::emit_vertex(uint32_t vslot, uint32_t sg) {
 bool SequenceConverter::Impl::settle(uint32_t vslot) {
   Vert& v = vpool[vslot];
   v.settled = true;
-  if (v.head == kNone) {
+  if (v.n_corners == 0) {
     // An isolated vertex: introduced and finalized with no triangle. It
     // takes a slot like any vertex (free again at once).
     uint32_t sg = new_seg();
@@ -758,15 +845,17 @@ bool SequenceConverter::Impl::settle(uint32_t vslot) {
     release_vertex(vslot);
     return true;
   }
+  // The corners' triangles are all read below: request them at once.
+  for_each_corner(vslot, [&](uint32_t e) { __builtin_prefetch(&tris[e >> 2], 1); });
   // One segment per fan. A fan is a path or a cycle of triangles linked
   // across the vertex's edges: walk it from its first triangle forwards (out
   // edges) and, unless it closed, backwards (in edges). Across an out-edge
   // the vertex is the partner's corner after the shared edge's start; across
   // an in-edge it is that edge's start.
   uint32_t fans = 0;
-  for (uint32_t start = v.head; start != kNone; start = next_corner(start)) {
+  for_each_corner(vslot, [&](uint32_t start) {
     Tri& t0 = tris[start >> 2];
-    if (t0.seg[start & 3] != kNone) continue;
+    if (t0.seg[start & 3] != kNone) return;
     uint32_t sg = new_seg();
     ++fans;
     t0.seg[start & 3] = sg;
@@ -793,14 +882,19 @@ bool SequenceConverter::Impl::settle(uint32_t vslot) {
       }
     }
     segs[sg].remaining = count;
-  }
-  for (uint32_t e = v.head; e != kNone;) {
-    uint32_t next = next_corner(e);
+  });
+  // The triangles settled now are classified: request their fans first.
+  n_now_ready = 0;
+  if (now_ready.size() < v.n_corners) now_ready.resize(v.n_corners);
+  for_each_corner(vslot, [&](uint32_t e) {
     Tri& t = tris[e >> 2];
-    if ((++t.state & Tri::kSettledMask) == 3) make_ready(e >> 2);
-    e = next;
-  }
-  v.head = v.tail = kNone;
+    if ((++t.state & Tri::kSettledMask) == 3) {
+      prefetch_segs(t);
+      now_ready[n_now_ready++] = e >> 2;
+    }
+  });
+  for (uint32_t i = 0; i < n_now_ready; ++i) make_ready(now_ready[i]);
+  clear_corners(vslot);
   if (fans > 1) ++stats.nonmanifold_vertices;
   return true;
 }
@@ -823,7 +917,7 @@ void SequenceConverter::Impl::make_ready(uint32_t slot) {
             const Tri& tx = tris[x];
             return !tx.emitted() && tx.ready() && classify(tx) == c;
           },
-          [&](uint32_t x) { __builtin_prefetch(&tris[x]); });
+          [&](uint32_t x) { __builtin_prefetch(&tris[x]); }, [&](uint32_t x) { prefetch_segs(tris[x]); });
     }
   } else if (c == 4) {
     // A triangle that is no start candidate now never becomes one (it
@@ -838,7 +932,7 @@ void SequenceConverter::Impl::make_ready(uint32_t slot) {
             const Tri& tx = tris[x];
             return !tx.emitted() && tx.ready() && classify(tx) == 4;
           },
-          [&](uint32_t x) { __builtin_prefetch(&tris[x]); });
+          [&](uint32_t x) { __builtin_prefetch(&tris[x]); }, [&](uint32_t x) { prefetch_segs(tris[x]); });
     }
   }
 }
@@ -858,10 +952,15 @@ bool SequenceConverter::Impl::emit(uint32_t slot, int cls) {
   if (cls < 0) return fail(Status(ErrorCode::kInternal, "converter emitted a triangle that is none of the five ops"));
   st.op = kOps[cls];
   // The partners across this triangle's edges are marked below, after the
-  // sink's work on the triangle: start loading their cache lines now (most
-  // of emit()'s time went to those loads).
-  for (uint32_t k = 0; k < 3; ++k)
+  // sink's work on the triangle, and its vertices' records, positions and
+  // fans are read and updated: start loading all their cache lines now,
+  // so that the misses overlap (most of emit()'s time went to those loads).
+  for (uint32_t k = 0; k < 3; ++k) {
     if (t.partner[k] != kNone) __builtin_prefetch(&tris[t.partner[k] >> 2], 1);
+    __builtin_prefetch(&segs[t.seg[k]], 1);
+    __builtin_prefetch(&vpool[t.vs[k]], 1);
+    __builtin_prefetch(&vert_pos[t.vs[k]]);
+  }
   uint32_t new_mask = 0, final_mask = 0, border_mask = 0, nonmanifold_mask = 0, leaving_mask = 0, entering_mask = 0;
   for (uint32_t k = 0; k < 3; ++k) {
     Seg& s = segs[t.seg[k]];
@@ -934,6 +1033,13 @@ bool SequenceConverter::Impl::emit(uint32_t slot, int cls) {
     Tri& pt = tris[p >> 2];
     pt.done_mask |= static_cast<uint8_t>(1u << (p & 3));
     pt.eslot[p & 3] = st.eslot[k];
+    // The next triangle is most often one of these (prefer): the only
+    // vertex it may introduce is the one off the shared edge, whose record
+    // and position emit_vertex() reads. Request them now, a whole sink
+    // call ahead.
+    const uint32_t off = pt.vs[kPrev[p & 3]];
+    __builtin_prefetch(&vpool[off], 1);
+    __builtin_prefetch(&vert_pos[off]);
     if (pt.ready()) {
       int c = classify(pt);
       if (c >= 0 && c < 4) buckets[c].push(p >> 2);

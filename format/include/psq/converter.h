@@ -42,7 +42,7 @@
 // smaller of 2 bytes per finalized id and 8 KiB (a bitmap). Ids numbered
 // densely and finalized roughly in increasing order (any coherent input)
 // thus cost a few KiB; in any order, about one bit per id of the ranges
-// in use.
+// in use; plus a fixed 512 KiB (a cache of id lookups).
 //
 // Errors are sticky: after a call fails, every later call (begin included)
 // returns the same error and does nothing.
