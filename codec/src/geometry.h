@@ -8,6 +8,8 @@
 #include <cstdint>
 #include <cstring>
 
+#include "float_round.h"
+
 namespace psq {
 namespace codec {
 
@@ -46,22 +48,9 @@ inline double double_from_ordered(int64_t o) {
   return d;
 }
 
-// The float nearest to `d`, widened back to double, without the GCC 12 -O2
-// trap that drops the rounding of (double)(float)d (../shared/toolchain).
-// An empty asm that takes and gives back the float in an SSE register makes
-// the compiler keep it a float; a volatile did the same through memory, a
-// store and a load per coordinate in the encoder's check of its input.
-// (Without SSE, i386 builds for example, the volatile remains.)
-inline double round_to_float(double d) {
-  float f = static_cast<float>(d);
-#if (defined(__GNUC__) || defined(__clang__)) && defined(__SSE__)
-  __asm__("" : "+x"(f));
-#else
-  volatile float g = f;
-  f = g;
-#endif
-  return static_cast<double>(f);
-}
+// The float nearest to `d`, widened back to double (format/src/float_round.h
+// keeps the rounding that GCC 12 at -O2 would drop).
+using detail::round_to_float;
 
 }  // namespace codec
 }  // namespace psq
