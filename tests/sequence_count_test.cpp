@@ -148,24 +148,7 @@ Mesh from(std::vector<std::array<double, 3>> p, std::vector<Tri> t) {
   return test::make_mesh(std::move(p), std::move(t));
 }
 
-// Shuffles the vertex and triangle order.
-Mesh shuffled(const Mesh& m, uint32_t seed) {
-  std::mt19937 rng(seed);
-  std::vector<uint32_t> perm(m.positions.size());
-  for (uint32_t i = 0; i < perm.size(); ++i) perm[i] = i;
-  std::shuffle(perm.begin(), perm.end(), rng);
-  Mesh out = m;
-  std::vector<uint32_t> where(perm.size());
-  for (uint32_t i = 0; i < perm.size(); ++i) {
-    out.positions[i] = m.positions[perm[i]];
-    where[perm[i]] = i;
-  }
-  for (Tri& t : out.triangles) {
-    for (uint32_t& v : t) v = where[v];
-  }
-  std::shuffle(out.triangles.begin(), out.triangles.end(), rng);
-  return out;
-}
+using test::shuffled;
 
 // A torus of r x s quads: one handle.
 Mesh torus(int r, int s) {

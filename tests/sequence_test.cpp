@@ -71,32 +71,7 @@ std::vector<Tri> canonical(std::vector<Tri> ts) {
   return ts;
 }
 
-// Shuffles vertex and triangle order (and relabels), keeping ids.
-Mesh shuffled(const Mesh& m, uint32_t seed) {
-  std::mt19937 rng(seed);
-  std::vector<uint32_t> perm(m.positions.size());
-  for (uint32_t i = 0; i < perm.size(); ++i) perm[i] = i;
-  std::shuffle(perm.begin(), perm.end(), rng);
-  Mesh out = m;
-  std::vector<uint32_t> where(perm.size());
-  for (uint32_t i = 0; i < perm.size(); ++i) {
-    out.positions[i] = m.positions[perm[i]];
-    out.vertex_values[i] = m.vertex_values[perm[i]];
-    where[perm[i]] = i;
-  }
-  for (Tri& t : out.triangles) {
-    for (uint32_t& v : t) v = where[v];
-  }
-  std::vector<size_t> tp(out.triangles.size());
-  for (size_t i = 0; i < tp.size(); ++i) tp[i] = i;
-  std::shuffle(tp.begin(), tp.end(), rng);
-  Mesh o2 = out;
-  for (size_t i = 0; i < tp.size(); ++i) {
-    o2.triangles[i] = out.triangles[tp[i]];
-    o2.face_values[i] = out.face_values[tp[i]];
-  }
-  return o2;
-}
+using test::shuffled;
 
 // Builds the sequence of `m` and checks it; returns the checker's stats.
 SequenceStats check(const Mesh& m, bool force_sort, uint64_t budget = uint64_t{64} << 20) {

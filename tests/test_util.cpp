@@ -263,6 +263,32 @@ Mesh make_torus(int around, int across, double thickness) {
   return m;
 }
 
+Mesh shuffled(const Mesh& m, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::vector<uint32_t> perm(m.positions.size());
+  for (uint32_t i = 0; i < perm.size(); ++i) perm[i] = i;
+  std::shuffle(perm.begin(), perm.end(), rng);
+  Mesh out = m;
+  std::vector<uint32_t> where(perm.size());
+  for (uint32_t i = 0; i < perm.size(); ++i) {
+    out.positions[i] = m.positions[perm[i]];
+    out.vertex_values[i] = m.vertex_values[perm[i]];
+    where[perm[i]] = i;
+  }
+  for (auto& t : out.triangles) {
+    for (uint32_t& v : t) v = where[v];
+  }
+  std::vector<size_t> order(out.triangles.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::shuffle(order.begin(), order.end(), rng);
+  Mesh o2 = out;
+  for (size_t i = 0; i < order.size(); ++i) {
+    o2.triangles[i] = out.triangles[order[i]];
+    o2.face_values[i] = out.face_values[order[i]];
+  }
+  return o2;
+}
+
 Status EventLog::begin(const MeshSchema& s) {
   schema = s;
   return Status();

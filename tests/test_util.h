@@ -101,6 +101,10 @@ std::vector<std::array<uint32_t, 3>> canonical_triangles(const Mesh& mesh);
 // `across` quads split in triangles, float positions, counts set.
 Mesh make_torus(int around, int across, double thickness = 0.3);
 
+// `m` with its vertices and its triangles in a random order (by `seed`),
+// indices relabelled, values kept with their elements.
+Mesh shuffled(const Mesh& m, uint32_t seed);
+
 // Records every event of a sequence, and its schema.
 struct EventLog : SequenceSink {
   Status begin(const MeshSchema& s) override;
