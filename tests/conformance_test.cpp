@@ -117,8 +117,7 @@ PsqStats stats_of(const std::string& name) {
 TEST(Conformance, FarGatesVectorNamesFarGatesEveryWay) {
   const PsqStats st = stats_of("far_gates.psq");
   EXPECT_GT(st.far_gates[0], 0u) << "recency ranks";
-  EXPECT_GT(st.far_gates[1], 0u) << "departure points";
-  EXPECT_GT(st.far_gates[2], 0u) << "raw slots";
+  EXPECT_GT(st.far_gates[1], 0u) << "slots (escapes)";
 }
 
 // spider_16bit predicts adds in all five ways of spec 7.3.

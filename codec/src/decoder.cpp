@@ -38,8 +38,8 @@ Status PsqDecoder::Impl::open(InputStream* stream) {
                                          std::to_string(kMaxHeaderPayload) + ")", 12);
   header.lossless = flags & kFlagLossless;
   header.rotation = flags & kFlagRotation;
-  header.fast = fast = flags & kFlagFast;
-  fast_choices = fast && fast_codes_choices(header.lossless);
+  header.fast = rans = flags & kFlagFast;
+  fast_choices = fast_codes_choices(header.lossless, rans);
   std::vector<uint8_t> payload;
   PSQ_RETURN_IF_ERROR(read_block(length, &payload));
   uint32_t expect = file_crc;
@@ -51,7 +51,7 @@ Status PsqDecoder::Impl::open(InputStream* stream) {
   chain_crc = crc32c_update(0, c, 4);
   PSQ_RETURN_IF_ERROR(parse_header_payload(payload.data(), payload.size(), payload_at, &header));
   stats.header_bytes = payload_at + length + 4;
-  if (fast) {
+  {
     fboundary = FastBoundary(header.boundary_limit);
     // Address space for the slots that most streams need, so that the
     // arrays do not move and copy themselves as the boundary grows (each
@@ -60,11 +60,10 @@ Status PsqDecoder::Impl::open(InputStream* stream) {
     const uint32_t slots = std::min<uint32_t>(header.boundary_limit, 1u << 16);
     fboundary.reserve(slots);
     fneighbors.reserve(slots);
-    ftables.resize(kFastTables);  // absent until a chunk sends them
-    std::fill(std::begin(ftable_absent), std::end(ftable_absent), true);
-  } else {
-    boundary = Boundary(header.boundary_limit);
-    models = std::make_unique<Models>();
+    if (rans) {
+      ftables.resize(kFastTables);  // absent until a chunk sends them
+      std::fill(std::begin(ftable_absent), std::end(ftable_absent), true);
+    }
   }
   attrs = std::make_unique<AttributeCoder>(header.schema.vertex_properties, header.attributes);
   attr_q.resize(3 * static_cast<size_t>(attrs->dims()));
@@ -127,9 +126,8 @@ Status PsqDecoder::Impl::next_chunk() {
       return Status(ErrorCode::kBadValue, "property section does not match the chunk's vertices and triangles",
                     conn_offset + conn_size);
   }
-  if (fast) PSQ_RETURN_IF_ERROR(fast_open_chunk());
-  else rc = std::make_unique<RangeDecoder>(cdata, csize);
-  if (!attrs->empty() && fast) {
+  PSQ_RETURN_IF_ERROR(fast_open_chunk());
+  if (!attrs->empty() && rans) {
     if (const char* why = attrs->open_fast(attr_fast, attr_bytes.data(), attr_bytes.size()))
       return Status(ErrorCode::kBadValue, std::string("fast attribute section: ") + why, attr_offset);
   } else if (!attrs->empty()) {
@@ -162,14 +160,14 @@ Status PsqDecoder::Impl::decode_attributes() {
         r.v[k] = t.v[k];
         r.c[k] = t.vslot[k];
         r.e[k] = t.eslot[k];
-        if (!header.lossless) r.pos[k] = fast ? fboundary.vertex(t.vslot[k]).pos : boundary.vertex(t.vslot[k]).pos;
+        if (!header.lossless) r.pos[k] = fboundary.vertex(t.vslot[k]).pos;
       }
       r.new_mask = t.new_mask;
       r.entering_mask = t.entering_mask;
     }
   }
   const char* why;
-  if (fast) {
+  if (rans) {
     why = attrs->decode_fast(attr_fast, r, attr_q.data());
   } else {
     BasicDecoder<false> dec(attr_rc.get(), nullptr);
@@ -177,8 +175,8 @@ Status PsqDecoder::Impl::decode_attributes() {
   }
   if (why)
     return Status(ErrorCode::kBadValue, "record " + std::to_string(record_no) + ": " + why,
-                  attr_offset + (fast ? 0 : attr_rc->consumed()));
-  if (fast ? attr_fast.rans->overran() || attr_fast.raw->overran() : attr_rc->overran())
+                  attr_offset + (rans ? 0 : attr_rc->consumed()));
+  if (rans ? attr_fast.rans->overran() || attr_fast.raw->overran() : attr_rc->overran())
     return Status(ErrorCode::kTruncated, "record " + std::to_string(record_no) + ": attribute data ends early",
                   attr_offset + attr_bytes.size());
   for (int i = 0; i < r.nnew; ++i) {
@@ -220,35 +218,6 @@ Status PsqDecoder::Impl::read_end() {
   return Status();
 }
 
-// Spec 6.3 and 7: a new vertex's re-appearance and position.
-template <class Dec>
-Status PsqDecoder::Impl::new_vertex(Dec& dec, const int64_t pred[3], int kind, const int extent[3], int64_t pos[3],
-                                    SequenceEvent* ev) {
-  if (seen_vertices >= chunk_vertices) return corrupt("more vertices than the chunk declares");
-  if (next_out >= 0xffffffffull) return Status(ErrorCode::kLimit, "more than 4294967295 vertices", conn_offset);
-  SequenceVertex& v = ev->vertex;
-  ev->kind = SequenceEvent::Kind::kVertex;
-  v.index = static_cast<uint32_t>(next_out);
-  v.slot = kNoSlot;
-  v.reappears = kNoVertex;
-  if (dec.bit(models->reappears, kCostConnectivity)) {
-    int64_t d;
-    int length;
-    if (!dec.residual(models->distance, &d, &length, kCostConnectivity) || d < 0 || static_cast<uint64_t>(d) >= next_out)
-      return corrupt("re-appearance of a vertex that does not exist");
-    v.reappears = static_cast<uint32_t>(next_out - 1 - static_cast<uint64_t>(d));
-  }
-  int lengths[3] = {0, 0, 0};
-  for (int i = 0; i < 3; ++i) {
-    int64_t r;
-    const int c = length_context(kind, i, extent[i], std::max(lengths[0], lengths[1]));
-    if (!dec.residual(models->residual[kind][i][c], &r, &lengths[i], kCostGeometry))
-      return corrupt("residual longer than 64 bits");
-    pos[i] = wrap_add(pred[i], r);
-  }
-  return finish_vertex(pos, v);
-}
-
 const char* PsqDecoder::Impl::position_of(const int64_t pos[3], double out[3]) const {
   const bool is_float = header.schema.position_type == ScalarType::kFloat32;
   for (int i = 0; i < 3; ++i) {
@@ -279,153 +248,7 @@ Status PsqDecoder::Impl::finish_vertex(const int64_t pos[3], SequenceVertex& v) 
   return Status();
 }
 
-template <class Dec>
-Status PsqDecoder::Impl::decode_record(Dec& dec) {
-  const uint32_t R = boundary.reference();
-  const int ctx = gate_context(R, last_op, last_gate);
-  const uint32_t g_sym = dec.gate(*models, ctx);
-  if (g_sym > kGateIsolated) return corrupt("gate symbol " + std::to_string(g_sym));
-  last_gate = g_sym;
-  ++stats.gates[gate_kind(g_sym)];
-  if (g_sym == kGateIsolated) {
-    SequenceEvent& ev = push();
-    int64_t pos[3];
-    int64_t pred[3] = {last_pos[0], last_pos[1], last_pos[2]};
-    const int no_extent[3] = {0, 0, 0};
-    PSQ_RETURN_IF_ERROR(new_vertex(dec, pred, kPredOther, no_extent, pos, &ev));
-    SequenceEvent& fin = push();
-    fin.kind = SequenceEvent::Kind::kFinalize;
-    fin.finalized = ev.vertex.index;
-    return Status();
-  }
-  if (seen_triangles >= chunk_triangles) return corrupt("more triangles than the chunk declares");
-  BTriangle bt;
-  uint32_t intro[3];
-  int nintro = 0;
-  uint32_t gate = kNone;
-  int shape = 0;  // the gate's shape context (spec 6.2.2)
-  // Spec 6.2.1: a far gate or a start leaves the region at R.
-  if (R != kNone && g_sym >= kGateFar) boundary.depart(R);
-  if (g_sym == kGateStart) {
-    const bool swap = dec.bit(models->swap, kCostConnectivity);
-    intro[0] = 0;
-    intro[1] = swap ? 2 : 1;
-    intro[2] = swap ? 1 : 2;
-    nintro = 3;
-    for (int k = 0; k < 3; ++k) bt.is_new[k] = true;
-  } else {
-    if (g_sym < kGateFar) {
-      if (R == kNone) return corrupt("gate offset without a reference edge");
-      gate = R;
-      const uint32_t steps = (g_sym + 1) / 2;
-      for (uint32_t i = 0; i < steps && gate != kNone; ++i)
-        gate = g_sym % 2 == 1 ? boundary.edge(gate).next : boundary.edge(gate).prev;
-      if (gate == kNone) return corrupt("gate offset leaves the boundary");
-    } else {
-      const uint32_t far = dec.template symbol<kFarBits>(models->far[R == kNone], kCostConnectivity);
-      ++stats.far_gates[far_kind(far)];
-      if (far < kFarResume) {
-        gate = boundary.recent_edge(far);
-        if (gate == kNone) return corrupt("far gate rank beyond the open edges");
-      } else if (far == kFarResume) {
-        const uint32_t j = dec.template symbol<kResumeIndexBits>(models->resume_index, kCostConnectivity);
-        const uint32_t s = dec.template symbol<kResumeOffsetBits>(models->resume_offset, kCostConnectivity);
-        gate = boundary.departure(j);
-        if (gate == kNone) return corrupt("far gate names a departure point that is not an open edge");
-        if (s > 2 * static_cast<uint32_t>(kMaxResumeOffset)) return corrupt("far gate offset symbol 31");
-        for (uint32_t i = 0; i < (s + 1) / 2 && gate != kNone; ++i)
-          gate = s % 2 == 1 ? boundary.edge(gate).next : boundary.edge(gate).prev;
-        if (gate == kNone) return corrupt("far gate offset leaves the boundary");
-      } else {
-        gate = static_cast<uint32_t>(dec.raw(slot_bits(boundary.edge_capacity()), kCostConnectivity));
-        if (!boundary.edge_live(gate)) return corrupt("gate is not an open edge");
-      }
-    }
-    bt.gate = gate;
-    const BEdge& g = boundary.edge(gate);
-    const uint32_t p = g.org, q = g.dst;
-    shape = third_shape_context(boundary, gate);
-    const uint32_t third =
-        dec.third(models->third[shape]
-                              [third_context(boundary.vertex(p).degree, boundary.vertex(q).degree)]);
-    uint32_t x = kNone;
-    if (third == kThirdLeft) {
-      if (g.prev == kNone) return corrupt("no boundary edge before the gate");
-      x = boundary.edge(g.prev).org;
-    } else if (third == kThirdRight) {
-      if (g.next == kNone) return corrupt("no boundary edge after the gate");
-      x = boundary.edge(g.next).dst;
-    } else if (third == kThirdJoin) {
-      const int side = dec.bit(models->join_side, kCostConnectivity);
-      uint32_t j = static_cast<uint32_t>(dec.raw(slot_bits(boundary.edge_capacity()), kCostConnectivity));
-      if (!boundary.edge_live(j)) return corrupt("join names an edge that is not open");
-      x = side ? boundary.edge(j).dst : boundary.edge(j).org;
-      bt.join_edge = j;
-    }
-    if (x == p || x == q) return corrupt("triangle repeats a vertex");
-    bt.c[0] = q;
-    bt.c[1] = p;
-    bt.c[2] = x;
-    if (third == kThirdNew) {
-      bt.is_new[2] = true;
-      intro[0] = 2;
-      nintro = 1;
-    }
-  }
-  uint32_t r = 0;
-  if (header.rotation) {
-    r = dec.template symbol<2>(models->rotation, kCostConnectivity);
-    if (r > 2) return corrupt("rotation above 2");
-  }
-  // New vertices in the order of introduction (spec 6.3).
-  int64_t first[3] = {0, 0, 0}, second[3] = {0, 0, 0};
-  for (int i = 0; i < nintro; ++i) {
-    const int k = static_cast<int>(intro[i]);
-    int64_t pos[3];
-    int choice = kChoiceGate;
-    if (nintro == 1) {
-      // Spec 7.3: the parallelogram across the gate or a neighbour, or a mean.
-      const uint32_t mask = prediction_choices(boundary, gate);
-      if (mask != 0) choice = dec.choice(models->choice[shape], mask);
-      ++stats.predictions[choice];
-    }
-    const Prediction pr = predict_new_vertex(boundary, nintro == 1 ? gate : kNone, i, last_pos, first, second, choice);
-    SequenceEvent& ev = push();
-    PSQ_RETURN_IF_ERROR(new_vertex(dec, pr.pos, pr.kind, pr.extent, pos, &ev));
-    for (int a = 0; a < 3; ++a) (i == 0 ? first : second)[a] = pos[a];
-    uint32_t s = boundary.new_vertex(ev.vertex.index, 0, pos);
-    if (s == kNone) return Status(ErrorCode::kLimit, "more active vertices than the header's boundary limit", conn_offset);
-    ev.vertex.slot = s;
-    bt.c[k] = s;
-  }
-  if (!boundary.find_completions(bt)) return corrupt("triangle puts an edge on the boundary twice or reuses a closed edge");
-  const int start = g_sym == kGateStart ? 1 : 0;
-  int completed = 0;
-  for (int k = 0; k < 3; ++k) {
-    if (bt.state[k] == EdgeState::kCompletes) {
-      ++completed;
-      continue;
-    }
-    bt.border[k] = dec.bit(models->border[start][k][border_context(boundary, bt, k)], kCostConnectivity);
-    bt.state[k] = bt.border[k] ? EdgeState::kBorder : EdgeState::kEnters;
-  }
-  uint8_t cut = 0;
-  for (int k = 0; k < 3; ++k)
-    if (bt.state[k] == EdgeState::kBorder && dec.bit(models->cut[start], kCostConnectivity)) cut |= 1u << k;
-  const int nnew = bt.is_new[0] + bt.is_new[1] + bt.is_new[2];
-  Op op = nnew == 3 ? Op::kStart
-          : completed == 1 ? (nnew == 1 ? Op::kAdd : Op::kJoin)
-          : completed == 2 ? Op::kFill
-                           : Op::kEnd;
-  if (dec.overran()) return Status(ErrorCode::kTruncated, "record " + std::to_string(record_no) + ": coded data ends early", conn_offset + csize);
-  if (!boundary.apply(bt)) return Status(ErrorCode::kLimit, "more open edges than the header's boundary limit", conn_offset);
-  last_op = static_cast<int>(op);
-  emit_triangle(boundary, bt, op, r, cut);
-  return Status();
-}
-
-template <class B>
-void PsqDecoder::Impl::emit_triangle(B& b, const BTriangle& bt, Op op, uint32_t r, uint8_t cut) {
+void PsqDecoder::Impl::emit_triangle(FastBoundary& b, const BTriangle& bt, Op op, uint32_t r, uint8_t cut) {
   // The triangle in output order: output corner j is canonical (j + r) % 3.
   static constexpr uint8_t kCorner[3][3] = {{0, 1, 2}, {1, 2, 0}, {2, 0, 1}};
   const uint8_t* corner = kCorner[r];
@@ -471,7 +294,6 @@ void PsqDecoder::Impl::emit_triangle(B& b, const BTriangle& bt, Op op, uint32_t 
     if (bt.final[k]) b.free_vertex(bt.c[k]);
 }
 
-template void PsqDecoder::Impl::emit_triangle(FastBoundary&, const BTriangle&, Op, uint32_t, uint8_t);
 
 
 // ------------------------------------------------------------------ API
@@ -492,23 +314,14 @@ const PsqStats& PsqDecoder::stats() const { return impl_->stats; }
 Status PsqDecoder::Impl::advance() {
   qhead = qcount = 0;
   if (records_left == 0) return next_chunk();
-  PSQ_RETURN_IF_ERROR(fast ? decode_record_fast() : decode_record());
+  PSQ_RETURN_IF_ERROR(rans ? decode_record_fast<RansSymbolDecoder>() : decode_record_fast<AdaptiveSymbolDecoder>());
   if (!attrs->empty()) PSQ_RETURN_IF_ERROR(decode_attributes());
   ++record_no;
   stats.max_active_vertices = std::max(stats.max_active_vertices, active_vertices());
   stats.max_open_edges = std::max(stats.max_open_edges, open_edges());
   if (--records_left == 0) {
-    if (fast) {
-      PSQ_RETURN_IF_ERROR(fast_close_chunk());
-    } else {
-      if (rc->overran()) return Status(ErrorCode::kTruncated, "coded records end early", conn_offset + csize);
-      // Spec 5.8: the records use the section exactly (the encoder's flush
-      // writes as many bytes as the decoder reads).
-      if (rc->consumed() != csize)
-        return Status(ErrorCode::kBadValue, std::to_string(csize - rc->consumed()) +
-                                                " unused bytes after the chunk's records", conn_offset + rc->consumed());
-    }
-    if (!attrs->empty() && fast) {
+    PSQ_RETURN_IF_ERROR(fast_close_chunk());
+    if (!attrs->empty() && rans) {
       // Spec 13.12: both blocks end where the chunk's attributes do.
       if (attr_fast.rans->overran() || attr_fast.raw->overran())
         return Status(ErrorCode::kTruncated, "attribute data ends early", attr_offset + attr_bytes.size());
@@ -576,8 +389,8 @@ Status PsqDecoder::Impl::decode_into(MeshBuffers* mesh, const uint8_t* data, siz
   } catch (const std::bad_alloc&) {
   }
   while (!ended) {
-    if (fast && records_left > 0 && props->empty() && attrs->empty()) {
-      PSQ_RETURN_IF_ERROR(fast_direct_records());
+    if (records_left > 0 && props->empty() && attrs->empty()) {
+      PSQ_RETURN_IF_ERROR(rans ? fast_direct_records<RansSymbolDecoder>() : fast_direct_records<AdaptiveSymbolDecoder>());
       continue;
     }
     qhead = qcount = 0;

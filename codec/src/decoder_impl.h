@@ -25,6 +25,7 @@
 #include "psq/psq_memory.h"
 #include "range_coder.h"
 #include "rans.h"
+#include "symbol_coder.h"
 
 namespace psq {
 
@@ -51,17 +52,13 @@ struct PsqDecoder::Impl {
   PsqHeader header;
   Status error;
   bool opened = false, ended = false, measure = false;
-  // The compact profile's adaptive models; a fast stream has none (setting
-  // them up costs more than decoding a small mesh).
-  std::unique_ptr<Models> models;
-  Boundary boundary{1};
   std::unique_ptr<PropertyUnpacker> props;
   // Normals, texture coordinates and colours (spec 8.3): the coder and
   // the chunk's attribute section with its range decoder.
   std::unique_ptr<AttributeCoder> attrs;
   std::vector<uint8_t> attr_bytes;
-  std::unique_ptr<RangeDecoder> attr_rc;  // compact profile
-  FastAttributeReader attr_fast;          // fast profile
+  std::unique_ptr<RangeDecoder> attr_rc;  // adaptive back-end
+  FastAttributeReader attr_fast;          // rANS back-end
   uint64_t attr_offset = 0;
   std::vector<int32_t> attr_q;
   PropertyValues attr_columns;
@@ -77,15 +74,12 @@ struct PsqDecoder::Impl {
   // (InputStream::view), else read into `conn`.
   const uint8_t* cdata = nullptr;
   size_t csize = 0;
-  std::unique_ptr<RangeDecoder> rc;
   uint64_t conn_offset = 0, chunk_offset = 0;
   uint32_t records_left = 0, chunk_vertices = 0, chunk_triangles = 0;
   uint32_t seen_vertices = 0, seen_triangles = 0;
 
   uint64_t next_out = 0;
   uint64_t record_no = 0;
-  int last_op = 5;
-  uint32_t last_gate = 0;
   int64_t last_pos[3] = {0, 0, 0};
   int64_t grid_max = 0;
 
@@ -135,7 +129,7 @@ struct PsqDecoder::Impl {
     return Status(ErrorCode::kBadHeader, "malformed varint", at);
   }
   Status corrupt(const std::string& what) {
-    uint64_t at = conn_offset + (rc ? rc->consumed() : 0);
+    const uint64_t at = conn_offset;
     return Status(ErrorCode::kBadValue, "record " + std::to_string(record_no) + ": " + what, at);
   }
 
@@ -145,18 +139,6 @@ struct PsqDecoder::Impl {
   // events' values.
   Status decode_attributes();
   Status read_end();
-  Status decode_record() {
-    if (measure) {
-      BasicDecoder<true> dec(rc.get(), cost);
-      return decode_record(dec);
-    }
-    BasicDecoder<false> dec(rc.get(), nullptr);
-    return decode_record(dec);
-  }
-  template <class Dec>
-  Status decode_record(Dec& dec);
-  template <class Dec>
-  Status new_vertex(Dec& dec, const int64_t pred[3], int kind, const int extent[3], int64_t pos[3], SequenceEvent* ev);
   // The events of one record, in order (at most 3 vertices, a triangle and
   // 3 finalizations); the queue is empty before each record is decoded.
   SequenceEvent& push() { return queue[qcount++]; }
@@ -171,8 +153,7 @@ struct PsqDecoder::Impl {
   // The position of coded coordinates `pos` (spec 7.1, 7.2), or the reason
   // they are not one.
   const char* position_of(const int64_t pos[3], double x[3]) const;
-  template <class B>
-  void emit_triangle(B& b, const BTriangle& bt, Op op, uint32_t r, uint8_t cut);
+  void emit_triangle(FastBoundary& b, const BTriangle& bt, Op op, uint32_t r, uint8_t cut);
   // The triangle event of a common record (fast_common), and the
   // finalizations of the corners in final_mask, whose slots it frees.
   void push_triangle(Op op, const uint32_t corner[3], const uint32_t eslot[3], uint8_t new_mask, uint8_t final_mask,
@@ -277,7 +258,6 @@ struct PsqDecoder::Impl {
   Status decode_into(MeshBuffers* mesh, const uint8_t* data, size_t size);
 
   // The fast profile (fast_decoder.cpp).
-  bool fast = false;
   bool fast_choices = false;  // gate records code a prediction choice (fast_codes_choices())
   FastBoundary fboundary{1};
   Neighbors fneighbors;  // which active vertices an edge joins (the fast profile's checks)
@@ -285,7 +265,16 @@ struct PsqDecoder::Impl {
   // A chunk's tables by index, the absent ones set_absent() (indexed
   // directly, so that finding a table is no load of its own).
   bool ftable_absent[kFastTables] = {};
-  std::unique_ptr<RansDecoder> frans;
+  // The open chunk's symbol decoder: one of the two back-ends (spec
+  // 13.2), chosen by the header's flag; the adaptive one's models.
+  bool rans = false;
+  std::unique_ptr<RansSymbolDecoder> frans;
+  std::unique_ptr<AdaptiveSymbolDecoder> fadaptive;
+  std::vector<SymbolModel> fmodels;
+  RansSymbolDecoder& coder(RansSymbolDecoder*) { return *frans; }
+  AdaptiveSymbolDecoder& coder(AdaptiveSymbolDecoder*) { return *fadaptive; }
+  template <class D>
+  D& coder() { return coder(static_cast<D*>(nullptr)); }
   std::unique_ptr<RawReader> fraw;
   FastRing ring;
   int fast_context = kFastAStartContext;
@@ -296,34 +285,39 @@ struct PsqDecoder::Impl {
   Status fast_close_chunk();
   // The next record; with `cls` >= 0 its class is decoded already, and
   // with `bsym` >= 0 also its gate and B symbol (a gate record).
+  template <class D>
   Status decode_record_fast(int cls = -1, uint32_t gate = kNone, int bsym = -1);
   // kDirect: the record goes into the arrays at `out` (fast_direct_records).
-  template <bool kDirect>
-  Status fast_common(RansDecoder& d, RawReader& bits, int cls, int bsym, uint32_t gate, DirectCursor* out);
+  template <bool kDirect, class D>
+  Status fast_common(D& d, RawReader& bits, int cls, int bsym, uint32_t gate, DirectCursor* out);
   // fast_common()'s ends and joins (B symbols kFastBEnd and kFastBJoin).
-  template <bool kDirect>
-  Status fast_end_or_join(RansDecoder& d, RawReader& bits, int cls, int bsym, uint32_t gate, DirectCursor* out);
+  template <bool kDirect, class D>
+  Status fast_end_or_join(D& d, RawReader& bits, int cls, int bsym, uint32_t gate, DirectCursor* out);
   // decode_mesh's loop over the rest of a fast chunk's records, when the
   // stream has no properties: adds and fills write the arrays directly,
   // other records go through decode_record_fast() and their events are
   // drained into the arrays.
+  template <class D>
   Status fast_direct_records();
   // measure_it: add the symbol's and raw bits' cost to `cost` (measure on).
-  bool fast_residual(RansDecoder& d, RawReader& raw, int table, int64_t* r, int* k, bool measure_it);
+  template <class D>
+  bool fast_residual(D& d, RawReader& raw, int table, int64_t* r, int* k, bool measure_it);
   // The residual of length symbol `s` (spec 13.8.3) from its raw bits;
   // false for a symbol beyond the escape or +2^63.
   bool residual_of_symbol(RawReader& raw, int s, int64_t* r, int* k);
   bool measure_escape = false;  // measuring: the next escape's raw bits are geometry
   // The decoded symbol s of `table`, its information content added to
   // `cost` when measuring (PsqDecoder::measure_costs).
-  int fast_symbol(RansDecoder& d, int table) {
-    const int s = d.decode(ftables[table]);
-    if (measure) measure_symbol(table, s);
+  template <class D>
+  int fast_symbol(D& d, int table) {
+    const int s = d.decode(table);
+    if (measure) measure_symbol(d, table, s);
     return s;
   }
-  void measure_symbol(int table, int s) {
+  void measure_symbol(const RansSymbolDecoder&, int table, int s) {
     if (static_cast<unsigned>(s) < kFastSymbolStride) cost[fast_table_cost(table)] += fsymbol_cost[table * kFastSymbolStride + s];
   }
+  void measure_symbol(const AdaptiveSymbolDecoder& d, int table, int) { cost[fast_table_cost(table)] += d.last_bits(); }
   // Measuring: the information content of each symbol of the chunk's
   // tables, kRansScaleBits - log2(frequency), 0 for a symbol the table
   // cannot code; per table, kFastSymbolStride entries (every symbol a
@@ -340,14 +334,17 @@ struct PsqDecoder::Impl {
   Status fast_early_end() const;
   // The three residuals of a new vertex predicted at `pred` (spec 13.8.1):
   // its coded position in `pos`.
-  Status fast_position(RansDecoder& d, RawReader& bits, const int64_t pred[3], int kind, const int extent[3],
+  template <class D>
+  Status fast_position(D& d, RawReader& bits, const int64_t pred[3], int kind, const int extent[3],
                        int64_t pos[3], bool measure_it);
+  template <class D>
   Status fast_vertex_begin(bool reappears, SequenceEvent* ev);
   // Then its residuals against `pred`, and its position.
+  template <class D>
   Status fast_vertex_position(const int64_t pred[3], int kind, const int extent[3], int64_t pos[3],
                               SequenceEvent* ev);
-  uint32_t active_vertices() const { return fast ? fboundary.active_vertices() : boundary.active_vertices(); }
-  uint32_t open_edges() const { return fast ? fboundary.open_edges() : boundary.open_edges(); }
+  uint32_t active_vertices() const { return fboundary.active_vertices(); }
+  uint32_t open_edges() const { return fboundary.open_edges(); }
 };
 
 }  // namespace psq

@@ -7,7 +7,6 @@
 #include <unordered_map>
 
 #include "encoder_impl.h"
-#include "training.h"
 #include "container.h"
 #include "crc32c.h"
 #include "geometry.h"
@@ -49,7 +48,7 @@ Status PsqEncoder::Impl::begin(const MeshSchema& schema) {
   header.schema = schema;
   header.schema.has_bounds = false;
   header.lossless = opt.lossless;
-  header.fast = fast = opt.fast;
+  header.fast = rans = opt.fast;
   header.rotation = !schema.face_properties.empty();
   header.boundary_limit = opt.boundary_limit;
   if (!opt.lossless) {
@@ -122,12 +121,8 @@ Status PsqEncoder::Impl::begin(const MeshSchema& schema) {
   if (!hs.ok()) return Status(hs.code() == ErrorCode::kLimit ? ErrorCode::kLimit : ErrorCode::kBadValue,
                               "cannot encode this mesh: " + hs.message());
   stats.header_bytes = h.size();
-  if (fast) {
-    fast_begin();
-    boundary.drop_recency();
-  } else {
-    rc = std::make_unique<RangeEncoder>(&records);
-  }
+  fast_begin();
+  boundary.drop_recency();
   chain_crc = crc32c_update(chain_crc, h.data() + h.size() - 4, 4);
   return emit(h);
 }
@@ -212,164 +207,6 @@ Status PsqEncoder::Impl::introduce(const PendingVertex& v) {
   return Status();
 }
 
-int PsqEncoder::Impl::name_far_gate(const uint32_t cand[3], FarName* name) {
-  // The lowest recency rank of a candidate.
-  uint32_t recent[kRecentRanks];
-  const uint32_t n = boundary.recent_edges(recent, kRecentRanks);
-  for (uint32_t r = 0; r < n; ++r)
-    for (int k = 0; k < 3; ++k)
-      if (cand[k] != kNone && cand[k] == recent[r]) {
-        name->far = r;
-        return k;
-      }
-  // The first departure point (most recent first) and then the first
-  // offset symbol (0, +1, -1, +2, -2, ...) that reach a candidate. Found
-  // backwards, from the candidates: their edges within 15 links, checked
-  // against the departure points marked in dep_mark (links are symmetric:
-  // next(e) = f exactly when prev(f) = e), which costs 93 steps instead of
-  // 16 x 31 walks from the departures.
-  if (dep_mark.size() < boundary.edge_capacity()) dep_mark.resize(boundary.edge_capacity(), 0);
-  uint32_t marked[kDepartures];
-  uint32_t nmarked = 0;
-  for (uint32_t j = 0; j < boundary.departures(); ++j) {
-    const uint32_t d = boundary.departure(j);
-    if (d != kNone) {
-      dep_mark[d] = static_cast<uint8_t>(j + 1);
-      marked[nmarked++] = d;
-    }
-  }
-  uint32_t best_j = kDepartures, best_s = 0;
-  int best_k = -1;
-  auto consider = [&](uint32_t e, uint32_t s, int k) {
-    if (e == kNone || dep_mark[e] == 0) return;
-    const uint32_t j = dep_mark[e] - 1u;
-    if (j < best_j || (j == best_j && s < best_s)) {
-      best_j = j;
-      best_s = s;
-      best_k = k;
-    }
-  };
-  for (int k = 0; k < 3 && nmarked > 0; ++k) {
-    if (cand[k] == kNone) continue;
-    consider(cand[k], 0, k);
-    uint32_t fwd = cand[k], back = cand[k];
-    for (uint32_t t = 1; t <= static_cast<uint32_t>(kMaxResumeOffset); ++t) {
-      // d = next^t(candidate): the candidate is t links before d, offset -t.
-      if (fwd != kNone) consider(fwd = boundary.edge(fwd).next, 2 * t, k);
-      // d = prev^t(candidate): offset +t.
-      if (back != kNone) consider(back = boundary.edge(back).prev, 2 * t - 1, k);
-    }
-  }
-  for (uint32_t i = 0; i < nmarked; ++i) dep_mark[marked[i]] = 0;
-  if (best_k >= 0) {
-    name->far = kFarResume;
-    name->index = best_j;
-    name->offset = best_s;
-    return best_k;
-  }
-  name->far = kFarEscape;
-  return cand[0] != kNone ? 0 : cand[1] != kNone ? 1 : 2;
-}
-
-// Spec 7.3 leaves the choice to the encoder. This one takes the
-// prediction that codes cheapest in the models' current state: the
-// choice's own bits and the three residuals with their length contexts.
-// Ties go to the lower choice number. The choice's cost counts fully only
-// from the 2000th choice on, and from nothing at the first: the choice
-// models and the residual models of kinds 2 and 3 start untrained, so that
-// a strict count would keep choosing the gate on a mesh where a neighbour
-// predicts better (on a regular grid whose gate parallelograms cross the
-// wrong diagonals it does, and only the ramp lets the neighbours win
-// there: bench/HISTORY.md, "Prediction choice and means of parallelograms").
-int PsqEncoder::Impl::choose_prediction(uint32_t gate, uint32_t mask, int shape, const int64_t pos[3],
-                                        Prediction* pred) {
-  constexpr double kRamp = 2000;
-  const BEdge& g = boundary.edge(gate);
-  const uint32_t edge[3] = {gate, g.prev, g.next};  // by side
-  // The five points, and the bits of their residuals alone: a candidate
-  // whose residuals have more bits than the gate's is not worth pricing
-  // (pricing also those a little longer would cost the encoder more work
-  // than it saves bytes).
-  int64_t point[kChoices][3];
-  int rough[kChoices] = {0, 0, 0, 0, 0};
-  uint32_t keep = 1u << kChoiceGate;
-  parallelogram(boundary, gate, point[kChoiceGate]);
-  for (int k = 0; k < 3; ++k) rough[kChoiceGate] += bit_length64(coord_distance(pos[k], point[kChoiceGate][k]));
-  for (int side = kChoiceBefore; side <= kChoiceAfter; ++side) {
-    if (!(mask & (1u << (side - 1)))) continue;
-    const int mean = side + 2;
-    parallelogram(boundary, edge[side], point[side]);
-    for (int k = 0; k < 3; ++k) {
-      point[mean][k] = midpoint(point[kChoiceGate][k], point[side][k]);
-      rough[side] += bit_length64(coord_distance(pos[k], point[side][k]));
-      rough[mean] += bit_length64(coord_distance(pos[k], point[mean][k]));
-    }
-    if (rough[side] <= rough[kChoiceGate]) keep |= 1u << side;
-    if (rough[mean] <= rough[kChoiceGate]) keep |= 1u << mean;
-  }
-  // The extents of the three predicting triangles, as needed.
-  int extent[3][3];
-  uint32_t have = 0;
-  auto candidate = [&](int ch) {
-    Prediction p;
-    const int t = predicting_side(ch);
-    if (!(have & (1u << t))) {
-      triangle_extents(boundary, edge[t], extent[t]);
-      have |= 1u << t;
-    }
-    for (int k = 0; k < 3; ++k) {
-      p.pos[k] = point[ch][k];
-      p.extent[k] = extent[t][k];
-    }
-    p.kind = prediction_kind(ch);
-    return p;
-  };
-  if (keep == 1u << kChoiceGate) {
-    *pred = candidate(kChoiceGate);
-    return kChoiceGate;
-  }
-  const float weight = static_cast<float>(std::min(1.0, static_cast<double>(choices_coded) / kRamp));
-  const float* table = bit_cost_table();
-  int best = kChoiceGate;
-  float best_cost = 0;
-  for (int ch = kChoiceGate; ch < kChoices; ++ch) {
-    if (!(keep & (1u << ch))) continue;
-    const Prediction pr = candidate(ch);
-    float c = weight * Encoder::choice_cost(table, models->choice[shape], mask, ch);
-    int lengths[3] = {0, 0, 0};
-    for (int a = 0; a < 3; ++a) {
-      const int lc = length_context(pr.kind, a, pr.extent[a], std::max(lengths[0], lengths[1]));
-      c += Encoder::residual_cost(table, models->residual[pr.kind][a][lc], wrap_sub(pos[a], pr.pos[a]), &lengths[a]);
-    }
-    if (ch == kChoiceGate || c < best_cost) {
-      best = ch;
-      best_cost = c;
-      *pred = pr;
-    }
-  }
-  return best;
-}
-
-// Spec 6.3 and 7.4: the re-appearance flag (and distance), then the
-// residuals of the position against `pred`.
-void PsqEncoder::Impl::code_new_vertex(Encoder& enc, const PendingVertex& v, const int64_t pred[3], int kind,
-                                        const int extent[3]) {
-  const uint32_t out_index = out_index_of(v.in_index);
-  enc.bit(models->reappears, v.reappears != kNoVertex, kCostConnectivity);
-  // (triangle() and isolated() checked that the re-appeared vertex comes
-  // earlier in the decoded numbering.)
-  if (v.reappears != kNoVertex)
-    (void)enc.residual(models->distance, static_cast<int64_t>(out_index - out_index_of(v.reappears)) - 1,
-                       kCostConnectivity);
-  int lengths[3] = {0, 0, 0};
-  for (int i = 0; i < 3; ++i) {
-    const int c = length_context(kind, i, extent[i], std::max(lengths[0], lengths[1]));
-    lengths[i] = enc.residual(models->residual[kind][i][c], wrap_sub(v.pos[i], pred[i]),
-                              kCostGeometry);
-  }
-  for (int i = 0; i < 3; ++i) last_pos[i] = v.pos[i];
-}
-
 // Spec 6.2.1: a gate is an open edge that the triangle completes; both
 // profiles' records name one of these.
 Status PsqEncoder::Impl::candidate_gates(const SequenceTriangle& t, const int pend[3], const uint32_t slots[3],
@@ -386,7 +223,7 @@ Status PsqEncoder::Impl::candidate_gates(const SequenceTriangle& t, const int pe
 }
 
 Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
-  if (fast) {
+  {
     Status s;
     if (fast_direct(t, &s)) return s;
   }
@@ -429,160 +266,7 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
     return bad_sequence("vertex " + std::to_string(pending.front().in_index) +
                         " was introduced but the next triangle does not use it");
   if (nnew == 2) return bad_sequence("a triangle introduces exactly two vertices");
-  if (fast) return triangle_fast(t, pend, slots, nnew);
-
-  Encoder enc(rc.get(), opt.measure_costs ? cost : nullptr);
-  const int ctx = gate_context(boundary.reference(), last_op, last_gate);
-  int rot = 0;  // canonical corner k is input corner (rot + k) % 3
-  uint32_t gate_sym = kGateStart;
-  uint32_t gate = kNone;
-  int shape = 0;  // the gate's shape context (spec 6.2.2)
-  FarName far_name;  // how a far gate is coded (spec 6.2.1)
-  const bool far_reference_none = boundary.reference() == kNone;
-  if (nnew == 3) {
-    // Spec 6.2.4: corner 0 is the vertex introduced first.
-    rot = pend[0] == 0 ? 0 : pend[1] == 0 ? 1 : 2;
-    if (!far_reference_none) boundary.depart(boundary.reference());  // spec 6.2.1: a start leaves R
-  } else {
-    uint32_t cand[3];
-    PSQ_RETURN_IF_ERROR(candidate_gates(t, pend, slots, nnew, cand));
-    // Spec 6.2.1: offsets from the reference edge in the order 0, +1, -1,
-    // +2, -2, ...; the first that reaches a candidate is coded.
-    gate_sym = kGateFar;
-    const uint32_t R = boundary.reference();
-    uint32_t fwd = R, back = R;
-    for (uint32_t s = 0; R != kNone && s < kGateFar && gate_sym == kGateFar; ++s) {
-      uint32_t e = R;
-      if (s % 2 == 1) e = fwd = fwd == kNone ? kNone : boundary.edge(fwd).next;
-      else if (s > 0) e = back = back == kNone ? kNone : boundary.edge(back).prev;
-      if (e == kNone) continue;
-      for (int k = 0; k < 3; ++k)
-        if (cand[k] == e) {
-          gate_sym = s;
-          rot = k;
-        }
-    }
-    if (gate_sym == kGateFar) {
-      // Spec 6.2.1: a far gate leaves the region at R; then the candidate
-      // named most cheaply: the lowest recency rank, else the first
-      // departure point (most recent first) and offset that reach it, else
-      // the first candidate in the input's corner order, by its slot.
-      if (R != kNone) boundary.depart(R);
-      rot = name_far_gate(cand, &far_name);
-    }
-    gate = cand[rot];
-  }
-  BTriangle bt;
-  int cp[3];  // pending position of canonical corner k, or -1
-  for (int k = 0; k < 3; ++k) {
-    const int ik = (rot + k) % 3;
-    bt.c[k] = slots[ik];
-    bt.is_new[k] = pend[ik] >= 0;
-    cp[k] = pend[ik];
-    bt.border[k] = (t.border_mask >> ik) & 1;
-  }
-  bt.gate = gate;
-  const int r = (3 - rot) % 3;  // spec 6.2.3: output corner j is canonical corner (j + r) % 3
-
-  enc.gate(*models, ctx, gate_sym);
-  last_gate = gate_sym;
-  ++stats.gates[gate_kind(gate_sym)];
-  uint32_t intro[3];  // canonical corners in the order their vertices are introduced
-  int nintro = 0;
-  if (nnew == 3) {
-    const bool swap = cp[2] == 1;  // corner 2 was introduced second
-    enc.bit(models->swap, swap, kCostConnectivity);
-    intro[0] = 0;
-    intro[1] = swap ? 2 : 1;
-    intro[2] = swap ? 1 : 2;
-    nintro = 3;
-  } else {
-    if (gate_sym == kGateFar) {
-      enc.symbol<kFarBits>(models->far[far_reference_none], far_name.far, kCostConnectivity);
-      ++stats.far_gates[far_kind(far_name.far)];
-      if (far_name.far == kFarResume) {
-        enc.symbol<kResumeIndexBits>(models->resume_index, far_name.index, kCostConnectivity);
-        enc.symbol<kResumeOffsetBits>(models->resume_offset, far_name.offset, kCostConnectivity);
-      } else if (far_name.far == kFarEscape) {
-        enc.raw(gate, slot_bits(boundary.edge_capacity()), kCostConnectivity);
-      }
-    }
-    const BEdge& g = boundary.edge(gate);
-    const uint32_t p = g.org, q = g.dst;
-    uint32_t third = kThirdNew;
-    if (!bt.is_new[2]) {
-      const uint32_t x = bt.c[2];
-      if (g.prev != kNone && boundary.edge(g.prev).org == x) third = kThirdLeft;
-      else if (g.next != kNone && boundary.edge(g.next).dst == x) third = kThirdRight;
-      else third = kThirdJoin;
-    }
-    const BVertex& vp = boundary.vertex(p);
-    const BVertex& vq = boundary.vertex(q);
-    shape = third_shape_context(boundary, gate);
-    enc.third(models->third[shape][third_context(vp.degree, vq.degree)], third);
-    if (third == kThirdJoin) {
-      // Spec 6.2.2: an open edge at x names it and the gap the triangle
-      // goes into: its first edge leaving x, else its first entering x.
-      const BLinks& vx = boundary.links(bt.c[2]);
-      uint32_t j = vx.first_out != kNone ? vx.first_out : vx.first_in;
-      if (j == kNone) return bad_sequence("join over vertex " + std::to_string(t.v[(rot + 2) % 3]) +
-                                          ", which is not on the boundary");
-      enc.bit(models->join_side, j == vx.first_out ? 0 : 1, kCostConnectivity);
-      enc.raw(j, slot_bits(boundary.edge_capacity()), kCostConnectivity);
-      bt.join_edge = j;
-    }
-    if (bt.is_new[2]) {
-      intro[0] = 2;
-      nintro = 1;
-    }
-  }
-  if (header.rotation) enc.symbol<2>(models->rotation, static_cast<uint32_t>(r), kCostConnectivity);
-
-  // New vertices in the order of introduction, with their predictions.
-  for (int i = 0; i < nintro; ++i) {
-    const int k = static_cast<int>(intro[i]);
-    PendingVertex& v = pending[cp[k]];
-    PSQ_RETURN_IF_ERROR(introduce(v));
-    v.coded = true;
-    const int64_t* first = i >= 1 ? pending[cp[intro[0]]].pos : nullptr;
-    const int64_t* second = i >= 2 ? pending[cp[intro[1]]].pos : nullptr;
-    Prediction pr;
-    int choice = kChoiceGate;
-    // Spec 7.3: an add may be predicted across a neighbour of the gate.
-    const uint32_t mask = nnew == 1 ? prediction_choices(boundary, gate) : 0;
-    if (mask != 0) {
-      choice = choose_prediction(gate, mask, shape, v.pos, &pr);
-      enc.choice(models->choice[shape], mask, choice);
-      ++choices_coded;
-    } else {
-      pr = predict_new_vertex(boundary, nnew == 1 ? gate : kNone, i, last_pos, first, second);
-    }
-    if (nnew == 1) ++stats.predictions[choice];
-    code_new_vertex(enc, v, pr.pos, pr.kind, pr.extent);
-    PSQ_RETURN_IF_ERROR(register_vertex(v, &bt.c[k]));
-  }
-
-  if (!boundary.find_completions(bt))
-    return bad_sequence("triangle " + std::to_string(t.v[0]) + " " + std::to_string(t.v[1]) + " " +
-                        std::to_string(t.v[2]) + " uses a directed edge already on the boundary, or a border edge");
-  // Spec 6.2.5: border flags of the edges that do not complete, then the
-  // cut flag of each border.
-  const int start = nnew == 3 ? 1 : 0;
-  int completed = 0;
-  for (int k = 0; k < 3; ++k) {
-    const int ik = (rot + k) % 3;
-    if (bt.state[k] == EdgeState::kCompletes) {
-      ++completed;
-      if ((t.border_mask >> ik) & 1)
-        return bad_sequence("a border edge completes a boundary edge");
-      continue;
-    }
-    enc.bit(models->border[start][k][border_context(boundary, bt, k)], bt.border[k], kCostConnectivity);
-  }
-  for (int k = 0; k < 3; ++k)
-    if (bt.state[k] == EdgeState::kBorder)
-      enc.bit(models->cut[start], (t.nonmanifold_mask >> ((rot + k) % 3)) & 1, kCostConnectivity);
-  return close_triangle(t, bt, nnew);
+  return triangle_fast(t, pend, slots, nnew);
 }
 
 Status PsqEncoder::Impl::register_vertex(const PendingVertex& v, uint32_t* slot) {
@@ -618,8 +302,8 @@ Status PsqEncoder::Impl::close_triangle(const SequenceTriangle& t, BTriangle& bt
   if (!boundary.apply(bt))
     return Status(ErrorCode::kLimit, "more than " + std::to_string(opt.boundary_limit) +
                                          " open edges (the boundary limit)");
-  if (fast)  // spec 13.6.2: entering edges join the ring, in edge order
-    for (int k = 0; k < 3; ++k)
+  // Spec 13.6.2: entering edges join the ring, in edge order.
+  for (int k = 0; k < 3; ++k)
       if (bt.state[k] == EdgeState::kEnters) ring.push(boundary, bt.eslot[k]);
   if (!attrs->empty()) {
     uint8_t entering = 0;
@@ -629,7 +313,6 @@ Status PsqEncoder::Impl::close_triangle(const SequenceTriangle& t, BTriangle& bt
     code_attributes(bt.c, bt.eslot, fresh, entering);
   }
   pending.clear();
-  last_op = static_cast<int>(op);
   // Spec 6.4: vertices left with no open edge are finalized, in canonical
   // corner order; the input must finalize exactly these next.
   for (int k = 0; k < 3; ++k)
@@ -647,24 +330,10 @@ Status PsqEncoder::Impl::close_triangle(const SequenceTriangle& t, BTriangle& bt
 }
 
 Status PsqEncoder::Impl::isolated(size_t at) {
-  if (fast) {
-    PendingVertex v = std::move(pending[at]);
-    pending.erase(pending.begin() + static_cast<std::ptrdiff_t>(at));
-    PSQ_RETURN_IF_ERROR(introduce(v));
-    PSQ_RETURN_IF_ERROR(isolated_fast(v));
-    code_attributes(nullptr, nullptr, 0, 0);
-    return after_record();
-  }
-  Encoder enc(rc.get(), opt.measure_costs ? cost : nullptr);
-  const int ctx = gate_context(boundary.reference(), last_op, last_gate);
-  enc.gate(*models, ctx, kGateIsolated);
-  last_gate = kGateIsolated;
-  ++stats.gates[gate_kind(kGateIsolated)];
   PendingVertex v = std::move(pending[at]);
   pending.erase(pending.begin() + static_cast<std::ptrdiff_t>(at));
   PSQ_RETURN_IF_ERROR(introduce(v));
-  const int no_extent[3] = {0, 0, 0};
-  code_new_vertex(enc, v, last_pos, kPredOther, no_extent);
+  PSQ_RETURN_IF_ERROR(isolated_fast(v));
   code_attributes(nullptr, nullptr, 0, 0);
   return after_record();
 }
@@ -684,7 +353,7 @@ void PsqEncoder::Impl::code_attributes(const uint32_t* corner, const uint32_t* e
     r.new_mask = fresh;
     r.entering_mask = entering;
   }
-  if (fast) {
+  if (rans) {
     attrs->encode_fast(attr_fast, r, attr_q.data());
   } else {
     Encoder enc(attr_rc.get(), nullptr);
@@ -703,14 +372,15 @@ Status PsqEncoder::Impl::after_record() {
   // kRansScaleBits bits (its frequency is at least 1; the states' rounding
   // adds a fraction of a bit over a chunk), and the tables at most a
   // presence bit and a gamma code per symbol.
-  const size_t coded = fast ? fast_raw.bits() / 8 + fast_symbols.size() / 2 : records.size();
-  bool full = false;
-  if (fast) {
-    constexpr size_t kTableBound = size_t{kFastTables} * (1 + kRansMaxSymbols * (2 * kRansScaleBits)) / 8 + 64;
-    constexpr size_t kRecordBound = 4096;  // one more record, with room to spare
-    const size_t bound = fast_raw.bits() / 8 + fast_symbols.size() * kRansScaleBits / 8 + 8 + kTableBound;
-    full = bound + kRecordBound >= kMaxRecordBytes;
-  }
+  const size_t coded = fast_raw.bits() / 8 + fast_symbols.size() / 2;
+  // An adaptive symbol costs at most 7 binary decisions (the largest
+  // tree) of at most 12 bits each (a model's probability stays at least
+  // 32/65536).
+  constexpr size_t kTableBound = size_t{kFastTables} * (1 + kRansMaxSymbols * (2 * kRansScaleBits)) / 8 + 64;
+  constexpr size_t kRecordBound = 4096;  // one more record, with room to spare
+  const size_t symbol_bound = rans ? fast_symbols.size() * kRansScaleBits / 8 + kTableBound
+                                   : fast_symbols.size() * (7 * 12) / 8 + 16;
+  const bool full = fast_raw.bits() / 8 + symbol_bound + 8 + kRecordBound >= kMaxRecordBytes;
   // The attribute section is closed at the property target too, far
   // below its limit (spec 4.4): a record adds at most a few hundred bytes.
   if (coded >= opt.chunk_bytes || full || props->raw_size() >= kChunkPropertyTarget ||
@@ -722,15 +392,14 @@ Status PsqEncoder::Impl::after_record() {
 
 Status PsqEncoder::Impl::close_chunk() {
   if (chunk_records == 0) return Status();
-  if (fast) fast_section(&records);
-  else rc->finish();
+  fast_section(&records);
   std::vector<uint8_t> raw, packed;
   if (!props->empty()) {
     props->take(&raw);
     zstd_compress(raw, opt.zstd_level, &packed);
   }
   if (attr_rc) attr_rc->finish();
-  if (fast && !attrs->empty()) attrs->finish_fast(attr_fast, &attr_bytes);
+  if (rans && !attrs->empty()) attrs->finish_fast(attr_fast, &attr_bytes);
   std::vector<uint8_t> chunk;
   Put put(&chunk);
   put.u8(kChunkTag);
@@ -754,7 +423,6 @@ Status PsqEncoder::Impl::close_chunk() {
   stats.chunk_overhead_bytes += fields + 4;
   ++stats.chunks;
   records.clear();
-  if (!fast) rc = std::make_unique<RangeEncoder>(&records);
   chunk_records = chunk_vertices = chunk_triangles = 0;
   chain_crc = crc32c_update(chain_crc, chunk.data() + chunk.size() - 4, 4);
   return emit(chunk);
@@ -788,15 +456,10 @@ Status PsqEncoder::Impl::finish() {
 PsqEncoder::PsqEncoder(ByteWriter* out, const EncodeOptions& options) : impl_(std::make_unique<Impl>()) {
   impl_->out = out;
   impl_->opt = options;
-  if (!options.fast) impl_->models = std::make_unique<Models>();
 }
 
 PsqEncoder::~PsqEncoder() = default;
 
-namespace codec {
-void TrainingAccess::use_flat_models(PsqEncoder& e) { e.impl_->models = std::make_unique<Models>(false); }
-const Models& TrainingAccess::models(const PsqEncoder& e) { return *e.impl_->models; }
-}  // namespace codec
 
 Status PsqEncoder::begin(const MeshSchema& schema) {
   if (!impl_->error.ok()) return impl_->error;

@@ -18,6 +18,7 @@
 #include "psq/psq_codec.h"
 #include "range_coder.h"
 #include "rans.h"
+#include "symbol_coder.h"
 
 namespace psq {
 
@@ -34,13 +35,6 @@ struct PendingVertex {
   bool coded = false;  // already coded in the current record
 };
 
-// How a far gate names its edge (spec 6.2.1): the far symbol (a recency
-// rank 0..13, kFarResume or kFarEscape) and, for a resume, the departure
-// point and the offset symbol.
-struct FarName {
-  uint32_t far = codec::kFarEscape, index = 0, offset = 0;
-};
-
 }  // namespace codec
 
 // An internal header of the encoder's two files, which both work in the
@@ -53,9 +47,6 @@ struct PsqEncoder::Impl {
   Status error;
   bool begun = false, finished = false;
   PsqHeader header;
-  // The compact profile's adaptive models (none in the fast profile:
-  // setting them up costs more than encoding a small mesh).
-  std::unique_ptr<Models> models;
   Boundary boundary{1};
   std::unique_ptr<PropertyPacker> props;
   // Normals, texture coordinates and colours (spec 8.3): the coder, its
@@ -63,8 +54,8 @@ struct PsqEncoder::Impl {
   // order of introduction).
   std::unique_ptr<AttributeCoder> attrs;
   std::vector<uint8_t> attr_bytes;
-  std::unique_ptr<RangeEncoder> attr_rc;  // compact profile
-  FastAttributeWriter attr_fast;          // fast profile
+  std::unique_ptr<RangeEncoder> attr_rc;  // adaptive back-end
+  FastAttributeWriter attr_fast;          // rANS back-end
   AttributeRecord attr_rec;
   std::vector<int32_t> attr_q;
   PropertyValues attr_columns;
@@ -82,8 +73,6 @@ struct PsqEncoder::Impl {
   std::vector<uint32_t> expect_final;  // input indices the input must finalize now
   uint32_t next_in = 0;                // next input dense index
   uint64_t next_out = 0;               // next decoded dense index
-  int last_op = 5;
-  uint32_t last_gate = 0;              // the previous gate symbol (gate context)
   int64_t last_pos[3] = {0, 0, 0};
   // Quantized: half the grid step, and the highest grid index 2^bits - 1.
   double half_step = 0;
@@ -92,7 +81,6 @@ struct PsqEncoder::Impl {
 
   // The open chunk.
   std::vector<uint8_t> records;
-  std::unique_ptr<RangeEncoder> rc;
   uint32_t chunk_records = 0, chunk_vertices = 0, chunk_triangles = 0;
   // Spec 4.5: the stream checksum chains the checksums of the header and
   // of every chunk (their last 4 bytes), then the end record's fields.
@@ -124,19 +112,6 @@ struct PsqEncoder::Impl {
   Status coded_position(const double p[3], uint32_t index, int64_t out[3]);
   // How far from `p` its decoded value `x` may be (spec 2.3 and 7.1).
   double round_trip_bound(double p, double x, double origin, bool is_float) const;
-  // The reference encoder's choice of the parallelogram that predicts an
-  // add's new vertex at `pos` (spec 7.3), among those of `mask`; sets
-  // *pred to its prediction. Out of line: inlined, it made GCC stop
-  // inlining the range coder into triangle().
-  PSQ_NOINLINE int choose_prediction(uint32_t gate, uint32_t mask, int shape, const int64_t pos[3],
-                                     Prediction* pred);
-  // Spec 6.2.1, the reference encoder's choice of a far gate among the
-  // candidates (kNone where none): the one with the lowest recency rank,
-  // else the first that a departure point and offset reach, else the first
-  // candidate by its raw slot. Sets *name and returns the candidate's index.
-  int name_far_gate(const uint32_t cand[3], FarName* name);
-  std::vector<uint8_t> dep_mark;  // per edge slot: 1 + its departure index, or 0 (name_far_gate)
-  void code_new_vertex(Encoder& enc, const PendingVertex& v, const int64_t pred[3], int kind, const int extent[3]);
   Status introduce(const PendingVertex& v);
   // Gives a coded new vertex its boundary slot.
   Status register_vertex(const PendingVertex& v, uint32_t* slot);
@@ -156,7 +131,7 @@ struct PsqEncoder::Impl {
   Status after_record();
 
   // The fast profile (fast_encoder.cpp, spec section 13).
-  bool fast = false;
+  bool rans = false;  // the back-end (spec 13.2): rANS, else adaptive
   RansSymbols fast_symbols;              // the open chunk's symbols, in order
   RawWriter fast_raw;                    // and its raw bits
   uint64_t fast_raw_geometry = 0;        // of those, position residuals' (measure_costs)

@@ -27,8 +27,24 @@ PSQ_INLINE uint64_t get_raw(RawReader& raw, int bits) {
 
 Status PsqDecoder::Impl::fast_open_chunk() {
   auto bad = [&](const std::string& what, uint64_t at) {
-    return Status(ErrorCode::kBadValue, "fast record section: " + what, conn_offset + at);
+    return Status(ErrorCode::kBadValue, "record section: " + what, conn_offset + at);
   };
+  if (!rans) {
+    // Spec 13.2, adaptive back-end: the range coder's bytes, then the raw
+    // block; the models start afresh.
+    uint64_t range_bytes = 0;
+    const int n = parse_varint(cdata, csize, &range_bytes);
+    if (n <= 0) return bad("malformed range coder block length", 0);
+    const size_t at = static_cast<size_t>(n);
+    if (range_bytes > csize - at) return bad("block length exceeds the section", 0);
+    reset_adaptive_models(&fmodels);
+    fadaptive = std::make_unique<AdaptiveSymbolDecoder>(cdata + at, range_bytes, fmodels.data(), measure);
+    const size_t raw_at = at + range_bytes;
+    fraw = std::make_unique<RawReader>(cdata + raw_at, csize - raw_at);
+    fraw_total_bits = 8 * static_cast<uint64_t>(csize - raw_at);
+    fraw_geometry_bits = 0;
+    return Status();
+  }
   uint64_t table_bytes = 0, rans_bytes = 0;
   const int n1 = parse_varint(cdata, csize, &table_bytes);
   if (n1 <= 0) return bad("malformed table block length", 0);
@@ -63,7 +79,7 @@ Status PsqDecoder::Impl::fast_open_chunk() {
     }
   }
   if (!tables.at_clean_end()) return bad("the table block does not end with its last table", at);
-  frans = std::make_unique<RansDecoder>(cdata + at + table_bytes, rans_bytes);
+  frans = std::make_unique<RansSymbolDecoder>(cdata + at + table_bytes, rans_bytes, ftables.data());
   const size_t raw_at = at + table_bytes + rans_bytes;
   fraw = std::make_unique<RawReader>(cdata + raw_at, csize - raw_at);
   fraw_total_bits = 8 * static_cast<uint64_t>(csize - raw_at);
@@ -72,10 +88,11 @@ Status PsqDecoder::Impl::fast_open_chunk() {
 }
 
 Status PsqDecoder::Impl::fast_close_chunk() {
-  if (frans->overran() || fraw->overran())
+  const bool overran = rans ? frans->overran() : fadaptive->overran();
+  if (overran || fraw->overran())
     return Status(ErrorCode::kTruncated, "coded records end early", conn_offset + csize);
-  if (!frans->at_clean_end())
-    return Status(ErrorCode::kBadValue, "the rANS block does not end where the chunk's records do", conn_offset);
+  if (!(rans ? frans->at_clean_end() : fadaptive->at_clean_end()))
+    return Status(ErrorCode::kBadValue, "the symbol block does not end where the chunk's records do", conn_offset);
   if (!fraw->at_clean_end())
     return Status(ErrorCode::kBadValue, "the raw bits do not end where the chunk's records do", conn_offset);
   // The raw bits that no position residual read: slots, kinds, signs of
@@ -124,11 +141,12 @@ PSQ_INLINE int64_t residual_of_code(const LengthCode& e, uint32_t v) {
 
 }  // namespace
 
-PSQ_INLINE bool PsqDecoder::Impl::fast_residual(RansDecoder& d, RawReader& rawbits, int table, int64_t* r, int* k,
+template <class D>
+PSQ_INLINE bool PsqDecoder::Impl::fast_residual(D& d, RawReader& rawbits, int table, int64_t* r, int* k,
                                                 bool measure_it) {
-  const int s = d.decode(ftables[table]);
+  const int s = d.decode(table);
   if (measure_it) {
-    measure_symbol(table, s);
+    measure_symbol(d, table, s);
     // A position's raw bits are geometry; the rest of the raw block is
     // connectivity (fast_close_chunk).
     if (table != kFastTableDistance && s <= kFastLengthEscape)
@@ -176,20 +194,19 @@ Status PsqDecoder::Impl::fast_early_end() const {
                 conn_offset + csize);
 }
 
-PSQ_INLINE Status PsqDecoder::Impl::fast_position(RansDecoder& d, RawReader& bits, const int64_t pred[3], int kind,
+template <class D>
+PSQ_INLINE Status PsqDecoder::Impl::fast_position(D& d, RawReader& bits, const int64_t pred[3], int kind,
                                                   const int extent[3], int64_t pos[3], bool measure_it) {
   if (kind != kPredOther) {
     // A predicted vertex's three length contexts are its extents (13.8.1),
     // so its three symbols decode first and its raw bits, which follow each
     // other in the raw block, come in one read when they fit (they do
     // unless a residual is long): one refill instead of three.
-    int s[3], table[3];
+    int s[3];
     for (int i = 0; i < 3; ++i) {
-      table[i] = fast_length_table(kind, i, fast_length_context(kind, i, extent[i], 0));
-      s[i] = d.decode(ftables[table[i]]);
-    }
-    if (measure_it) {
-      for (int i = 0; i < 3; ++i) measure_symbol(table[i], s[i]);
+      const int table = fast_length_table(kind, i, fast_length_context(kind, i, extent[i], 0));
+      s[i] = d.decode(table);
+      if (measure_it) measure_symbol(d, table, s[i]);
     }
     if (__builtin_expect((s[0] | s[1] | s[2]) < kFastLengthEscape, 1)) {
       const LengthCode* e[3] = {&kLengthCodes.c[s[0]], &kLengthCodes.c[s[1]], &kLengthCodes.c[s[2]]};
@@ -228,6 +245,7 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_position(RansDecoder& d, RawReader& bit
   return Status();
 }
 
+template <class D>
 Status PsqDecoder::Impl::fast_vertex_begin(bool reappears, SequenceEvent* ev) {
   PSQ_RETURN_IF_ERROR(fast_vertex_room());
   SequenceVertex& v = ev->vertex;
@@ -238,16 +256,17 @@ Status PsqDecoder::Impl::fast_vertex_begin(bool reappears, SequenceEvent* ev) {
   if (reappears) {
     int64_t d;
     int length;
-    if (!fast_residual(*frans, *fraw, kFastTableDistance, &d, &length, measure) || d < 0 || static_cast<uint64_t>(d) >= next_out)
+    if (!fast_residual(coder<D>(), *fraw, kFastTableDistance, &d, &length, measure) || d < 0 || static_cast<uint64_t>(d) >= next_out)
       return corrupt("re-appearance of a vertex that does not exist");
     v.reappears = static_cast<uint32_t>(next_out - 1 - static_cast<uint64_t>(d));
   }
   return Status();
 }
 
+template <class D>
 PSQ_INLINE Status PsqDecoder::Impl::fast_vertex_position(const int64_t pred[3], int kind, const int extent[3], int64_t pos[3],
                                               SequenceEvent* ev) {
-  PSQ_RETURN_IF_ERROR(fast_position(*frans, *fraw, pred, kind, extent, pos, measure));
+  PSQ_RETURN_IF_ERROR(fast_position(coder<D>(), *fraw, pred, kind, extent, pos, measure));
   return finish_vertex(pos, ev->vertex);
 }
 
@@ -258,8 +277,8 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_vertex_position(const int64_t pred[3], 
 // the same in more steps. kDirect: decode_mesh's loop, which writes the
 // arrays itself (a stream without properties); otherwise the record's
 // events are queued.
-template <bool kDirect>
-PSQ_INLINE Status PsqDecoder::Impl::fast_common(RansDecoder& d, RawReader& bits, int cls, int bsym, uint32_t gate,
+template <bool kDirect, class D>
+PSQ_INLINE Status PsqDecoder::Impl::fast_common(D& d, RawReader& bits, int cls, int bsym, uint32_t gate,
                                                 DirectCursor* out) {
   FastBoundary& b = fboundary;
   const BEdge& g = b.edge(gate);
@@ -275,8 +294,8 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_common(RansDecoder& d, RawReader& bits,
       const uint32_t mask = prediction_choices(b, gate);
       if (mask != 0) {
         const int table = fast_choice_table(mask, fast_choice);
-        choice = d.decode(ftables[table]);
-        if (!kDirect && measure) measure_symbol(table, choice);
+        choice = d.decode(table);
+        if (!kDirect && measure) measure_symbol(d, table, choice);
         if (!fast_choice_allowed(mask, choice)) return corrupt("prediction choice " + std::to_string(choice));
         fast_choice = choice;
       }
@@ -318,7 +337,6 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_common(RansDecoder& d, RawReader& bits,
     ring.push(b, f1);
     ring.push(b, f2);
     fneighbors.add_vertex(s, p, q);
-    last_op = static_cast<int>(Op::kAdd);
     ++seen_triangles;
     ++stats.triangles;
     if (kDirect) {
@@ -346,7 +364,7 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_common(RansDecoder& d, RawReader& bits,
     push_triangle(Op::kAdd, corner, eslot, 4, 0, 1, 6);
     return Status();
   }
-  if (bsym == kFastBEnd || bsym == kFastBJoin) return fast_end_or_join<kDirect>(d, bits, cls, bsym, gate, out);
+  if (bsym == kFastBEnd || bsym == kFastBJoin) return fast_end_or_join<kDirect, D>(d, bits, cls, bsym, gate, out);
   // A fill: "left" (x starts the edge before the gate; edge 1 completes
   // it, edge 2 enters) or "right" (x ends the edge after it).
   const bool left = bsym == 27;
@@ -364,7 +382,6 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_common(RansDecoder& d, RawReader& bits,
   if (f == kNone) return Status(ErrorCode::kLimit, "more open edges than the header's boundary limit", conn_offset);
   ring.push(b, f);
   fneighbors.insert(from, to);
-  last_op = static_cast<int>(Op::kFill);
   ++seen_triangles;
   ++stats.triangles;
   const uint32_t corner[3] = {q, p, x};
@@ -397,8 +414,8 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_common(RansDecoder& d, RawReader& bits,
 // but through the general path and its events they would cost decoding
 // into arrays far more than their share (bench/HISTORY.md, "The decoder's
 // memory").
-template <bool kDirect>
-__attribute__((noinline)) Status PsqDecoder::Impl::fast_end_or_join(RansDecoder& d, RawReader& bits, int cls, int bsym, uint32_t gate,
+template <bool kDirect, class D>
+__attribute__((noinline)) Status PsqDecoder::Impl::fast_end_or_join(D& d, RawReader& bits, int cls, int bsym, uint32_t gate,
                                           DirectCursor* out) {
   FastBoundary& b = fboundary;
   const BEdge& g = b.edge(gate);
@@ -445,7 +462,6 @@ __attribute__((noinline)) Status PsqDecoder::Impl::fast_end_or_join(RansDecoder&
       ring.push(b, bt.eslot[k]);
       fneighbors.insert(bt.c[k], bt.c[k == 2 ? 0 : k + 1]);
     }
-  last_op = static_cast<int>(op);
   const uint8_t final_mask = static_cast<uint8_t>(bt.final[0] | bt.final[1] << 1 | bt.final[2] << 2);
   ++seen_triangles;
   ++stats.triangles;
@@ -495,8 +511,9 @@ void PsqDecoder::Impl::push_triangle(Op op, const uint32_t corner[3], const uint
   }
 }
 
+template <class D>
 Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
-  RansDecoder& d = *frans;
+  D& d = coder<D>();
   RawReader& bits = *fraw;
   FastBoundary& b = fboundary;
   if (cls < 0) cls = fast_symbol(d, kFastTableA + fast_context);
@@ -510,8 +527,8 @@ Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
     int64_t pos[3];
     const int64_t pred[3] = {last_pos[0], last_pos[1], last_pos[2]};
     const int no_extent[3] = {0, 0, 0};
-    PSQ_RETURN_IF_ERROR(fast_vertex_begin(reappears, &ev));
-    PSQ_RETURN_IF_ERROR(fast_vertex_position(pred, kPredOther, no_extent, pos, &ev));
+    PSQ_RETURN_IF_ERROR(fast_vertex_begin<D>(reappears, &ev));
+    PSQ_RETURN_IF_ERROR(fast_vertex_position<D>(pred, kPredOther, no_extent, pos, &ev));
     SequenceEvent& fin = push();
     fin.kind = SequenceEvent::Kind::kFinalize;
     fin.finalized = ev.vertex.index;
@@ -526,6 +543,7 @@ Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
       gate = ring.ranked(b, static_cast<uint32_t>(rank));
       if (gate == kNone) return corrupt("far gate rank beyond the open edges of the ring");
       ++stats.gates[2];
+      ++stats.far_gates[0];
     } else {
       if (R == kNone) return corrupt("gate offset without a reference edge");
       gate = cls == kFastGateR ? R : cls == kFastGateNext ? b.edge(R).next : b.edge(R).prev;
@@ -535,7 +553,7 @@ Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
     const BEdge& g = b.edge(gate);
     bsym = fast_symbol(d, kFastTableB + third_context(b.vertex(g.org).degree, b.vertex(g.dst).degree));
     if (bsym >= kFastBSymbols) return corrupt("third-vertex symbol " + std::to_string(bsym));
-    if (!header.rotation && fast_common_b(bsym)) return fast_common<false>(*frans, *fraw, cls, bsym, gate, nullptr);
+    if (!header.rotation && fast_common_b(bsym)) return fast_common<false>(d, *fraw, cls, bsym, gate, nullptr);
   }
   BTriangle bt;
   uint32_t intro[3];
@@ -589,6 +607,7 @@ Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
       }
       fast_context = kFastAContexts - 1;
       ++stats.gates[2];
+      ++stats.far_gates[1];
     } else {
       const BEdge& g = b.edge(gate);
       int third;
@@ -667,7 +686,7 @@ Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
     const int k = static_cast<int>(intro[i]);
     SequenceEvent& ev = push();
     // The distance, the choice, the residuals: the encoder's order.
-    PSQ_RETURN_IF_ERROR(fast_vertex_begin((reappear_mask >> i) & 1, &ev));
+    PSQ_RETURN_IF_ERROR(fast_vertex_begin<D>((reappear_mask >> i) & 1, &ev));
     int choice = kChoiceGate;
     Prediction pr;
     int64_t pos[3];
@@ -684,7 +703,7 @@ Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
     } else {
       pr = predict_new_vertex(b, kNone, i, last_pos, first, second);
     }
-    PSQ_RETURN_IF_ERROR(fast_vertex_position(pr.pos, pr.kind, pr.extent, pos, &ev));
+    PSQ_RETURN_IF_ERROR(fast_vertex_position<D>(pr.pos, pr.kind, pr.extent, pos, &ev));
     for (int a = 0; a < 3; ++a) (i == 0 ? first : second)[a] = pos[a];
     const uint32_t s = b.new_vertex(ev.vertex.index, 0, pos);
     if (s == kNone) return Status(ErrorCode::kLimit, "more active vertices than the header's boundary limit", conn_offset);
@@ -723,7 +742,6 @@ Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
     if (bt.state[k] == EdgeState::kEnters) ring.push(b, bt.eslot[k]);
     if (bt.state[k] != EdgeState::kCompletes) fneighbors.insert(bt.c[k], bt.c[(k + 1) % 3]);
   }
-  last_op = static_cast<int>(op);
   emit_triangle(b, bt, op, r, cut);
   return Status();
 }
@@ -732,13 +750,14 @@ Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
 
 namespace psq {
 
+template <class D>
 Status PsqDecoder::Impl::fast_direct_records() {
   FastBoundary& b = fboundary;
   // The coders' states live in locals for the loop, so that the compiler
   // can keep them in registers: as members they would be reloaded after
   // every store to the output arrays, which might alias them. They go back
   // to the members around every call that decodes through the members.
-  RansDecoder d = *frans;
+  D d = coder<D>();
   RawReader bits = *fraw;
   MeshBuffers& mesh = *direct;
   // Room for the chunk's declared counts, but for no more than four
@@ -761,7 +780,7 @@ Status PsqDecoder::Impl::fast_direct_records() {
   const bool rotation = header.rotation;
   while (records_left > 0) {
     if (out.troom == 0) direct_grow(out);
-    const int cls = d.decode(ftables[kFastTableA + fast_context]);
+    const int cls = d.decode(kFastTableA + fast_context);
     const uint32_t R = b.reference();
     int done = 0;  // 1: an add decoded below, 2: a fill
     if (((cls <= kFastGatePrev && R != kNone) || cls == kFastGateFar) && seen_triangles < chunk_triangles) {
@@ -771,11 +790,12 @@ Status PsqDecoder::Impl::fast_direct_records() {
       // this loop more instructions.
       uint32_t gate;
       if (cls == kFastGateFar) {
-        const int rank = d.decode(ftables[kFastTableRank + (R == kNone ? 1 : 0)]);
+        const int rank = d.decode(kFastTableRank + (R == kNone ? 1 : 0));
         if (rank >= kFastRanks) return corrupt("far gate rank " + std::to_string(rank));
         gate = ring.ranked(b, static_cast<uint32_t>(rank));
         if (gate == kNone) return corrupt("far gate rank beyond the open edges of the ring");
         ++stats.gates[2];
+        ++stats.far_gates[0];
       } else {
         gate = cls == kFastGateR ? R : cls == kFastGateNext ? b.edge(R).next : b.edge(R).prev;
         if (gate == kNone) return corrupt("gate offset leaves the boundary");
@@ -783,7 +803,7 @@ Status PsqDecoder::Impl::fast_direct_records() {
       }
       const BEdge& g = b.edge(gate);
       const uint32_t p = g.org, q = g.dst;
-      const int bsym = d.decode(ftables[kFastTableB + third_context(b.vertex(p).degree, b.vertex(q).degree)]);
+      const int bsym = d.decode(kFastTableB + third_context(b.vertex(p).degree, b.vertex(q).degree));
       if (bsym >= kFastBSymbols) return corrupt("third-vertex symbol " + std::to_string(bsym));
       if (!rotation && fast_common_b(bsym)) {
         PSQ_RETURN_IF_ERROR(fast_common<true>(d, bits, cls, bsym, gate, &out));
@@ -791,18 +811,18 @@ Status PsqDecoder::Impl::fast_direct_records() {
         done = bsym == 0 || bsym == kFastBJoin ? 1 : 2;
       } else {
         qhead = qcount = 0;
-        *frans = d;
+        coder<D>() = d;
         *fraw = bits;
-        PSQ_RETURN_IF_ERROR(decode_record_fast(cls, gate, bsym));
-        d = *frans;
+        PSQ_RETURN_IF_ERROR(decode_record_fast<D>(cls, gate, bsym));
+        d = coder<D>();
         bits = *fraw;
       }
     } else {
       qhead = qcount = 0;
-      *frans = d;
+      coder<D>() = d;
       *fraw = bits;
-      PSQ_RETURN_IF_ERROR(decode_record_fast(cls));
-      d = *frans;
+      PSQ_RETURN_IF_ERROR(decode_record_fast<D>(cls));
+      d = coder<D>();
       bits = *fraw;
     }
     if (!done) {
@@ -827,7 +847,7 @@ Status PsqDecoder::Impl::fast_direct_records() {
       stats.max_open_edges = std::max(stats.max_open_edges, b.open_edges());
     }
     if (--records_left == 0) {
-      *frans = d;
+      coder<D>() = d;
       *fraw = bits;
       direct_sync(out);
       PSQ_RETURN_IF_ERROR(fast_close_chunk());
@@ -837,5 +857,10 @@ Status PsqDecoder::Impl::fast_direct_records() {
   }
   return Status();
 }
+
+template Status PsqDecoder::Impl::decode_record_fast<RansSymbolDecoder>(int, uint32_t, int);
+template Status PsqDecoder::Impl::decode_record_fast<AdaptiveSymbolDecoder>(int, uint32_t, int);
+template Status PsqDecoder::Impl::fast_direct_records<RansSymbolDecoder>();
+template Status PsqDecoder::Impl::fast_direct_records<AdaptiveSymbolDecoder>();
 
 }  // namespace psq

@@ -105,7 +105,7 @@ int64_t fixed_log2(uint64_t x) {  // x >= 1
 }  // namespace
 
 void PsqEncoder::Impl::fast_begin() {
-  fast_choices = fast_codes_choices(header.lossless);
+  fast_choices = fast_codes_choices(header.lossless, rans);
   fast_denominator.resize(kFastTables);
   fast_log_denominator.resize(kFastTables);
   for (int i = 0; i < kFastTables; ++i) {
@@ -423,6 +423,7 @@ Status PsqEncoder::Impl::triangle_fast(const SequenceTriangle& t, const int pend
     PSQ_RETURN_IF_ERROR(register_vertex(v, &bt.c[k]));
   }
   ++stats.gates[cls == kFastStart ? 3 : cls == kFastGateR ? 0 : cls == kFastEscape || cls == kFastGateFar ? 2 : 1];
+  if (cls == kFastGateFar || cls == kFastEscape) ++stats.far_gates[cls == kFastGateFar ? 0 : 1];
   PSQ_RETURN_IF_ERROR(close_triangle(t, bt, nnew));
   note_input_edges(t, rot, bt.eslot, bt.state);
   return Status();
@@ -524,7 +525,6 @@ bool PsqEncoder::Impl::fast_direct(const SequenceTriangle& t, Status* status) {
     ring.push(boundary, f2);
     note_input_edge(t.eslot[in1], f1);
     note_input_edge(t.eslot[in2], f2);
-    last_op = static_cast<int>(Op::kAdd);
     const uint32_t corner[3] = {q, p, x}, eslot[3] = {gate, f1, f2};
     code_attributes(corner, eslot, 4, 6);
   } else {
@@ -540,7 +540,6 @@ bool PsqEncoder::Impl::fast_direct(const SequenceTriangle& t, Status* status) {
     }
     ring.push(boundary, f);
     note_input_edge(t.eslot[left ? in2 : in1], f);
-    last_op = static_cast<int>(Op::kFill);
     // Spec 6.4: finalized in canonical corner order (close_triangle()).
     const uint32_t corner[3] = {q, p, x};
     if (!attrs->empty()) {
@@ -598,6 +597,43 @@ void PsqEncoder::Impl::fast_section(std::vector<uint8_t>* section) {
       counts[i][sym] = fast_count[at] - fast_chunk_base[at];
       fast_chunk_base[at] = fast_count[at];
     }
+  }
+  if (!rans) {
+    // The adaptive back-end: the symbols in order, each through its
+    // table's bit-tree, the models fresh for the chunk.
+    std::vector<SymbolModel> models;
+    reset_adaptive_models(&models);
+    std::vector<uint8_t> range_bytes;
+    RangeEncoder enc(&range_bytes);
+    for (const RansSymbol& sym : fast_symbols) {
+      SymbolModel& m = models[sym.table];
+      if (opt.measure_costs) {
+        // The symbol's information content, bit by bit of its tree.
+        uint32_t node = 1;
+        for (int i = m.bits() - 1; i >= 0; --i) {
+          const int bit = (sym.symbol >> i) & 1;
+          const double p0 = m.tree()[node].p0 / 65536.0;
+          cost[fast_table_cost(sym.table)] -= std::log2(bit ? 1 - p0 : p0);
+          enc.encode_bit(m.tree()[node], bit);
+          node = (node << 1) | static_cast<uint32_t>(bit);
+        }
+      } else {
+        enc.encode_symbol(m, sym.symbol);
+      }
+    }
+    enc.finish();
+    if (opt.measure_costs) {
+      cost[kCostGeometry] += static_cast<double>(fast_raw_geometry);
+      cost[kCostConnectivity] += static_cast<double>(fast_raw.bits() - fast_raw_geometry);
+    }
+    fast_raw_geometry = 0;
+    const std::vector<uint8_t> raw_bytes = fast_raw.finish();
+    Put put(section);
+    put.varint(range_bytes.size());
+    put.bytes(range_bytes.data(), range_bytes.size());
+    put.bytes(raw_bytes.data(), raw_bytes.size());
+    fast_symbols.clear();
+    return;
   }
   std::vector<RansTable> tables(kFastTables);
   RawWriter tw;

@@ -179,9 +179,8 @@ int main(int argc, char** argv) {
   if (!f || std::fwrite(bytes.data(), 1, bytes.size(), f) != bytes.size() || std::fclose(f) != 0)
     return fail(out_path + ": cannot write");
   const PsqStats& st = enc.stats();
-  std::printf("psq_interleave: %s: %llu triangles, far gates by rank %llu, departure %llu, raw slot %llu\n",
+  std::printf("psq_interleave: %s: %llu triangles, far gates by rank %llu, by slot %llu\n",
               out_path.c_str(), static_cast<unsigned long long>(st.triangles),
-              static_cast<unsigned long long>(st.far_gates[0]), static_cast<unsigned long long>(st.far_gates[1]),
-              static_cast<unsigned long long>(st.far_gates[2]));
+              static_cast<unsigned long long>(st.far_gates[0]), static_cast<unsigned long long>(st.far_gates[1]));
   return 0;
 }

@@ -116,9 +116,9 @@ void print_text(const std::string& file, const detail::InfoReport& r) {
     std::printf("  properties           %.3f bits/vertex\n", 8.0 * p.property_bytes / nv);
     std::printf("  attributes           %.3f bits/vertex\n", 8.0 * p.attribute_bytes / nv);
     std::printf("  framing              %.3f bits/vertex\n", 8.0 * (p.header_bytes + p.chunk_overhead_bytes) / nv);
-    std::printf("gates                  offset 0 %llu, offset %llu, far %llu (rank %llu, resume %llu, raw %llu), "
+    std::printf("gates                  offset 0 %llu, offset %llu, far %llu (rank %llu, slot %llu), "
                 "start or isolated %llu\n",
-                u(p.gates[0]), u(p.gates[1]), u(p.gates[2]), u(p.far_gates[0]), u(p.far_gates[1]), u(p.far_gates[2]),
+                u(p.gates[0]), u(p.gates[1]), u(p.gates[2]), u(p.far_gates[0]), u(p.far_gates[1]),
                 u(p.gates[3]));
     std::printf("add predictions        across the gate %llu, the edge before %llu, the edge after %llu, "
                 "mean with before %llu, mean with after %llu\n",

@@ -136,11 +136,11 @@ struct PsqStats {
   double geometry_bits = 0;
   uint32_t max_active_vertices = 0;
   uint32_t max_open_edges = 0;
-  // Records by gate symbol (spec 6.2.1): offset 0, other offsets, far, and
-  // start or isolated vertex; far gates by how they are named: recency
-  // rank, departure point and offset, raw slot (diagnostics: `psq info`).
+  // Records by how they name their gate (spec 13.7.1): the reference edge,
+  // its neighbours, far, and start or isolated vertex; far gates by how
+  // they are named: recency rank, slot (an escape) (diagnostics: `psq info`).
   uint64_t gates[4] = {0, 0, 0, 0};
-  uint64_t far_gates[3] = {0, 0, 0};
+  uint64_t far_gates[2] = {0, 0};
   // Adds by what predicted the new vertex (spec 7.3): the parallelogram
   // across the gate, across the open edge before it, after it, the mean of
   // the gate's and the one before, and of the gate's and the one after.

@@ -192,8 +192,8 @@ std::string info_json(const std::string& file, const InfoReport& r) {
          ", \"attributes\": " + attribute_json(h) +
          ", \"overhead_bits_per_vertex\": " + json_number(8.0 * (p.header_bytes + p.chunk_overhead_bytes) / nv) +
          ", \"gates\": {\"offset_0\": " + n(p.gates[0]) + ", \"offset\": " + n(p.gates[1]) +
-         ", \"far_rank\": " + n(p.far_gates[0]) + ", \"far_resume\": " + n(p.far_gates[1]) +
-         ", \"far_raw\": " + n(p.far_gates[2]) + ", \"start_or_isolated\": " + n(p.gates[3]) +
+         ", \"far_rank\": " + n(p.far_gates[0]) + ", \"far_slot\": " + n(p.far_gates[1]) +
+         ", \"start_or_isolated\": " + n(p.gates[3]) +
          "}, \"add_predictions\": {\"gate\": " + n(p.predictions[0]) + ", \"before\": " + n(p.predictions[1]) +
          ", \"after\": " + n(p.predictions[2]) + ", \"mean_before\": " + n(p.predictions[3]) +
          ", \"mean_after\": " + n(p.predictions[4]) + "}},\n";
