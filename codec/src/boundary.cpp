@@ -117,7 +117,6 @@ PSQ_INLINE uint32_t BasicBoundary<L>::enter_edge(BTriangle& t, int k) {
     lo.first_out = s;
     e.next_in = ld.first_in;
     ld.first_in = s;
-    if (keep_recent_) recent_.push_back(Recent{s, e.age});
   }
   return s;
 }
@@ -194,7 +193,6 @@ bool BasicBoundary<L>::apply(BTriangle& t) {
       lp[nlinks] = P; lq[nlinks] = Q; ++nlinks;
     }
   }
-  compact_recent();
   for (int k = 0; k < 3; ++k) {
     if (t.state[k] == EdgeState::kCompletes) {
       close_edge(t, k);
@@ -242,7 +240,6 @@ bool BasicBoundary<L>::apply_on_gate(BTriangle& t) {
   const uint32_t after1 = enters1 ? fresh1 : kept(edges_[c1].next);
   const uint32_t before2 = enters2 ? fresh2 : kept(edges_[c2].prev);
   const uint32_t after2 = enters2 ? fresh2 : kept(edges_[c2].next);
-  compact_recent();
   close_edge(t, 0);
   if (!enters1) close_edge(t, 1);
   if (!enters2) close_edge(t, 2);
@@ -267,7 +264,6 @@ PSQ_INLINE bool BasicBoundary<L>::apply_add(BTriangle& t) {
   if (f2 == kNone) return false;
   const uint32_t g = t.completes[0];
   const uint32_t gate_prev = edges_[g].prev, gate_next = edges_[g].next;
-  compact_recent();
   close_edge(t, 0);  // clears the neighbours' links to the gate
   splice_add(f1, f2, gate_prev, gate_next);
   for (int k = 0; k < 3; ++k) {
@@ -294,81 +290,11 @@ PSQ_INLINE bool BasicBoundary<L>::apply_fill(BTriangle& t, int k) {
   // k = 1: prev of f is the gate's prev, next of f the neighbour's next.
   const uint32_t before = k == 2 ? edges_[c].prev : edges_[g].prev;
   const uint32_t after = k == 2 ? edges_[g].next : edges_[c].next;
-  compact_recent();
   close_edge(t, 0);
   close_edge(t, 3 - k);
   splice_fill(f, before, after);
   finish_triangle(t);
   return true;
-}
-
-namespace {
-// The largest coordinate distance of two points (coding.h).
-uint64_t linf_distance(const int64_t* a, const int64_t* b) {
-  uint64_t m = 0;
-  for (int k = 0; k < 3; ++k) m = std::max(m, coord_distance(a[k], b[k]));
-  return m;
-}
-}  // namespace
-
-template <class B>
-int third_shape_context(const B& boundary, uint32_t gate) {
-  const BEdge& g = boundary.edge(gate);
-  const int64_t* p = boundary.vertex(g.org).pos;
-  const int64_t* q = boundary.vertex(g.dst).pos;
-  int64_t par[3];
-  parallelogram(boundary, gate, par);
-  const uint64_t e = linf_distance(p, q);
-  const uint64_t none = ~uint64_t{0};
-  const uint64_t dl = g.prev != kNone ? linf_distance(par, boundary.vertex(boundary.edge(g.prev).org).pos) : none;
-  const uint64_t dr = g.next != kNone ? linf_distance(par, boundary.vertex(boundary.edge(g.next).dst).pos) : none;
-  const uint64_t d = std::min(dl, dr);
-  const int side = dl <= dr ? 0 : 1;
-  return d < (e >> 1) ? 1 + side : d < e ? 3 + side : 0;
-}
-
-template <bool L>
-uint32_t BasicBoundary<L>::scan_recent(uint32_t want, uint32_t* out) {
-  assert(keep_recent_);
-  // Entries above index i were scanned; current ones are kept (at most
-  // `want`), stale ones dropped for good.
-  want = std::min(want, kRecentRanks);
-  size_t i = recent_.size();
-  uint32_t n = 0;
-  Recent kept[kRecentRanks];
-  while (i > 0 && n < want) {
-    const Recent& r = recent_[--i];
-    if (current(r)) {
-      kept[n] = r;
-      out[n++] = r.slot;
-    }
-  }
-  recent_.resize(i);
-  for (uint32_t j = n; j-- > 0;) recent_.push_back(kept[j]);
-  return n;
-}
-
-template <bool L>
-void BasicBoundary<L>::depart(uint32_t edge) {
-  const Recent r{edge, edges_[edge].age};
-  size_t w = 0;
-  for (const Recent& d : departures_)
-    if (current(d)) departures_[w++] = d;  // never `edge` itself: it entered after them
-  departures_.resize(w);
-  departures_.insert(departures_.begin(), r);
-  if (departures_.size() > kDepartures) departures_.resize(kDepartures);
-}
-
-template <bool L>
-uint32_t BasicBoundary<L>::departure(uint32_t j) const {
-  return j < departures_.size() && current(departures_[j]) ? departures_[j].slot : kNone;
-}
-
-template <bool L>
-uint32_t BasicBoundary<L>::recent_edge(uint32_t rank) {
-  uint32_t out[kRecentRanks];
-  if (rank >= kRecentRanks) return kNone;
-  return scan_recent(rank + 1, out) > rank ? out[rank] : kNone;
 }
 
 template <bool L>
@@ -380,7 +306,6 @@ uint32_t BasicBoundary<L>::grow_edges() {
 
 template class BasicBoundary<true>;
 template class BasicBoundary<false>;
-template int third_shape_context(const Boundary&, uint32_t);
 
 }  // namespace codec
 }  // namespace psq

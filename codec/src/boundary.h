@@ -34,12 +34,6 @@ namespace psq {
 namespace codec {
 
 constexpr uint32_t kNone = 0xffffffffu;
-// Far gates name an edge by its recency rank below this (spec 6.2.1).
-constexpr uint32_t kRecentRanks = 14;
-// Far gates name an edge near one of this many departure points (6.2.1).
-constexpr uint32_t kDepartures = 16;
-// ... at most this many steps along the loop away from it.
-constexpr int kMaxResumeOffset = 15;
 
 // Dead edges a vertex keeps inline before it links BBorder records.
 constexpr uint32_t kInlineDead = 5;
@@ -212,30 +206,6 @@ class BasicBoundary {
   uint32_t reference() const { return reference_; }
   void clear_reference() { reference_ = kNone; }
 
-  // Recency ranks (spec 6.2.1, far gates): the open edges ordered by when
-  // they entered the boundary, the newest first, have ranks 0, 1, 2, ...
-  // recent_edge() returns the open edge of rank `rank`, or kNone when fewer
-  // than rank + 1 edges are open; recent_edges() fills `out` with the open
-  // edges of ranks 0 to want - 1 (want at most kRecentRanks) and returns how
-  // many there are. Both cost O(rank or want) plus the number of stale
-  // entries they drop, which each entered once.
-  uint32_t recent_edge(uint32_t rank);
-  uint32_t recent_edges(uint32_t* out, uint32_t want) { return scan_recent(want, out); }
-  // Stops keeping the recency ranks (before the first edge enters): the
-  // fast profile ranks edges with its own ring (fast_coding.h), and its
-  // encoder need not pay for keeping them too. recent_edge()
-  // and recent_edges() must not be called after it.
-  void drop_recency() { keep_recent_ = false; }
-
-  // Departure points (spec 6.2.1): where the traversal left a region, most
-  // recent first. depart() records the reference edge R before a far gate
-  // or a start (when R is an open edge): entries that are no longer open
-  // edges are dropped, R goes to the front, and the list keeps at most
-  // kDepartures entries. departure(j) is entry j's edge slot, or kNone when
-  // there is no entry j or it is no longer the open edge it was.
-  void depart(uint32_t edge);
-  uint32_t departure(uint32_t j) const;
-  uint32_t departures() const { return static_cast<uint32_t>(departures_.size()); }
 
  private:
   uint32_t alloc_edge();
@@ -248,7 +218,6 @@ class BasicBoundary {
   // limit); drops stale recency entries; edge k completes t.completes[k];
   // degrees and final flags.
   uint32_t enter_edge(BTriangle& t, int k);
-  void compact_recent();
   void close_edge(BTriangle& t, int k);
   void finish_triangle(BTriangle& t);
   bool apply_on_gate(BTriangle& t);
@@ -271,9 +240,6 @@ class BasicBoundary {
   void retire_edge(uint32_t slot);
   void forget_dead_edges(uint32_t slot);
   void link(uint32_t p, uint32_t q);
-  // Scans the recency stack from the top for up to `want` open edges,
-  // dropping stale entries on the way; fills `out` newest first.
-  uint32_t scan_recent(uint32_t want, uint32_t* out);
 
   uint32_t limit_;
   std::vector<BVertex> vertices_;
@@ -290,17 +256,7 @@ class BasicBoundary {
   uint32_t active_vertices_ = 0;
   uint32_t open_edges_ = 0;
   uint32_t reference_ = kNone;
-  // Edges in the order they entered (the newest at the back), as (slot,
-  // age) pairs; an entry is stale once its slot is no longer that open edge.
-  struct Recent {
-    uint32_t slot;
-    uint64_t age;
-  };
-  std::vector<Recent> recent_;
-  bool keep_recent_ = true;  // false after drop_recency()
   uint64_t entered_ = 0;  // edges that ever entered
-  std::vector<Recent> departures_;  // most recent first, at most kDepartures
-  bool current(const Recent& r) const { return edges_[r.slot].live && edges_[r.slot].age == r.age; }
 };
 
 // The members that the fast decoder runs once or twice per triangle are
@@ -422,17 +378,6 @@ PSQ_INLINE uint32_t BasicBoundary<L>::find_edge(uint32_t a, uint32_t b) const {
   return kNone;
 }
 
-template <bool L>
-PSQ_INLINE void BasicBoundary<L>::compact_recent() {
-  // Keep the recency stack proportional to the boundary: drop every stale
-  // entry once they outnumber the open edges (amortized O(1) per edge).
-  if (L && keep_recent_ && recent_.size() > 2 * static_cast<size_t>(open_edges_) + 64) {
-    size_t w = 0;
-    for (const Recent& r : recent_)
-      if (current(r)) recent_[w++] = r;
-    recent_.resize(w);
-  }
-}
 
 template <bool L>
 PSQ_INLINE uint32_t BasicBoundary<L>::alloc_edge() {
@@ -520,7 +465,6 @@ PSQ_INLINE void BasicBoundary<L>::list_entered(uint32_t s) {
   lo.first_out = s;
   e.next_in = ld.first_in;
   ld.first_in = s;
-  if (keep_recent_) recent_.push_back(Recent{s, e.age});
 }
 
 // lean_add() and lean_fill(): apply_add() and apply_fill() with the corners
@@ -561,7 +505,6 @@ PSQ_INLINE uint32_t BasicBoundary<L>::lean_add(uint32_t gate, uint32_t x) {
     // and becomes dead (close_edge()).
     list_entered(f1);
     list_entered(f2);
-    compact_recent();
     uint32_t* at = &links_[p].first_out;
     while (*at != gate) at = &edges_[*at].next_out;
     *at = g.next_out;
@@ -599,7 +542,6 @@ PSQ_INLINE uint32_t BasicBoundary<L>::lean_fill(uint32_t gate, bool left, uint32
     // apply_fill()'s order: f joins the lists; the gate and then the
     // neighbour leave them (free_edge()) and become dead (close_edge()).
     list_entered(f);
-    compact_recent();
     free_edge(gate);
     add_border(q, p);
     free_edge(c);
@@ -713,25 +655,6 @@ template <class B>
 inline uint32_t prediction_choices(const B& boundary, uint32_t gate) {
   const BEdge& g = boundary.edge(gate);
   return (g.prev != kNone ? 1u : 0u) | (g.next != kNone ? 2u : 0u);
-}
-
-// The shape context of the third-vertex symbol of a triangle on `gate`
-// (spec 6.2.2): where the parallelogram across the gate points. With e the
-// gate's length and dl, dr the distances of the parallelogram point to the
-// vertex before the gate and to the vertex after it (largest coordinate
-// difference, modulo 2^64): 1 (before) or 2 (after) when the nearer of them
-// is closer than e / 2, 3 or 4 when it is closer than e, else 0. A fill
-// closes the gap the new triangle would cover, so a vertex near where a new
-// vertex would go predicts it, which makes the symbol markedly cheaper.
-template <class B>
-int third_shape_context(const B& boundary, uint32_t gate);
-
-// The context of edge k's border bit (spec 6.2.5): how many of its two
-// endpoints already touch a border edge (0..2). Borders run in loops, so a
-// vertex on a border tends to start another border edge.
-template <class B>
-inline int border_context(const B& boundary, const BTriangle& t, int k) {
-  return (boundary.vertex(t.c[k]).borders > 0) + (boundary.vertex(t.c[(k + 1) % 3]).borders > 0);
 }
 
 }  // namespace codec

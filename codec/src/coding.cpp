@@ -3,31 +3,13 @@
 // coding.h.
 #include "coding.h"
 
-#include "priors.h"
-
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <vector>
 
 namespace psq {
 namespace codec {
-
-Models::Models(bool priors) {
-  for (auto& m : gate) m = SymbolModel(kGateBits);
-  for (auto& m : far) m = SymbolModel(kFarBits);
-  resume_index = SymbolModel(kResumeIndexBits);
-  resume_offset = SymbolModel(kResumeOffsetBits);
-  if (!priors) return;
-  // Spec 6.2.7: p0 = 256 v, n = 2 for each byte v of the table.
-  size_t i = 0;
-  for_each_prior_model(*this, [&](BitModel& b) {
-    b.p0 = static_cast<uint16_t>(256u * kConnectivityPrior[i++]);
-    b.n = 2;
-  });
-  for (int kind : {kPredParallelogram, kPredNeighbour, kPredMean})
-    for (auto& axis : residual[kind])
-      for (int c = 0; c < kLengthContexts; ++c) init_length_prior(axis[c], c);
-}
 
 namespace {
 // Sets the nodes of `tree` from the weights of its leaves (spec 7.4.1).

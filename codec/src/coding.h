@@ -17,48 +17,9 @@
 namespace psq {
 namespace codec {
 
-// Gate symbols (spec 6.2.1): offsets along the loop from the reference
-// edge, then the escapes.
-constexpr int kMaxOffset = 6;                        // offsets -6..+6
-constexpr uint32_t kGateFar = 2 * kMaxOffset + 1;    // 13: an explicit edge slot
-constexpr uint32_t kGateStart = kGateFar + 1;        // 14: a start triangle
-constexpr uint32_t kGateIsolated = kGateFar + 2;     // 15: an isolated vertex
-// Binarization (spec 6.2.1): a decision "not 0" with gate_zero, then
-// "not 1" with gate_one, then the symbol minus 2 (0..13; 14 and 15 are
-// invalid) as a 4-bit tree with gate: the usual offset 0 costs one
-// decision instead of four.
-constexpr int kGateBits = 4;
-// A far gate (spec 6.2.1): its recency rank 0..13; 14, a departure point
-// and an offset from it; or 15 followed by the gate's raw edge slot. Two
-// contexts: with and without a reference.
-constexpr uint32_t kFarResume = 14;
-constexpr uint32_t kFarEscape = 15;
-constexpr int kFarBits = 4;
-constexpr int kResumeIndexBits = 4;   // departure 0..15
-constexpr int kResumeOffsetBits = 5;  // offsets 0, +1, -1, ..., +15, -15 (31 is invalid)
-// Gate contexts: the previous triangle's op (0..4, or 5 when there is no
-// reference edge) times the previous gate symbol (0, 1, or anything else).
-constexpr int kGateContexts = 18;
-inline int gate_context(uint32_t reference, int last_op, uint32_t last_gate) {
-  const int op = reference == 0xffffffffu ? 5 : last_op;
-  return op * 3 + (last_gate < 2 ? static_cast<int>(last_gate) : 2);
-}
-
-// PsqStats::gates and far_gates (diagnostics): the kind of a gate symbol
-// (offset 0, other offset, far, start or isolated) and of a far symbol
-// (recency rank, departure point, raw slot).
-inline int gate_kind(uint32_t gate) { return gate == 0 ? 0 : gate < kGateFar ? 1 : gate == kGateFar ? 2 : 3; }
-inline int far_kind(uint32_t far) { return far < kFarResume ? 0 : far == kFarResume ? 1 : 2; }
-
-// Third-vertex symbols (spec 6.2.2).
-constexpr uint32_t kThirdNew = 0;    // add
-constexpr uint32_t kThirdLeft = 1;   // the vertex before the gate
-constexpr uint32_t kThirdRight = 2;  // the vertex after the gate
-constexpr uint32_t kThirdJoin = 3;   // an explicit open edge names it
-constexpr int kDegreeCap = 5;        // degrees 0..5+ as context
-constexpr int kThirdContexts = (kDegreeCap + 1) * (kDegreeCap + 1);
-// Shape contexts of the third-vertex symbol (spec 6.2.2, boundary.h).
-constexpr int kShapeContexts = 5;
+// The degree context of a gate record's B symbol (spec 13.7.3): the
+// triangles around the gate's endpoints, 0..5+ each.
+constexpr int kDegreeCap = 5;
 
 // Residual contexts (spec 7.4): prediction kind x axis. An add's new
 // vertex is predicted across the gate (kind 0) or, when the encoder chose
@@ -145,65 +106,8 @@ inline int triangle_extent(const int64_t* a, const int64_t* b, const int64_t* c,
   return bit_length64(std::max(coord_distance(x, y), std::max(coord_distance(x, z), coord_distance(y, z))));
 }
 
-struct Models {
-  BitModel gate_zero[kGateContexts];  // gate symbol is not 0 (spec 6.2.1)
-  BitModel gate_one[kGateContexts];   // ... nor 1
-  SymbolModel gate[kGateContexts];    // the symbol minus 2
-  SymbolModel far[2];         // [reference edge is NONE]: how a far gate is named
-  SymbolModel resume_index;   // a far gate's departure point
-  SymbolModel resume_offset;  // its offset from that point
-  // [shape (6.2.2)][degrees][node]: node 0 "not new", node 1 "not left",
-  // node 2 "join, not right" (spec 6.2.2).
-  BitModel third[kShapeContexts][kThirdContexts][3];
-  BitModel border[2][3][3];   // [start?][edge k][endpoints that touch a border edge]
-  BitModel cut[2];            // [start?]: a border edge is a non-manifold cut
-  BitModel swap;              // start: corner 2 was introduced before corner 1
-  BitModel join_side;         // join: the naming edge enters (1) or leaves (0) x
-  BitModel reappears;
-  // [shape (6.2.2)][node] (spec 7.3): node 0 "not the gate's alone", node
-  // 1 "a mean", and when both neighbours are open edges, node 2 "after,
-  // not before" for one neighbour alone, node 3 for a mean.
-  BitModel choice[kShapeContexts][4];
-  ResidualModel distance;     // re-appearance distance - 1
-  SymbolModel rotation{2};    // 0..2, only with face properties
-  ResidualModel residual[kPredKinds][3][kLengthContexts];  // [prediction kind][axis][length context]
-
-  // With `priors` (always, except in the prior-training tool), the models
-  // of for_each_prior_model() start from the trained state of spec 6.2.7
-  // and the length and escape trees of kinds 0, 2 and 3 from the prior of 7.4.1; without,
-  // every model starts at p0 = 1/2, n = 0.
-  explicit Models(bool priors = true);
-};
-
-// Calls f(BitModel&) on each node of the connectivity models that have a
-// trained initial state (spec 6.2.7), in the order of its table: for each
-// gate context 0..17, gate_zero, gate_one and the nodes of the gate tree;
-// the far-gate trees far[0..1], resume_index and resume_offset (each
-// tree's nodes 1, 2, 3, ... in heap order); the third-vertex nodes
-// third[0..4][0..35][0..2]; then the border bits border[0..1][0..2][0..2].
-template <class M, class F>
-void for_each_prior_model(M& m, F f) {
-  auto tree = [&](auto& s) {
-    for (int i = 1; i < (1 << s.bits()); ++i) f(s.tree()[i]);
-  };
-  for (int c = 0; c < kGateContexts; ++c) {
-    f(m.gate_zero[c]);
-    f(m.gate_one[c]);
-    tree(m.gate[c]);
-  }
-  for (auto& s : m.far) tree(s);
-  tree(m.resume_index);
-  tree(m.resume_offset);
-  for (auto& shape : m.third)
-    for (auto& d : shape)
-      for (auto& b : d) f(b);
-  for (auto& start : m.border)
-    for (auto& edge : start)
-      for (auto& b : edge) f(b);
-}
-
-// Spec 7.4.1: the initial state of the length and escape trees of a
-// parallelogram residual model (kind 0, 2 or 3) with length context `c`. Each length k
+// Spec 8.3: the initial state of the length and escape trees of an
+// attribute residual model with length context `c`. Each length k
 // <= 64 gets the weight 2^(24 - min(24, |k - mu|)), with mu = floor(3c / 4);
 // leaf 15 of the length tree weighs all lengths from 15 on, leaf e of the
 // escape tree the length 15 + e (0 above 64); each node's p0 is the share
@@ -213,8 +117,8 @@ void for_each_prior_model(M& m, F f) {
 // weighs most on a small mesh.
 void init_length_prior(ResidualModel& m, int c);
 
-// The context of the third-vertex symbol: the triangles already around the
-// gate's endpoints p and q (spec 6.2.2).
+// The degree context of a gate record's B symbol: the triangles already
+// around the gate's endpoints p and q (spec 13.7.3).
 inline int third_context(uint32_t degree_p, uint32_t degree_q) {
   return static_cast<int>(std::min<uint32_t>(degree_p, kDegreeCap) * (kDegreeCap + 1) +
                           std::min<uint32_t>(degree_q, kDegreeCap));
@@ -265,22 +169,6 @@ class Encoder {
       node = (node << 1) | static_cast<uint32_t>(b);
     }
   }
-  // The gate symbol g (0..15) in context ctx (spec 6.2.1).
-  void gate(Models& m, int ctx, uint32_t g) {
-    bit(m.gate_zero[ctx], g != 0, kCostConnectivity);
-    if (g == 0) return;
-    bit(m.gate_one[ctx], g != 1, kCostConnectivity);
-    if (g == 1) return;
-    symbol<kGateBits>(m.gate[ctx], g - 2, kCostConnectivity);
-  }
-  // The third-vertex symbol with the nodes of its context (spec 6.2.2).
-  void third(BitModel* node, uint32_t t) {
-    bit(node[0], t != kThirdNew, kCostConnectivity);
-    if (t == kThirdNew) return;
-    bit(node[1], t != kThirdLeft, kCostConnectivity);
-    if (t == kThirdLeft) return;
-    bit(node[2], t == kThirdJoin, kCostConnectivity);
-  }
   void raw(uint64_t v, int bits, Cost c) {
     if (cost_) cost_[c] += bits;
     if (bits > 32) {
@@ -288,25 +176,6 @@ class Encoder {
       bits = 32;
     }
     rc_->encode_raw(static_cast<uint32_t>(v), bits);
-  }
-  // The choice of an add's prediction (spec 7.3): `mask` says which
-  // neighbours exist (bit 0 before, bit 1 after; not 0).
-  void choice(BitModel* node, uint32_t mask, int ch) {
-    bit(node[0], ch != kChoiceGate, kCostGeometry);
-    if (ch == kChoiceGate) return;
-    const int mean = ch >= kChoiceMeanBefore;
-    bit(node[1], mean, kCostGeometry);
-    if (mask == 3) bit(node[2 + mean], choice_side(ch) == kChoiceAfter, kCostGeometry);
-  }
-  // What choice() would cost, in bits, in the models' current state;
-  // `table` is bit_cost_table().
-  static float choice_cost(const float* table, const BitModel* node, uint32_t mask, int ch) {
-    float c = cost_of(table, node[0], ch != kChoiceGate);
-    if (ch == kChoiceGate) return c;
-    const int mean = ch >= kChoiceMeanBefore;
-    c += cost_of(table, node[1], mean);
-    if (mask == 3) c += cost_of(table, node[2 + mean], choice_side(ch) == kChoiceAfter);
-    return c;
   }
   // What residual() would cost, in bits, in the model's current state
   // (without changing it); sets *length to the bit length of r.
@@ -386,27 +255,6 @@ class BasicDecoder {
     uint32_t node = 1;
     for (int i = 0; i < kBits; ++i) node = (node << 1) | static_cast<uint32_t>(bit(tree[node], c));
     return node - (1u << kBits);
-  }
-  // The gate symbol in context ctx (spec 6.2.1): 0..15, or 16 and 17 for
-  // the tree's two invalid symbols (a corrupt stream).
-  PSQ_INLINE uint32_t gate(Models& m, int ctx) {
-    if (!bit(m.gate_zero[ctx], kCostConnectivity)) return 0;
-    if (!bit(m.gate_one[ctx], kCostConnectivity)) return 1;
-    return symbol<kGateBits>(m.gate[ctx], kCostConnectivity) + 2;
-  }
-  // The third-vertex symbol with the nodes of its context (spec 6.2.2).
-  PSQ_INLINE uint32_t third(BitModel* node) {
-    if (!bit(node[0], kCostConnectivity)) return kThirdNew;
-    if (!bit(node[1], kCostConnectivity)) return kThirdLeft;
-    return bit(node[2], kCostConnectivity) ? kThirdJoin : kThirdRight;
-  }
-  // The choice of an add's prediction (spec 7.3), with `mask` as for
-  // Encoder::choice().
-  int choice(BitModel* node, uint32_t mask) {
-    if (!bit(node[0], kCostGeometry)) return kChoiceGate;
-    const int mean = bit(node[1], kCostGeometry);
-    const int after = mask == 3 ? bit(node[2 + mean], kCostGeometry) : mask == 2;
-    return (after ? kChoiceAfter : kChoiceBefore) + 2 * mean;
   }
   uint64_t raw(int bits, Cost c) {
     if (kMeasure) cost_[c] += bits;

@@ -122,7 +122,6 @@ Status PsqEncoder::Impl::begin(const MeshSchema& schema) {
                               "cannot encode this mesh: " + hs.message());
   stats.header_bytes = h.size();
   fast_begin();
-  boundary.drop_recency();
   chain_crc = crc32c_update(chain_crc, h.data() + h.size() - 4, 4);
   return emit(h);
 }

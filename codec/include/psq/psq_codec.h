@@ -34,10 +34,6 @@
 
 namespace psq {
 
-namespace codec {
-struct TrainingAccess;  // codec/src/training.h: the prior-training tool's access
-}  // namespace codec
-
 // The first 8 bytes of every .psq stream (spec 4.1).
 extern const uint8_t kPsqMagic[8];
 
@@ -178,7 +174,6 @@ class PsqEncoder : public SequenceSink {
   const PsqStats& stats() const;
 
  private:
-  friend struct codec::TrainingAccess;
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
