@@ -86,12 +86,13 @@ struct EncodeOptions {
   int bits = 16;
   // Keep positions bit-exact (spec 7.2).
   bool lossless = false;
-  // The fast profile (spec/psq-format.md, section 13): static rANS tables per
-  // chunk, a boundary the decoder keeps without lookups and, when
-  // quantized, every new vertex predicted across its gate (13.8.2). It
-  // decodes several times faster than the compact profile for a few percent
-  // more bytes on large meshes, more on small ones, whose every chunk
-  // carries its tables (bench/RESULTS.md has the current figures).
+  // The entropy back-end that codes the records (spec/psq-format.md,
+  // 13.2). true: static rANS tables per chunk and, when quantized, every
+  // new vertex predicted across its gate (13.8.2), for the fastest
+  // decoding; every chunk carries its tables, which weighs on small
+  // meshes. false: adaptive models with the range coder, for the smallest
+  // files, decoding several times slower. Both code the same records
+  // (bench/RESULTS.md has the current figures).
   bool fast = false;
   // Normals (float or double nx ny nz) quantized octahedrally with this
   // many bits per coordinate, 2..16 (spec 8.3); 0 keeps them bit-exact in a
@@ -184,7 +185,7 @@ struct PsqHeader {
   int version_minor = 0;
   bool lossless = false;
   bool rotation = false;  // triangle rotations are coded (face properties)
-  bool fast = false;      // the fast profile (spec/psq-format.md, section 13)
+  bool fast = false;      // the rANS back-end (spec/psq-format.md, 13.2); else adaptive
   int bits = 0;           // 0 when lossless
   double origin[3] = {0, 0, 0};
   double step = 0;
