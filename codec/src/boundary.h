@@ -657,6 +657,33 @@ inline uint32_t prediction_choices(const B& boundary, uint32_t gate) {
   return (g.prev != kNone ? 1u : 0u) | (g.next != kNone ? 2u : 0u);
 }
 
+// The shape context of a gate record's B symbol in the adaptive back-end
+// (spec 13.7.3): where the parallelogram across `gate` points. With e the
+// gate's length and dl, dr the distances of the parallelogram point to the
+// vertex before the gate and to the vertex after it (largest coordinate
+// difference, modulo 2^64): 1 (before) or 2 (after) when the nearer of them
+// is closer than e / 2, 3 or 4 when it is closer than e, else 0. A fill
+// closes the gap the new triangle would cover, so a vertex near where a new
+// vertex would go predicts it.
+template <class B>
+int shape_context(const B& boundary, uint32_t gate) {
+  auto linf = [](const int64_t* a, const int64_t* b) {
+    uint64_t m = 0;
+    for (int k = 0; k < 3; ++k) m = std::max(m, coord_distance(a[k], b[k]));
+    return m;
+  };
+  const BEdge& g = boundary.edge(gate);
+  int64_t par[3];
+  parallelogram(boundary, gate, par);
+  const uint64_t e = linf(boundary.vertex(g.org).pos, boundary.vertex(g.dst).pos);
+  const uint64_t none = ~uint64_t{0};
+  const uint64_t dl = g.prev != kNone ? linf(par, boundary.vertex(boundary.edge(g.prev).org).pos) : none;
+  const uint64_t dr = g.next != kNone ? linf(par, boundary.vertex(boundary.edge(g.next).dst).pos) : none;
+  const uint64_t d = std::min(dl, dr);
+  const int side = dl <= dr ? 0 : 1;
+  return d < (e >> 1) ? 1 + side : d < e ? 3 + side : 0;
+}
+
 }  // namespace codec
 }  // namespace psq
 

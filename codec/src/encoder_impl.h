@@ -144,7 +144,7 @@ struct PsqEncoder::Impl {
   // choices, for pricing them (fast_cost()): per table, twice its total
   // plus its alphabet size (counts doubled, half a count for every symbol)
   // and that number's log2 in 1/65536 bits, set up by fast_begin().
-  std::vector<uint32_t> fast_count = std::vector<uint32_t>(size_t{kFastTables} * 128, 0);
+  std::vector<uint32_t> fast_count = std::vector<uint32_t>(size_t{kAdaptiveTables} * 128, 0);
   std::vector<uint32_t> fast_chunk_base;  // fast_count when the open chunk began (fast_section())
   std::vector<uint64_t> fast_denominator;
   std::vector<int32_t> fast_log_denominator;

@@ -119,8 +119,20 @@ enum FastTable : int {
   kFastTables = kFastTableRotation + 1,
 };
 
+// The adaptive back-end's extra tables (spec 13.2): the B symbols of gate
+// records in shape contexts 1 to 4 (below), after the fixed list. A shape
+// context costs the decoder a parallelogram per gate record, which the
+// rANS back-end, built for speed, does not spend: its B symbols all take
+// shape context 0, the fixed list's B tables.
+constexpr int kShapeContexts = 5;
+constexpr int kAdaptiveTables = kFastTables + (kShapeContexts - 1) * kFastBContexts;
+inline int fast_b_table(int degree_context, int shape) {
+  return shape == 0 ? kFastTableB + degree_context : kFastTables + (shape - 1) * kFastBContexts + degree_context;
+}
+
 // The alphabet size of each table.
 inline int fast_table_size(int table) {
+  if (table >= kFastTables) return kFastBSymbols;
   if (table < kFastTableRank) return kFastClasses;
   if (table < kFastTableB) return kFastRanks;
   if (table < kFastTableS) return kFastBSymbols;

@@ -551,7 +551,8 @@ Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
       ++stats.gates[cls == kFastGateR ? 0 : 1];
     }
     const BEdge& g = b.edge(gate);
-    bsym = fast_symbol(d, kFastTableB + third_context(b.vertex(g.org).degree, b.vertex(g.dst).degree));
+    bsym = fast_symbol(d, fast_b_table(third_context(b.vertex(g.org).degree, b.vertex(g.dst).degree),
+                                       D::kAdaptive ? shape_context(b, gate) : 0));
     if (bsym >= kFastBSymbols) return corrupt("third-vertex symbol " + std::to_string(bsym));
     if (!header.rotation && fast_common_b(bsym)) return fast_common<false>(d, *fraw, cls, bsym, gate, nullptr);
   }
@@ -803,7 +804,8 @@ Status PsqDecoder::Impl::fast_direct_records() {
       }
       const BEdge& g = b.edge(gate);
       const uint32_t p = g.org, q = g.dst;
-      const int bsym = d.decode(kFastTableB + third_context(b.vertex(p).degree, b.vertex(q).degree));
+      const int bsym = d.decode(fast_b_table(third_context(b.vertex(p).degree, b.vertex(q).degree),
+                                             D::kAdaptive ? shape_context(b, gate) : 0));
       if (bsym >= kFastBSymbols) return corrupt("third-vertex symbol " + std::to_string(bsym));
       if (!rotation && fast_common_b(bsym)) {
         PSQ_RETURN_IF_ERROR(fast_common<true>(d, bits, cls, bsym, gate, &out));

@@ -106,13 +106,13 @@ int64_t fixed_log2(uint64_t x) {  // x >= 1
 
 void PsqEncoder::Impl::fast_begin() {
   fast_choices = fast_codes_choices(header.lossless, rans);
-  fast_denominator.resize(kFastTables);
-  fast_log_denominator.resize(kFastTables);
-  for (int i = 0; i < kFastTables; ++i) {
+  fast_denominator.resize(kAdaptiveTables);
+  fast_log_denominator.resize(kAdaptiveTables);
+  for (int i = 0; i < kAdaptiveTables; ++i) {
     fast_denominator[i] = static_cast<uint64_t>(fast_table_size(i));
     fast_log_denominator[i] = static_cast<int32_t>(fixed_log2(fast_denominator[i]));
   }
-  fast_log_count.assign(size_t{kFastTables} * 128, static_cast<int32_t>(fixed_log2(1)));
+  fast_log_count.assign(size_t{kAdaptiveTables} * 128, static_cast<int32_t>(fixed_log2(1)));
   // after_record() closes a chunk before it holds 2 * chunk_bytes
   // symbols: reserved, the array never moves, and no symbol is copied as
   // it grows.
@@ -392,7 +392,8 @@ Status PsqEncoder::Impl::triangle_fast(const SequenceTriangle& t, const int pend
   } else {
     if (cls == kFastGateFar) fast_put(kFastTableRank + (boundary.reference() == kNone ? 1 : 0), rank);
     const BEdge& g = boundary.edge(gate);
-    fast_put(kFastTableB + third_context(boundary.vertex(g.org).degree, boundary.vertex(g.dst).degree),
+    fast_put(fast_b_table(third_context(boundary.vertex(g.org).degree, boundary.vertex(g.dst).degree),
+                          rans ? 0 : shape_context(boundary, gate)),
              fast_b_symbol(third, e[1], e[2]));
     if (third == kFastJoin) {
       fast_raw.put(join, sbits);
@@ -500,7 +501,8 @@ bool PsqEncoder::Impl::fast_direct(const SequenceTriangle& t, Status* status) {
   // The record (spec 13.7.3), as triangle_fast() codes it.
   fast_put(kFastTableA + fast_context, cls);
   if (cls == kFastGateFar) fast_put(kFastTableRank + (boundary.reference() == kNone ? 1 : 0), rank);
-  fast_put(kFastTableB + third_context(boundary.vertex(p).degree, boundary.vertex(q).degree),
+  fast_put(fast_b_table(third_context(boundary.vertex(p).degree, boundary.vertex(q).degree),
+                        rans ? 0 : shape_context(boundary, gate)),
            fast_b_symbol(third, kFastEnters, kFastEnters));
   fast_context = fast_a_context_gate(cls, third);
   const int gate_stat = cls == kFastGateR ? 0 : cls == kFastGateFar ? 2 : 1;

@@ -42,12 +42,13 @@ inline int adaptive_table_bits(int table) {
 // initial state, at every chunk start).
 inline void reset_adaptive_models(std::vector<SymbolModel>* models) {
   models->clear();
-  models->reserve(kFastTables);
-  for (int t = 0; t < kFastTables; ++t) models->emplace_back(adaptive_table_bits(t));
+  models->reserve(kAdaptiveTables);
+  for (int t = 0; t < kAdaptiveTables; ++t) models->emplace_back(adaptive_table_bits(t));
 }
 
 class RansSymbolDecoder {
  public:
+  static constexpr bool kAdaptive = false;
   RansSymbolDecoder(const uint8_t* data, size_t size, const RansTable* tables) : d_(data, size), tables_(tables) {}
   __attribute__((always_inline)) int decode(int table) { return d_.decode(tables_[table]); }
   bool overran() const { return d_.overran(); }
@@ -60,6 +61,7 @@ class RansSymbolDecoder {
 
 class AdaptiveSymbolDecoder {
  public:
+  static constexpr bool kAdaptive = true;
   AdaptiveSymbolDecoder(const uint8_t* data, size_t size, SymbolModel* models, bool measure)
       : d_(data, size), size_(size), models_(models), measure_(measure) {}
   int decode(int table) {
