@@ -179,8 +179,9 @@ Events round_trip(const Events& ev, const EncodeOptions& o, PsqStats* stats = nu
   Status c = replay(back, checker);
   EXPECT_TRUE(c.ok()) << c.to_string();
   if (!o.fast) {
-    // The fast profile (spec/psq-format.md, section 13) decodes to the same
-    // sequence: the same positions, triangles up to rotation.
+    // The rANS back-end (spec/psq-format.md, 13.2) decodes to the same
+    // sequence as the adaptive one: the same positions, triangles up to
+    // rotation.
     EncodeOptions f = o;
     f.fast = true;
     Events fast_back;
@@ -313,8 +314,8 @@ TEST(Codec, EncoderIsDeterministicAndChunkingIsTransparent) {
   expect_same(ev, back, half_step(ev, 16));
 }
 
-// Far gates named in all three ways of spec 6.2.1 (recency rank,
-// departure point and offset, raw slot): the sequences of 40 spheres,
+// Gates away from R named both ways of spec 13.7 (a recency rank, 13.7.4;
+// a slot in an escape, 13.7.5): the sequences of 40 spheres,
 // interleaved a few records at a time in a random order, as a converter
 // hopping between the regions of an iso-surface's sweep would emit them.
 // Each record keeps its vertex and finalize events; indices are renumbered
@@ -385,7 +386,7 @@ TEST(Codec, FarGatesOfEveryKindRoundTrip) {
   expect_same(ev, back, half_step(ev, 14));
 }
 
-// The fast encoder codes most triangles of an input that gives boundary
+// The encoder codes most triangles of an input that gives boundary
 // slots (the converter's, the decoders') on a direct path that finds the
 // gate by the input's edge slots (PsqEncoder::Impl::fast_direct()). It must
 // give exactly the bytes of its general path, which finds every edge by
@@ -471,9 +472,9 @@ TEST(Codec, AddsArePredictedAcrossTheGateOrANeighbour) {
   for (int k = 0; k < 5; ++k) EXPECT_EQ(enc_stats.predictions[k], dec_stats.predictions[k]) << k;
 }
 
-// Spec 13.8.2: the fast profile predicts the adds of a quantized stream
-// across the gate only, and those of a lossless one by all five choices;
-// the decoder follows either way.
+// Spec 13.8.2: with the rANS back-end, the adds of a quantized stream are
+// predicted across the gate only, and those of a lossless one by all five
+// choices; the decoder follows either way.
 TEST(Codec, FastProfilePredictsByChoicesWhenLossless) {
   Events ev = sequence_of(test::make_sphere(30, 60));
   for (const bool lossless : {false, true}) {
@@ -510,8 +511,8 @@ TEST(Codec, CompressesASmoothSphereWell) {
   EXPECT_EQ(stats.total_bytes, bytes.size());
 }
 
-// PsqStats splits the coded bits into connectivity and geometry in both
-// profiles (psq info, psq convert --json): the parts add up to about the
+// PsqStats splits the coded bits into connectivity and geometry with both
+// back-ends (psq info, psq convert --json): the parts add up to about the
 // record bytes, and the decoder measures what the encoder did.
 TEST(Codec, MeasuredCostsAddUpInBothProfiles) {
   Events ev = sequence_of(test::make_sphere(40, 80));
@@ -802,7 +803,7 @@ Status decode_all(const std::vector<uint8_t>& bytes) {
   return decode(bytes, &out);
 }
 
-class CodecHostile : public ::testing::TestWithParam<bool> {};  // the parameter: the fast profile
+class CodecHostile : public ::testing::TestWithParam<bool> {};  // the parameter: the rANS back-end, else adaptive
 INSTANTIATE_TEST_SUITE_P(Profiles, CodecHostile, ::testing::Values(false, true),
                          [](const ::testing::TestParamInfo<bool>& i) { return i.param ? "Fast" : "Compact"; });
 

@@ -113,7 +113,8 @@ PsqStats stats_of(const std::string& name) {
   return dec.stats();
 }
 
-// far_gates exercises every way of naming a far gate (spec 6.2.1).
+// far_gates exercises every way of naming a gate away from R: a recency
+// rank (spec 13.7.4) and a slot in an escape (13.7.5).
 TEST(Conformance, FarGatesVectorNamesFarGatesEveryWay) {
   const PsqStats st = stats_of("far_gates.psq");
   EXPECT_GT(st.far_gates[0], 0u) << "recency ranks";
@@ -130,8 +131,9 @@ TEST(Conformance, SpiderVectorUsesEveryPrediction) {
   EXPECT_GT(st.predictions[4], 0u) << "mean with the edge after";
 }
 
-// Spec 13.8.2: a quantized fast stream predicts every add across the gate
-// and codes no choice; a lossless one codes choices (all five of them here).
+// Spec 13.8.2: with the rANS back-end, a quantized stream predicts every
+// add across the gate and codes no choice; a lossless one codes choices
+// (all five of them here).
 TEST(Conformance, FastVectorsCodeChoicesWhenLossless) {
   const PsqStats quantized = stats_of("fast_spider_16bit.psq");
   EXPECT_GT(quantized.predictions[0], 0u);
@@ -161,8 +163,8 @@ TEST(Conformance, DoublesVectorNeedsMeansBeyond64Bits) {
   EXPECT_GT(st.gates[3], 0u) << "no start";
 }
 
-// Spec 8.3: the attribute vectors cover every kind of coded attribute in
-// both profiles, quantized and lossless.
+// Spec 8.3: the attribute vectors cover every kind of coded attribute
+// with both entropy back-ends, quantized and lossless.
 TEST(Conformance, AttributeVectorsCoverEveryKind) {
   for (const char* name : {"attributes_8bit.psq", "fast_attributes_8bit.psq"}) {
     PsqDecoder dec;
@@ -185,8 +187,9 @@ TEST(Conformance, AttributeVectorsCoverEveryKind) {
   }
 }
 
-// The fast profile's vectors decode to the same sequences as the compact
-// ones made from the same input: their dumps are identical.
+// The vectors of the rANS back-end (fast_*) decode to the same sequences
+// as those of the adaptive back-end made from the same input: their dumps
+// are identical.
 TEST(Conformance, FastVectorsDecodeLikeTheirCompactTwins) {
   for (const char* name : {"spider_16bit", "spider_lossless", "grid_borders", "nonmanifold_wrap", "max_export_chunks",
                            "properties_lossless", "attributes_8bit", "attributes_lossless", "spider_attributes"}) {

@@ -9,7 +9,9 @@
 // carried into the texture (as Draco's texture coordinate predictor does),
 // else by the parallelogram in texture space as in Isenburg and Snoeyink,
 // "Compressing texture coordinates with selective linear predictions" (CGI
-// 2003); residuals coded as positions are (spec 5.6, 7.4).
+// 2003); residuals coded as signed residuals of the range coder (spec
+// 5.6) with the adaptive back-end, as length symbols and raw bits (13.8.3,
+// 13.8.4) with the rANS back-end.
 #include "attributes.h"
 
 #include <algorithm>
@@ -228,7 +230,7 @@ AttributeCoder::AttributeCoder(const std::vector<Property>& vertex, const std::v
   for (size_t i = 0; i < vertex.size(); ++i)
     if (role_[i] < 0) columns_.push_back(vertex[i]);
   models_.resize(static_cast<size_t>(2 * dims_ * kLengthContexts));
-  // Spec 8.3: the length trees start as those of positions (7.4.1).
+  // Spec 8.3: the length trees start from a prior (init_length_prior()).
   for (int kind = 0; kind < 2; ++kind)
     for (int d = 0; d < dims_; ++d)
       for (int c = 0; c < kLengthContexts; ++c) init_length_prior(model(kind, d, c), c);
@@ -451,9 +453,11 @@ void AttributeCoder::predict_texcoord(const AttributeRecord& r, int j, int d, co
   pred[d + 1] = std::min(std::max(static_cast<int64_t>(std::floor(pv + 0.5)), c.lo), c.hi);
 }
 
-// The length context of component d (spec 8.3, as 7.4 for positions):
-// the predicting values' spread for an attribute's first component, with
-// the longest residual of its earlier components for the others.
+// The length context of component d (spec 8.3): the predicting values'
+// spread for an attribute's first component; for the others, the mean of
+// that spread and the longest residual of the attribute's earlier
+// components when predicted across the gate (kind 0), else that longest
+// residual alone.
 static int attribute_context(int kind, bool first, int extent, int longest) {
   const int c = first ? extent : kind == 0 ? (extent + longest + 1) / 2 : longest;
   return std::min(c, kLengthContexts - 1);
@@ -551,8 +555,9 @@ void AttributeCoder::encode_fast(FastAttributeWriter& w, const AttributeRecord& 
 }
 
 void AttributeCoder::finish_fast(FastAttributeWriter& w, std::vector<uint8_t>* out) const {
-  // Spec 13.12: as a fast record section (13.2): the table block, the
-  // rANS block and the raw block, the first two with their lengths.
+  // Spec 13.8.4: laid out as a record section of the rANS back-end
+  // (13.2): the table block, the rANS block and the raw block, the first
+  // two with their lengths.
   const int n = fast_tables();
   if (w.counts.empty()) w.counts.assign(static_cast<size_t>(n) * kFastLengthSymbols, 0);
   std::vector<RansTable> tables(static_cast<size_t>(n));

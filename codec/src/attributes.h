@@ -1,11 +1,12 @@
 // SPDX-License-Identifier: Apache-2.0
 // codec/src/attributes.h: vertex attributes coded like positions
 // (spec/psq-format.md 8.3): normals (octahedral), texture coordinates (a
-// grid) and colours (exact bytes), predicted across the gate and range
-// coded in a section of each chunk. The coder sees a record as its events:
-// the new vertices in order of introduction and the triangle with its
-// vertex and edge slots, so that both profiles' record loops, encoder and
-// decoder, share it.
+// grid) and colours (exact bytes), predicted across the gate and coded in
+// a section of each chunk, by the range coder with the adaptive back-end
+// and by rANS with the rANS back-end (13.8.4). The coder sees a record as
+// its events: the new vertices in order of introduction and the triangle
+// with its vertex and edge slots, so that the record loops of the encoder
+// and the decoder share it.
 #ifndef PSQ_CODEC_ATTRIBUTES_H_
 #define PSQ_CODEC_ATTRIBUTES_H_
 
@@ -49,8 +50,9 @@ struct AttributeRecord {
   const int64_t* pos[3] = {nullptr, nullptr, nullptr};
 };
 
-// The attribute section of a fast chunk (spec 13.12): the residuals'
-// length symbols with static tables and rANS, their low bits and signs raw.
+// The attribute section of a chunk with the rANS back-end (spec 13.8.4):
+// the residuals' length symbols with static tables and rANS, their low
+// bits and signs raw.
 struct FastAttributeWriter {
   std::vector<RansSymbol> symbols;
   std::vector<uint64_t> counts;  // [table][symbol], this chunk's
@@ -80,20 +82,21 @@ class AttributeCoder {
   // Decoder: the values in schema order from the column values and q.
   void merge(const PropertyValues& columns, const int32_t* q, PropertyValues* out) const;
 
+  // The adaptive back-end (spec 8.3), with the range coder.
   // Codes one record; `q` holds r.nnew vertices' values, dims() each.
   void encode(Encoder& enc, const AttributeRecord& r, const int32_t* q);
   // Decodes one record into q; nullptr, or why the stream is corrupt.
   const char* decode(BasicDecoder<false>& dec, const AttributeRecord& r, int32_t* q);
 
-  // The fast profile's back-end (spec 13.12): the same predictions and
-  // contexts, the residuals as length symbols of static tables.
+  // The rANS back-end (spec 13.8.4): the same predictions and contexts,
+  // the residuals as length symbols of static tables.
   void encode_fast(FastAttributeWriter& w, const AttributeRecord& r, const int32_t* q);
   // Appends a chunk's section and starts the next.
   void finish_fast(FastAttributeWriter& w, std::vector<uint8_t>* out) const;
   // Reads a chunk's tables; nullptr, or why the section is corrupt.
   const char* open_fast(FastAttributeReader& rd, const uint8_t* data, size_t size) const;
   const char* decode_fast(FastAttributeReader& rd, const AttributeRecord& r, int32_t* q);
-  // The table of a residual (spec 13.12).
+  // The table of a residual (spec 13.8.4).
   int fast_table(int kind, int d, int ctx) const { return (kind * dims_ + d) * 3 + (ctx < 4 ? 0 : ctx < 8 ? 1 : 2); }
   int fast_tables() const { return 6 * dims_; }
 

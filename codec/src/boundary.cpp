@@ -207,7 +207,7 @@ bool BasicBoundary<L>::apply(BTriangle& t) {
     }
   }
   for (int i = 0; i < nlinks; ++i) link(lp[i], lq[i]);
-  // The gate reference (spec 6.2.1): the first entering edge in edge order 1, 2, 0.
+  // The reference edge R (spec 6.1.2 step 5): the first entering edge in edge order 1, 2, 0.
   reference_ = fresh[1] != kNone ? fresh[1] : fresh[2] != kNone ? fresh[2] : fresh[0];
   finish_triangle(t);
   return true;

@@ -7,19 +7,22 @@
 //
 // Elements:
 // - a vertex slot per active vertex (introduced, not finalized): its dense
-//   index, its coded coordinates, how many triangles used it so far and its
-//   lists of open boundary edges leaving and entering it;
+//   index, its coded coordinates, how many triangles used it so far and
+//   (kLookups only) its lists of open boundary edges leaving and entering
+//   it;
 // - an edge slot per open boundary edge (a directed edge of a coded
 //   triangle that no second triangle completed yet and that is not a
 //   border): its endpoints, the coordinates of the triangle's third vertex
 //   (for the parallelogram prediction, spec 7.3) and `next`/`prev` links
 //   that chain the boundary edges into loops (section 6.1.2).
 //
-// Correctness never depends on the links: which edges a triangle completes
-// is decided by looking the reversed edge up among the open edges of its
-// endpoint. The links only serve to name the next gate and the third vertex
-// cheaply (an offset along a loop, "the vertex before the gate"); they are
-// updated by fixed local rules that both sides apply identically.
+// The encoder decides which edges a triangle completes by looking the
+// reversed edge up among the open edges of its endpoint; the decoder takes
+// them from the record, and its new-edge check (neighbors.h, spec 13.6.3)
+// rejects a record that would complete an edge it does not name. The links
+// serve to name the gate and the third vertex cheaply (`next(R)`,
+// "the vertex before the gate", spec 13.7.3); they are updated by fixed
+// local rules that both sides apply identically.
 #ifndef PSQ_CODEC_BOUNDARY_H_
 #define PSQ_CODEC_BOUNDARY_H_
 
@@ -43,7 +46,7 @@ struct BVertex {
   uint32_t key = 0;          // the encoder's input index (for its map); decode_mesh's mesh index
   uint32_t open = 0;         // open edges touching it
   uint32_t degree = 0;       // triangles that used it so far
-  uint32_t borders = 0;      // border edges touching it (context of spec 6.2.5)
+  uint32_t borders = 0;      // border edges touching it (spec 6.1.1); no symbol's context reads it
   int64_t pos[3] = {0, 0, 0};  // coded coordinates (spec 7.1)
 };
 
@@ -67,7 +70,7 @@ struct BEdge {
   uint32_t next_out = kNone;  // next open edge leaving `org`
   uint32_t next_in = kNone;   // next open edge entering `dst`
   int64_t opp[3] = {0, 0, 0};  // coordinates of the third vertex of its triangle
-  uint64_t age = 0;  // when it entered: the count of edges that entered before it (spec 6.2.1)
+  uint64_t age = 0;  // when it entered: the count of edges that entered before it (spec 6.1.1, 13.6.2)
   bool live = false;
 };
 
@@ -123,11 +126,11 @@ class SlotStack {
 };
 
 // kLookups: whether the boundary can find an open edge by its endpoints
-// and knows its dead edges (the compact profile, and the
-// encoder of either profile). Without them (the fast profile's decoder, see
-// spec section 13), it keeps only slots, counts and loop links:
-// find_edge(), find_completions(), the recency ranks and the departure
-// points must not be used, and apply() takes the completions it is given.
+// and knows its dead edges (the encoder, which must find a triangle's
+// completions and check its input). Without them (the decoder, whose
+// records name every completion, spec 13.6), it keeps only slots, counts
+// and loop links: find_edge() and find_completions() must not be used,
+// and apply() takes the completions it is given.
 template <bool kLookups>
 class BasicBoundary {
  public:
@@ -178,8 +181,9 @@ class BasicBoundary {
   // relinks the loops and updates degrees and open counts. Fills t.eslot and
   // t.final. Returns false when an entering edge would exceed the limit.
   bool apply(BTriangle& t);
-  // apply() for the two triangles whose kind the fast profile's decoder
-  // knows, without a BTriangle (same slots, links and ages as apply()).
+  // apply() for the two triangles whose kind the decoder's common records
+  // know (fast_common()), without a BTriangle (same slots, links and ages
+  // as apply()).
   // lean_add(): an add of new vertex slot x on `gate` (p->q);
   // p->x and x->q enter (in that order), the gate closes. Returns the slot
   // of p->x (x->q is its `next`), or kNone when an edge would exceed the
@@ -188,9 +192,9 @@ class BasicBoundary {
   // triangle completes; x->q (left) or p->x (right) enters. Returns the
   // entering edge's slot, or kNone at the limit, and sets *final to the
   // corners (bit k for corner k of q, p, x) whose vertex has no open edge
-  // left. With kLookups (the fast encoder's direct path) they keep the
-  // endpoint lists, dead edges and recency stack as apply() does, in the
-  // same order, so that later lookups and join edges are the same.
+  // left. With kLookups (the encoder's direct path, fast_direct()) they
+  // keep the endpoint lists and dead edges as apply() does, in the same
+  // order, so that later lookups and join edges are the same.
   uint32_t lean_add(uint32_t gate, uint32_t x);
   uint32_t lean_fill(uint32_t gate, bool left, uint32_t* final);
   // Whether a triangle's edge a->b between old vertices would enter the
@@ -201,8 +205,9 @@ class BasicBoundary {
     return find_edge(a, b) == kNone && find_edge(b, a) == kNone && !is_border(a, b);
   }
 
-  // The gate reference after the last apply() (spec 6.2.1): the first
-  // entering edge of the last triangle in edge order 1, 2, 0, or kNone.
+  // The reference edge R after the last apply() (spec 6.1.2 step 5,
+  // 13.6.1): the first entering edge of the last triangle in edge order
+  // 1, 2, 0, or kNone.
   uint32_t reference() const { return reference_; }
   void clear_reference() { reference_ = kNone; }
 
@@ -215,8 +220,7 @@ class BasicBoundary {
   // alloc_edge() without a free slot: a new one, or kNone at the limit.
   uint32_t grow_edges();
   // Pieces of apply(): edge k of t enters (a new slot, or kNone at the
-  // limit); drops stale recency entries; edge k completes t.completes[k];
-  // degrees and final flags.
+  // limit); edge k completes t.completes[k]; degrees and final flags.
   uint32_t enter_edge(BTriangle& t, int k);
   void close_edge(BTriangle& t, int k);
   void finish_triangle(BTriangle& t);
@@ -224,8 +228,7 @@ class BasicBoundary {
   bool apply_add(BTriangle& t);
   void splice_add(uint32_t f1, uint32_t f2, uint32_t gate_prev, uint32_t gate_next);
   void splice_fill(uint32_t f, uint32_t before, uint32_t after);
-  // kLookups: fresh edge s joins the endpoint lists and the recency stack,
-  // as enter_edge() does.
+  // kLookups: fresh edge s joins the endpoint lists, as enter_edge() does.
   void list_entered(uint32_t s);
   bool apply_fill(BTriangle& t, int k);
   bool is_border(uint32_t a, uint32_t b) const;
@@ -432,7 +435,7 @@ PSQ_INLINE void BasicBoundary<L>::free_edge(uint32_t slot) {
 // The loop links of an add (fresh f1 then f2 between the gate's old
 // neighbours) and of a fill (fresh f between `before` and `after`), shared
 // by apply_add()/apply_fill() and lean_add()/lean_fill(); the fresh edge
-// that comes first becomes the reference (spec 6.2.1).
+// that comes first becomes the reference edge R (spec 6.1.2 step 5).
 template <bool L>
 PSQ_INLINE void BasicBoundary<L>::splice_add(uint32_t f1, uint32_t f2, uint32_t gate_prev, uint32_t gate_next) {
   BEdge& e1 = edges_[f1];
@@ -637,8 +640,10 @@ inline Prediction predict_new_vertex(const B& boundary, uint32_t gate, int i, co
 
 // predict_new_vertex() for an add by choice 0: the parallelogram across
 // `gate` with the gate triangle's extents (kPredParallelogram), the only
-// prediction of the gate records of quantized fast streams (spec 13.8.2). Computed alone: predict_new_vertex() also forms a neighbour's
-// parallelogram and the mean, for a choice known only at run time.
+// prediction of the gate records of quantized streams with the rANS
+// back-end (spec 13.8.2). Computed alone: predict_new_vertex() also forms
+// a neighbour's parallelogram and the mean, for a choice known only at run
+// time.
 template <class B>
 PSQ_INLINE Prediction predict_across_gate(const B& boundary, uint32_t gate) {
   Prediction p;

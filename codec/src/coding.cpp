@@ -12,7 +12,7 @@ namespace psq {
 namespace codec {
 
 namespace {
-// Sets the nodes of `tree` from the weights of its leaves (spec 7.4.1).
+// Sets the nodes of `tree` from the weights of its leaves (spec 8.3).
 void init_tree(SymbolModel& tree, const std::vector<uint64_t>& leaf) {
   const int leaves = 1 << tree.bits();
   // Subtree weights, heap-ordered like the tree: node i has children 2i

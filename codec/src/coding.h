@@ -1,7 +1,9 @@
 // SPDX-License-Identifier: Apache-2.0
-// codec/src/coding.h: the adaptive models of the .psq record coder and the
-// helpers that code with them (spec/psq-format.md sections 5 and 6), shared
-// by the encoder and the decoder so that both use the same contexts.
+// codec/src/coding.h: what the encoder and the decoder share so that both
+// use the same contexts: the prediction kinds and choices (spec/psq-format.md
+// 7.3), the length and degree contexts of the records (13.7.3, 13.8.1),
+// and the residual models of the attribute section's adaptive back-end
+// (5.6, 8.3) with the helpers that code with them and the range coder.
 //
 // Every helper optionally adds the information content of what it codes
 // (-log2 of the model's probability) to a cost counter, so that `psq info`
@@ -63,10 +65,11 @@ struct ResidualModel {
   BitModel second[65];
 };
 
-// Residual contexts (spec 7.4): the prediction kind, the axis, and a length
-// context from the gate triangle's extent along the axis and, for the y and
-// z axes, the bit lengths of the vertex's earlier residuals.
+// Length contexts 0..11 of a residual (spec 13.8.1 for positions,
+// fast_length_context(); 8.3 for attributes).
 constexpr int kLengthContexts = 12;
+// A length context from the gate triangle's extent along the axis and, for
+// the y and z axes, the bit lengths of the vertex's earlier residuals.
 // `extent`: the bit length of the predicting triangle's extent along this
 // axis (a parallelogram prediction; 0 otherwise); `longest_so_far`: the largest
 // bit length of the earlier axes' residuals. Residuals scale with the local
@@ -125,7 +128,7 @@ inline int third_context(uint32_t degree_p, uint32_t degree_q) {
 }
 
 // Bits of an explicit edge slot when `capacity` slots were ever handed out
-// (spec 6.2.1): enough for capacity - 1.
+// (spec 6.1.1, 13.7.2 step 4): enough for capacity - 1.
 inline int slot_bits(uint32_t capacity) { return capacity <= 1 ? 0 : 32 - __builtin_clz(capacity - 1); }
 
 // Cost categories: what `psq info` splits the record bytes into (not part

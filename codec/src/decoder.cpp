@@ -322,7 +322,7 @@ Status PsqDecoder::Impl::advance() {
   if (--records_left == 0) {
     PSQ_RETURN_IF_ERROR(fast_close_chunk());
     if (!attrs->empty() && rans) {
-      // Spec 13.12: both blocks end where the chunk's attributes do.
+      // Spec 13.8.4: both blocks end where the chunk's attributes do.
       if (attr_fast.rans->overran() || attr_fast.raw->overran())
         return Status(ErrorCode::kTruncated, "attribute data ends early", attr_offset + attr_bytes.size());
       if (!attr_fast.rans->at_clean_end() || !attr_fast.raw->at_clean_end())

@@ -1,8 +1,9 @@
 // SPDX-License-Identifier: Apache-2.0
 // codec/src/decoder_impl.h: the state of the .psq decoder
-// (psq/psq_codec.h), shared by its two record decoders: decoder.cpp (format
-// 7 coding, the compact profile) and fast_decoder.cpp (the fast profile,
-// spec section 13).
+// (psq/psq_codec.h), shared by its two files: decoder.cpp (the container,
+// properties, attributes and the output of events) and fast_decoder.cpp
+// (the records of spec section 13, templates over the symbol decoder of
+// either entropy back-end, symbol_coder.h).
 #ifndef PSQ_CODEC_DECODER_IMPL_H_
 #define PSQ_CODEC_DECODER_IMPL_H_
 
@@ -145,10 +146,10 @@ struct PsqDecoder::Impl {
   // Decodes the next record (or chunk, or the end) into the queue.
   Status advance();
 
-  // Shared by both profiles: a new vertex's position from its coded
-  // coordinates (spec 7.1, 7.2) with its checks, its properties and the
-  // counts; the triangle event of a record (spec 6.2.3, 6.4) and the
-  // finalizations, from a BTriangle that `b` applied.
+  // A new vertex's position from its coded coordinates (spec 7.1, 7.2)
+  // with its checks, its properties and the counts; the triangle event of
+  // a record (spec 6.2.3, 6.4) and the finalizations, from a BTriangle
+  // that `b` applied.
   Status finish_vertex(const int64_t pos[3], SequenceVertex& v);
   // The position of coded coordinates `pos` (spec 7.1, 7.2), or the reason
   // they are not one.
@@ -159,7 +160,7 @@ struct PsqDecoder::Impl {
   void push_triangle(Op op, const uint32_t corner[3], const uint32_t eslot[3], uint8_t new_mask, uint8_t final_mask,
                      uint8_t leaving, uint8_t entering);
 
-  // Direct output (decode_mesh): the fast profile's common records write
+  // Direct output (decode_mesh): the common records (fast_common()) write
   // their vertex and triangle here instead of queueing events; the other
   // records' events are drained into it by decode_into().
   MeshBuffers* direct = nullptr;
@@ -257,11 +258,11 @@ struct PsqDecoder::Impl {
   // has been read, into `mesh` (decode_mesh()).
   Status decode_into(MeshBuffers* mesh, const uint8_t* data, size_t size);
 
-  // The fast profile (fast_decoder.cpp).
+  // The records (fast_decoder.cpp, spec section 13).
   bool fast_choices = false;  // gate records code a prediction choice (fast_codes_choices())
   FastBoundary fboundary{1};
-  Neighbors fneighbors;  // which active vertices an edge joins (the fast profile's checks)
-  std::vector<RansTable> ftables;  // kFastTables of them in a fast stream
+  Neighbors fneighbors;  // which active vertices an edge joins (the new-edge check, spec 13.6.3)
+  std::vector<RansTable> ftables;  // kFastTables of them with the rANS back-end
   // A chunk's tables by index, the absent ones set_absent() (indexed
   // directly, so that finding a table is no load of its own).
   bool ftable_absent[kFastTables] = {};
@@ -279,9 +280,10 @@ struct PsqDecoder::Impl {
   FastRing ring;
   int fast_context = kFastAStartContext;
   int fast_choice = 0;
-  // Reads the record section `conn` of a fast chunk (spec 13.2).
+  // Reads the record section `conn` of a chunk (spec 13.2).
   Status fast_open_chunk();
-  // At the chunk's end: every byte used, both rANS states back at 2^16.
+  // At the chunk's end: every byte of the symbol block and the raw block
+  // used, and with the rANS back-end both states back at 2^16 (spec 13.9).
   Status fast_close_chunk();
   // The next record; with `cls` >= 0 its class is decoded already, and
   // with `bsym` >= 0 also its gate and B symbol (a gate record).

@@ -206,8 +206,8 @@ Status PsqEncoder::Impl::introduce(const PendingVertex& v) {
   return Status();
 }
 
-// Spec 6.2.1: a gate is an open edge that the triangle completes; both
-// profiles' records name one of these.
+// Spec 2.4: a gate is an open edge that the triangle completes; every
+// gate record and escape names one of these (13.7.3, 13.7.5).
 Status PsqEncoder::Impl::candidate_gates(const SequenceTriangle& t, const int pend[3], const uint32_t slots[3],
                                          int nnew, uint32_t cand[3]) const {
   for (int k = 0; k < 3; ++k) {
@@ -365,12 +365,12 @@ Status PsqEncoder::Impl::after_record() {
   ++chunk_records;
   stats.max_active_vertices = std::max(stats.max_active_vertices, boundary.active_vertices());
   stats.max_open_edges = std::max(stats.max_open_edges, boundary.open_edges());
-  // The fast profile codes a chunk at its end: estimate 4 bits a symbol
-  // for the target size. The limit of a chunk's coded records (spec 10)
-  // must hold whatever the symbols cost: a symbol costs at most about
-  // kRansScaleBits bits (its frequency is at least 1; the states' rounding
-  // adds a fraction of a bit over a chunk), and the tables at most a
-  // presence bit and a gamma code per symbol.
+  // The back-ends code a chunk at its end: estimate 4 bits a symbol for
+  // the target size. The limit of a chunk's coded records (spec 10) must
+  // hold whatever the symbols cost: with the rANS back-end a symbol costs
+  // at most about kRansScaleBits bits (its frequency is at least 1; the
+  // states' rounding adds a fraction of a bit over a chunk), and the
+  // tables at most a presence bit and a gamma code per symbol.
   const size_t coded = fast_raw.bits() / 8 + fast_symbols.size() / 2;
   // An adaptive symbol costs at most 7 binary decisions (the largest
   // tree) of at most 12 bits each (a model's probability stays at least

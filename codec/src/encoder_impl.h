@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 // codec/src/encoder_impl.h: the state of the .psq encoder (psq/psq_codec.h),
-// shared by its two record coders: encoder.cpp (the compact profile,
-// spec sections 5 to 7) and fast_encoder.cpp (the fast profile,
-// spec section 13).
+// shared by its two files: encoder.cpp (the input's checks, the container,
+// properties and attributes) and fast_encoder.cpp (the records of spec
+// section 13 and their entropy back-ends).
 #ifndef PSQ_CODEC_ENCODER_IMPL_H_
 #define PSQ_CODEC_ENCODER_IMPL_H_
 
@@ -122,15 +122,14 @@ struct PsqEncoder::Impl {
   Status candidate_gates(const SequenceTriangle& t, const int pend[3], const uint32_t slots[3], int nnew,
                          uint32_t cand[3]) const;
   Status triangle(const SequenceTriangle& t);
-  // What triangle() does after the record is coded (both profiles): checks
-  // the op, applies the triangle to the boundary, expects the finalized
-  // vertices.
+  // What triangle() does after the record is coded: checks the op,
+  // applies the triangle to the boundary, expects the finalized vertices.
   Status close_triangle(const SequenceTriangle& t, BTriangle& bt, int nnew);
   Status isolated(size_t pending_at);
   Status close_chunk();
   Status after_record();
 
-  // The fast profile (fast_encoder.cpp, spec section 13).
+  // The records (fast_encoder.cpp, spec section 13).
   bool rans = false;  // the back-end (spec 13.2): rANS, else adaptive
   RansSymbols fast_symbols;              // the open chunk's symbols, in order
   RawWriter fast_raw;                    // and its raw bits
@@ -163,7 +162,7 @@ struct PsqEncoder::Impl {
   // canonical corner 0 (the first candidate for an escape). *rank must be
   // -1 on entry.
   int fast_gate_class(const uint32_t cand[3], int* rot, int* rank) const;
-  // The fast profile's direct path for the common triangle of an input
+  // The direct path for the common triangle of an input
   // that gives boundary slots (the converter's and the decoders'): an add
   // or a fill on a gate of class 0 to 3, without borders, re-appearances
   // or face properties. It finds the gate and the completed neighbour
@@ -193,12 +192,13 @@ struct PsqEncoder::Impl {
   void fast_vertex(const PendingVertex& v, const int64_t pred[3], int kind, const int extent[3]);
   int64_t fast_cost(int table, int symbol) const;  // in 1/65536 bits
   int fast_choose_prediction(uint32_t gate, uint32_t mask, const int64_t pos[3], Prediction* pred);
-  // Codes the new vertex v of a triangle on `gate` (spec 13.8): in a
-  // lossless stream, the prediction choice among the gate's neighbours
-  // when `choices` (not for an escape, 13.7.5) and there are any; then its
-  // residuals.
+  // Codes the new vertex v of a triangle on `gate` (spec 13.8): the
+  // prediction choice among the gate's neighbours, if the stream codes
+  // choices (fast_choices), `choices` is set (not for an escape, 13.7.5)
+  // and there are any; then its residuals.
   void fast_gate_vertex(const PendingVertex& v, uint32_t gate, bool choices);
-  // The fast profile's record section of the open chunk (spec 13.2).
+  // The record section of the open chunk in the stream's back-end (spec
+  // 13.2).
   void fast_section(std::vector<uint8_t>* section);
   Status finish();
 };

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
-// codec/src/fast_coding.h: the symbols, contexts and tables of the fast
-// profile (spec section 13), shared by its encoder and decoder.
+// codec/src/fast_coding.h: the symbols, contexts and tables of the record
+// grammar (spec section 13), shared by its encoder and decoder and by both
+// entropy back-ends (symbol_coder.h).
 #ifndef PSQ_CODEC_FAST_CODING_H_
 #define PSQ_CODEC_FAST_CODING_H_
 
@@ -102,7 +103,7 @@ constexpr uint32_t kFastRingScan = 128;
 constexpr int kFastLengthSymbols = 65;
 constexpr int kFastLengthEscape = 64;
 
-// Degree context of B (the compact profile's third_context, spec 6.2.2).
+// Degree contexts of B: third_context() (coding.h, spec 13.7.3).
 constexpr int kFastBContexts = (kDegreeCap + 1) * (kDegreeCap + 1);
 
 // The fixed table list (spec 13.5.3).
@@ -155,11 +156,11 @@ inline bool fast_choice_allowed(uint32_t mask, int choice) {
 }
 // What a table's symbols code, for the split of coded bits in PsqStats:
 // prediction choices and residual lengths are geometry, the rest
-// connectivity (as the compact profile splits them).
+// connectivity.
 inline int fast_table_cost(int table) {
   return table >= kFastTableChoice && table < kFastTableDistance ? kCostGeometry : kCostConnectivity;
 }
-// The context of a residual length in the fast profile: the extent along the
+// The context of a residual length: the extent along the
 // axis, clamped, for every axis of a predicted vertex, so that the three
 // lengths decode independently; a start's or an isolated vertex's: the
 // largest earlier length (spec 13.8.1).

@@ -1,9 +1,11 @@
 // SPDX-License-Identifier: Apache-2.0
-// codec/src/fast_decoder.cpp: the fast profile's records (spec
-// section 13). The boundary is a
-// FastBoundary: every edge a triangle completes is named by its record
-// (the gate, the gate's neighbours, or a slot in an escape), so the decoder
-// keeps no lookups by endpoints. Every symbol is one rANS table lookup.
+// codec/src/fast_decoder.cpp: the decoder's records (spec section 13).
+// The boundary is a FastBoundary: every edge a triangle completes is named
+// by its record (the gate, the gate's neighbours, or a slot in an escape),
+// so the decoder keeps no lookups by endpoints (13.6.3). The record
+// functions are templates over the symbol decoder of the stream's entropy
+// back-end (symbol_coder.h, 13.2): a rANS table lookup, or a walk down an
+// adaptive bit-tree with the range coder.
 #include <cmath>
 #include <algorithm>
 
@@ -287,8 +289,9 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_common(D& d, RawReader& bits, int cls, 
     // An add: the new vertex x, then the triangle (q, p, x).
     fast_context = fast_a_context_gate(cls, kFastNew);
     PSQ_RETURN_IF_ERROR(fast_vertex_room());
-    // Across the gate (spec 13.8.2), or by a decoded choice in a lossless
-    // stream (the same for the whole stream: a branch that is predicted).
+    // Across the gate (spec 13.8.2), or by a decoded choice when the stream
+    // codes choices (fast_codes_choices(): lossless or the adaptive
+    // back-end; the same for the whole stream: a branch that is predicted).
     int choice = kChoiceGate;
     if (fast_choices) {
       const uint32_t mask = prediction_choices(b, gate);
@@ -661,7 +664,7 @@ Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
     bt.completes[0] = gate;
     completes[0] = true;
     // An escape names its completions by slot: each must be the open twin
-    // of its edge (spec 6.1.3; the fast boundary has no other check).
+    // of its edge (spec 13.7.5; the fast boundary has no other check).
     for (int k = 1; k < 3; ++k)
       if (completes[k] && cls == kFastEscape) {
         const uint32_t c = bt.completes[k];
@@ -727,8 +730,9 @@ Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
     bt.state[k] = bt.border[k] ? EdgeState::kBorder : EdgeState::kEnters;
     if (e[k] == kFastCut) cut |= static_cast<uint8_t>(1u << k);
   }
-  // Entering edges and borders between old vertices (spec 6.1.3): the
-  // fast boundary is told which edges complete, and checks the others.
+  // Entering edges and borders between old vertices must be new to the
+  // mesh (spec 13.6.3): the fast boundary is told which edges complete,
+  // and Neighbors checks the others.
   for (int k = 0; k < 3; ++k)
     if (!completes[k] && !bt.is_new[k] && !bt.is_new[(k + 1) % 3] && fneighbors.contains(bt.c[k], bt.c[(k + 1) % 3]))
       return corrupt("an entering edge is open already, completes an edge the record does not name, or is dead");

@@ -1,12 +1,13 @@
 // SPDX-License-Identifier: Apache-2.0
-// codec/src/fast_encoder.cpp: the fast profile's records (spec
-// section 13): static rANS symbols and raw
-// bits, coded at the end of each chunk.
+// codec/src/fast_encoder.cpp: the encoder's records (spec section 13):
+// symbols and raw bits, gathered for the open chunk and coded at its end
+// by the stream's entropy back-end (13.2): static rANS tables, or
+// adaptive bit-trees with the range coder.
 //
-// The encoder keeps the compact profile's boundary, with its lookups by endpoints: it
-// must check its input and find which open edges a triangle completes. The
-// decoder keeps the same slots and links without the lookups
-// (FastBoundary), because every completion is named in the record.
+// The encoder keeps a Boundary with lookups by endpoints: it must check
+// its input and find which open edges a triangle completes. The decoder
+// keeps the same slots and links without the lookups (FastBoundary),
+// because every completion is named in the record (13.6.3).
 #include <algorithm>
 #include <cassert>
 #include <cmath>
@@ -148,10 +149,11 @@ PSQ_INLINE int64_t PsqEncoder::Impl::fast_cost(int table, int symbol) const {
 }
 
 // Spec 7.3 leaves the choice to the encoder; this one takes the cheapest
-// under the running counts of the fast tables (the choice symbol, the
-// length symbols and the raw bits), among the candidates whose residuals
-// have no more bits than the gate's (as choose_prediction() does for
-// the compact profile). Ties go to the lower choice.
+// under the running counts of the tables (the choice symbol, the length
+// symbols and the raw bits), among the candidates whose residuals have no
+// more bits than the gate's. The counts price a symbol in either back-end:
+// the adaptive models follow the same statistics. Ties go to the lower
+// choice.
 int PsqEncoder::Impl::fast_choose_prediction(uint32_t gate, uint32_t mask, const int64_t pos[3], Prediction* pred) {
   // The five choices combine three parallelograms and the extents of
   // three triangles as predict_new_vertex() does (spec 7.3): each is
@@ -274,11 +276,12 @@ void PsqEncoder::Impl::note_input_edges(const SequenceTriangle& t, int rot, cons
 
 void PsqEncoder::Impl::fast_gate_vertex(const PendingVertex& v, uint32_t gate, bool choices) {
   Prediction pr;
-  // A quantized stream predicts across the gate (spec 13.8.2): the
-  // choices save few bytes on large meshes, but take a large share of the
-  // encoder's work to choose and of the decoder's time to follow. Lossless
-  // streams, which they make much smaller, keep them (bench/HISTORY.md,
-  // "Format 10.0").
+  // With the rANS back-end, a quantized stream predicts across the gate
+  // (spec 13.8.2): the choices save few bytes on large meshes, but take a
+  // large share of the encoder's work to choose and of the decoder's time
+  // to follow. Lossless streams, which they make much smaller, and the
+  // adaptive back-end, which is for the smallest files, code them
+  // (fast_codes_choices()).
   const uint32_t mask = choices && fast_choices ? prediction_choices(boundary, gate) : 0;
   if (mask != 0) {
     const int choice = fast_choose_prediction(gate, mask, v.pos, &pr);
@@ -344,8 +347,8 @@ Status PsqEncoder::Impl::triangle_fast(const SequenceTriangle& t, const int pend
     else if (!left && !right && !c1 && !c2) third = kFastJoin;
     else cls = kFastEscape;  // a completion that is not the gate's neighbour
     if (third == kFastJoin || cls == kFastEscape) {
-      // Spec 6.2.2: an open edge at x names it and the gap the triangle goes
-      // into: its first edge leaving x, else its first entering x.
+      // Spec 13.11: an open edge at x names it and the gap the triangle
+      // goes into: its first edge leaving x, else its first entering x.
       const BLinks& vx = boundary.links(x);
       join = vx.first_out != kNone ? vx.first_out : vx.first_in;
       if (join == kNone)
@@ -586,8 +589,9 @@ Status PsqEncoder::Impl::isolated_fast(PendingVertex& v) {
 }
 
 void PsqEncoder::Impl::fast_section(std::vector<uint8_t>* section) {
-  // Spec 13.2: the tables of this chunk's symbols, the rANS block,
-  // the raw bits.
+  // Spec 13.2: the chunk's symbols in the stream's back-end (the range
+  // coder's bytes; or the tables of this chunk's symbols and the rANS
+  // block), then the raw bits.
   // The chunk's counts are the running counts (fast_put()) less those at
   // the chunk's start: no pass over its symbols.
   std::vector<std::vector<uint64_t>> counts(kFastTables);

@@ -1,15 +1,15 @@
 // SPDX-License-Identifier: Apache-2.0
 // codec/src/neighbors.h: which active vertices are joined by an edge, for
-// the fast profile's decoder (spec 13.6.3).
+// the decoder's new-edge check (spec 13.6.3).
 //
-// The fast decoder is told which open edges a triangle completes; every
-// other edge between two old vertices must be new to the mesh, or the
-// decoded sequence would not be an oriented manifold with borders
-// (psq/sequence.h, spec 6.1.3). Format 7's boundary answers that with
-// per-vertex lists of open edges and dead-edge records, which its decoder
-// keeps up to date at every completion and finalization. Here each vertex
-// slot lists the neighbours its vertex has had (a slot and that slot's
-// generation): two appends per new edge, a scan of one short list per edge
+// The decoder is told which open edges a triangle completes; every other
+// edge between two old vertices must be new to the mesh, or the decoded
+// sequence would not be an oriented manifold with borders (psq/sequence.h,
+// spec A.2). The encoder's Boundary answers that with per-vertex lists
+// of open edges and dead-edge records, kept up to date at every
+// completion and finalization. Here each vertex slot lists the
+// neighbours its vertex has had (a slot and that slot's generation): two
+// appends per new edge, a scan of one short list per edge
 // between old vertices (a fill has one), and nothing when a vertex is
 // finalized. A neighbour finalized since is stale (its slot's generation
 // moved on) and never matches; a slot's list is cleared when a new vertex

@@ -1,17 +1,18 @@
 // SPDX-License-Identifier: Apache-2.0
-// codec/src/rans.h: static rANS coding and a raw bit stream, the entropy
-// coder of the fast profile (spec 13.3 to 13.5).
+// codec/src/rans.h: static rANS coding, the entropy coder of the rANS
+// back-end (spec 13.4, 13.5), and the raw bit stream of both back-ends
+// (13.3).
 //
 // rANS (Duda, "Asymmetric numeral systems", 2013) with 32-bit states kept
 // in [2^16, 2^32) and renormalized by 16-bit words, in the style of
 // Giesen's rans_word; two states take turns, symbol i using state i mod 2
 // (Giesen's interleaving), so that decoding one symbol need not wait for
-// the state the symbol before produced. Each context has a frequency table of total
-// 2^kRansScaleBits, fixed for a chunk and sent in it (RansTable::write), so
-// decoding a symbol is one table lookup, one multiplication and a
-// renormalization test: no model update. That is what makes the fast
-// profile decode much faster than the compact profile (bench/HISTORY.md,
-// "The fast profile lands").
+// the state the symbol before produced. Each context has a frequency table
+// of total 2^kRansScaleBits, fixed for a chunk and sent in it
+// (RansTable::write), so decoding a symbol is one table lookup, one
+// multiplication and a renormalization test: no model update. That is what
+// makes the rANS back-end decode several times faster than the adaptive
+// one (bench/RESULTS.md has the current figures).
 //
 // The encoder codes in reverse: it collects a chunk's symbols first, then
 // builds the tables from their counts and codes the symbols last to first,
@@ -19,8 +20,8 @@
 //
 // Raw bits (signs and low bits of residuals, explicit slots) go to a
 // separate little-endian bit stream (RawWriter, RawReader) instead of
-// through the rANS state: they cost a branchless refill, a shift and a mask
-// each to read.
+// through the symbol coder: they cost a branchless refill, a shift and a
+// mask each to read.
 #ifndef PSQ_CODEC_RANS_H_
 #define PSQ_CODEC_RANS_H_
 

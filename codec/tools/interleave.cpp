@@ -1,10 +1,11 @@
 // SPDX-License-Identifier: Apache-2.0
 // psq_interleave: writes the conformance vector with far gates of every
-// kind (spec/psq-format.md 6.2.1 and 12).
+// kind (spec/psq-format.md 13.7.4, 13.7.5 and 12): named by a recency rank,
+// and by slot in an escape.
 //
 // The converter grows one region at a time, so a small mesh converted by
-// `psq convert` never needs a far gate named by a departure point or by a
-// raw slot. This tool makes a processing sequence that does: it decodes a
+// `psq convert` never needs a gate beyond the recency ranks, named by its
+// slot. This tool makes a processing sequence that does: it decodes a
 // .psq stream, places `--copies` copies of its mesh side by side, and
 // interleaves their records in runs of 1 to 6 records, choosing the next
 // copy at random (std::mt19937 with `--seed`, whose output the C++ standard

@@ -123,9 +123,9 @@ struct PsqStats {
   uint64_t chunks = 0;
   uint64_t header_bytes = 0;
   uint64_t chunk_overhead_bytes = 0;   // chunk fields, checksums, the end record
-  uint64_t record_bytes = 0;           // range-coded connectivity and geometry
+  uint64_t record_bytes = 0;           // coded connectivity and geometry (spec 13.2)
   uint64_t property_bytes = 0;         // zstd-compressed properties
-  uint64_t attribute_bytes = 0;        // range-coded attributes (spec 8.3)
+  uint64_t attribute_bytes = 0;        // coded attributes (spec 8.3)
   uint64_t total_bytes = 0;
   // The record bytes split by the information content of what was coded
   // (only when measured: EncodeOptions::measure_costs, PsqDecoder::measure_costs):

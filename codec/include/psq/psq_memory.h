@@ -66,10 +66,10 @@ struct MeshBuffers {
 // Encodes the mesh of `vertex_count` vertices (`positions`: 3 floats each)
 // and `triangle_count` triangles (`indices`: 3 each) and appends the .psq
 // stream to `out`, with `options` as for PsqEncoder (quantization bits or
-// lossless, profile, chunk size). The processing sequence is built as
-// `psq convert` builds it (psq/sequence_builder.h): in one pass when the
-// triangles are coherent, else through an external sort whose temporary
-// files go to $TMPDIR. Degenerate triangles (a repeated index) are dropped.
+// lossless, entropy back-end, chunk size). The processing sequence is
+// built as `psq convert` builds it (psq/sequence_builder.h): in one pass
+// when the triangles are coherent, else through an external sort whose
+// temporary files go to $TMPDIR. Degenerate triangles (a repeated index) are dropped.
 // Errors: kBadValue for an index >= vertex_count or a position that is not
 // finite, with the element's number; kLimit when the mesh exceeds the
 // format's limits; kIo for the sort's files. On an error `out` is as it
