@@ -232,7 +232,7 @@ TEST(Attributes, RoundTripPerKindAndProfile) {
 }
 
 // Both profiles decode to the same values: the attribute coder is shared.
-TEST(Attributes, ProfilesAgree) {
+TEST(Attributes, BackendsAgree) {
   Spec all;
   all.normals = all.texcoords = all.colors = true;
   const Events ev = sequence_of(attributed_torus(all));

@@ -514,10 +514,10 @@ TEST(Codec, CompressesASmoothSphereWell) {
 // PsqStats splits the coded bits into connectivity and geometry with both
 // back-ends (psq info, psq convert --json): the parts add up to about the
 // record bytes, and the decoder measures what the encoder did.
-TEST(Codec, MeasuredCostsAddUpInBothProfiles) {
+TEST(Codec, MeasuredCostsAddUpInBothBackends) {
   Events ev = sequence_of(test::make_sphere(40, 80));
   for (bool fast : {false, true}) {
-    SCOPED_TRACE(fast ? "fast" : "compact");
+    SCOPED_TRACE(fast ? "rANS back-end" : "adaptive back-end");
     EncodeOptions o;
     o.bits = 14;
     o.fast = fast;
@@ -804,8 +804,8 @@ Status decode_all(const std::vector<uint8_t>& bytes) {
 }
 
 class CodecHostile : public ::testing::TestWithParam<bool> {};  // the parameter: the rANS back-end, else adaptive
-INSTANTIATE_TEST_SUITE_P(Profiles, CodecHostile, ::testing::Values(false, true),
-                         [](const ::testing::TestParamInfo<bool>& i) { return i.param ? "Fast" : "Compact"; });
+INSTANTIATE_TEST_SUITE_P(Backends, CodecHostile, ::testing::Values(false, true),
+                         [](const ::testing::TestParamInfo<bool>& i) { return i.param ? "Rans" : "Adaptive"; });
 
 TEST_P(CodecHostile, EveryTruncationFailsCleanly) {
   std::vector<uint8_t> bytes = small_file(GetParam());

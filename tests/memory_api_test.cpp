@@ -220,7 +220,7 @@ std::vector<uint8_t> encode_arrays(const test::Mesh& m, const EncodeOptions& o) 
   return bytes;
 }
 
-class MemoryApiProfiles : public ::testing::TestWithParam<bool> {
+class MemoryApiBackends : public ::testing::TestWithParam<bool> {
  protected:
   EncodeOptions options() const {
     EncodeOptions o;
@@ -232,7 +232,7 @@ class MemoryApiProfiles : public ::testing::TestWithParam<bool> {
 // decode_mesh decodes the fast profile's common records straight into the
 // arrays (fast_decoder.cpp) and the others through events: the result must
 // be exactly the events' mesh, in the same order.
-TEST_P(MemoryApiProfiles, ArraysAreTheEventsMesh) {
+TEST_P(MemoryApiBackends, ArraysAreTheEventsMesh) {
   struct Case {
     test::Mesh mesh;
     int bits;  // 0: lossless
@@ -283,7 +283,7 @@ TEST_P(MemoryApiProfiles, ArraysAreTheEventsMesh) {
 // Flipped bits: decode_mesh and the events agree on whether the stream is
 // valid, and on its mesh when it is (the direct records check what the
 // event path checks); a failed decode_mesh leaves the mesh empty.
-TEST_P(MemoryApiProfiles, FlippedBitsAgreeWithTheEvents) {
+TEST_P(MemoryApiBackends, FlippedBitsAgreeWithTheEvents) {
   EncodeOptions o = options();
   o.chunk_bytes = 400;
   const std::vector<uint8_t> good = encode_arrays(nonmanifold_grid(16), o);
@@ -308,7 +308,7 @@ TEST_P(MemoryApiProfiles, FlippedBitsAgreeWithTheEvents) {
 // Garbled records in a re-signed chunk (a crafted file; flipped bits alone
 // stop at the chunk checksum): decode_mesh's own loop and the events path
 // must fail with the same error at the same place, or decode the same mesh.
-TEST_P(MemoryApiProfiles, CraftedRecordsFailAsTheEventsDo) {
+TEST_P(MemoryApiBackends, CraftedRecordsFailAsTheEventsDo) {
   EncodeOptions o = options();
   const std::vector<uint8_t> good = encode_arrays(nonmanifold_grid(16), o);
   std::mt19937 rng(11);
@@ -330,8 +330,8 @@ TEST_P(MemoryApiProfiles, CraftedRecordsFailAsTheEventsDo) {
   EXPECT_GT(failures, 250);
 }
 
-INSTANTIATE_TEST_SUITE_P(Profiles, MemoryApiProfiles, ::testing::Values(false, true),
-                         [](const ::testing::TestParamInfo<bool>& p) { return p.param ? "Fast" : "Compact"; });
+INSTANTIATE_TEST_SUITE_P(Backends, MemoryApiBackends, ::testing::Values(false, true),
+                         [](const ::testing::TestParamInfo<bool>& p) { return p.param ? "Rans" : "Adaptive"; });
 
 }  // namespace
 }  // namespace psq

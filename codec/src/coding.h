@@ -68,19 +68,6 @@ struct ResidualModel {
 // Length contexts 0..11 of a residual (spec 13.8.1 for positions,
 // fast_length_context(); 8.3 for attributes).
 constexpr int kLengthContexts = 12;
-// A length context from the gate triangle's extent along the axis and, for
-// the y and z axes, the bit lengths of the vertex's earlier residuals.
-// `extent`: the bit length of the predicting triangle's extent along this
-// axis (a parallelogram prediction; 0 otherwise); `longest_so_far`: the largest
-// bit length of the earlier axes' residuals. Residuals scale with the local
-// triangle size along the axis, and with the vertex's other residuals;
-// without a gate triangle only the latter is known.
-inline int length_context(int kind, int axis, int extent, int longest_so_far) {
-  const int c = axis == 0 ? extent
-                : kind != kPredOther ? (extent + longest_so_far + 1) / 2
-                                             : longest_so_far;
-  return std::min(c, kLengthContexts - 1);
-}
 // The bit length of v (0 for 0), without a branch: a test for zero would
 // be a branch on data, which the fast encoder's search mispredicts.
 inline int bit_length64(uint64_t v) { return (63 - __builtin_clzll(v | 1)) + (v != 0 ? 1 : 0); }
