@@ -330,6 +330,46 @@ TEST_P(MemoryApiBackends, CraftedRecordsFailAsTheEventsDo) {
   EXPECT_GT(failures, 250);
 }
 
+// MeshArraySink through its events gives the mesh that decode_mesh() takes
+// straight from the records, and so does the direct path from a stream
+// that is not in memory (no capacity hint).
+TEST_P(MemoryApiBackends, ArraySinkEventsAndDirectPathAgree) {
+  for (const test::Mesh& mesh : {test::make_sphere(20, 30), nonmanifold_grid(12)}) {
+    EncodeOptions o = options();
+    o.bits = 14;
+    const std::vector<uint8_t> bytes = encode_arrays(mesh, o);
+    MeshBuffers direct;
+    ASSERT_TRUE(decode_mesh(bytes.data(), bytes.size(), &direct).ok());
+    // Event by event: the same sink without its arrays' door.
+    struct EventsOnly : MeshArraySink {
+      using MeshArraySink::MeshArraySink;
+      MeshBuffers* mesh_arrays() override { return nullptr; }
+    };
+    InputStream stream;
+    stream.open_memory(bytes.data(), bytes.size(), "mem.psq");
+    PsqDecoder decoder;
+    ASSERT_TRUE(decoder.open(&stream).ok());
+    MeshBuffers events;
+    EventsOnly sink(&events);
+    ASSERT_TRUE(decoder.pump(sink).ok());
+    EXPECT_EQ(direct.positions, events.positions);
+    EXPECT_EQ(direct.indices, events.indices);
+    // The direct path from a file.
+    test::TempDir dir;
+    const std::string path = dir.file("array_sink.psq");
+    test::write_file(path, std::string(bytes.begin(), bytes.end()));
+    InputStream file;
+    ASSERT_TRUE(file.open(path).ok());
+    PsqDecoder from_file;
+    ASSERT_TRUE(from_file.open(&file).ok());
+    MeshBuffers streamed;
+    MeshArraySink file_sink(&streamed);
+    ASSERT_TRUE(from_file.pump(file_sink).ok());
+    EXPECT_EQ(direct.positions, streamed.positions);
+    EXPECT_EQ(direct.indices, streamed.indices);
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(Backends, MemoryApiBackends, ::testing::Values(false, true),
                          [](const ::testing::TestParamInfo<bool>& p) { return p.param ? "Rans" : "Adaptive"; });
 

@@ -369,7 +369,7 @@ void declared_totals(const uint8_t* data, size_t size, size_t at, uint64_t* vert
 
 }  // namespace
 
-Status PsqDecoder::Impl::decode_into(MeshBuffers* mesh, const uint8_t* data, size_t size) {
+Status PsqDecoder::Impl::decode_into(MeshBuffers* mesh) {
   direct = mesh;
   // Spec 4.3: the chunks declare their vertex and triangle counts, and
   // the whole stream is in memory: their sums size the arrays' capacity
@@ -379,14 +379,17 @@ Status PsqDecoder::Impl::decode_into(MeshBuffers* mesh, const uint8_t* data, siz
   // hostile stream's sums are capped at four per input byte, as
   // fast_direct_records() caps a chunk's room; the capacity is address
   // space, which stays untouched until records write it (direct_room()).
-  uint64_t vertices = 0, triangles = 0;
-  declared_totals(data, size, static_cast<size_t>(in->offset()), &vertices, &triangles);
-  // A reservation the system refuses is no error: the arrays then grow.
-  const uint64_t cap = 4 * static_cast<uint64_t>(size) + 64;
-  try {
-    mesh->positions.reserve(3 * static_cast<size_t>(std::min(vertices, cap)));
-    mesh->indices.reserve(3 * static_cast<size_t>(std::min(triangles, cap)));
-  } catch (const std::bad_alloc&) {
+  // Memory input only: a stream's later chunks are not at hand.
+  if (in->size() >= 0 && static_cast<uint64_t>(in->size()) == in->offset() + in->buffered()) {
+    uint64_t vertices = 0, triangles = 0;
+    declared_totals(in->cursor(), in->buffered(), 0, &vertices, &triangles);
+    // A reservation the system refuses is no error: the arrays then grow.
+    const uint64_t cap = 4 * static_cast<uint64_t>(in->size()) + 64;
+    try {
+      mesh->positions.reserve(mesh->positions.size() + 3 * static_cast<size_t>(std::min(vertices, cap)));
+      mesh->indices.reserve(mesh->indices.size() + 3 * static_cast<size_t>(std::min(triangles, cap)));
+    } catch (const std::bad_alloc&) {
+    }
   }
   while (!ended) {
     if (records_left > 0 && props->empty() && attrs->empty()) {
@@ -446,6 +449,13 @@ Status PsqDecoder::pump(SequenceSink& sink) {
   if (!m.error.ok()) return m.error;
   if (!m.opened) return m.fail(Status(ErrorCode::kUsage, "decoder not opened"));
   PSQ_RETURN_IF_ERROR(sink.begin(m.header.schema));
+  // A sink that keeps only the mesh takes its arrays straight from the
+  // records (psq/sequence.h), when no event was taken by next() yet.
+  if (MeshBuffers* arrays = sink.mesh_arrays(); arrays != nullptr && m.record_no == 0 && m.qcount == 0) {
+    Status s = m.decode_into(arrays);
+    if (!s.ok()) return m.fail(s);
+    return sink.finish();
+  }
   for (;;) {
     // Events already queued by next() go first.
     for (; m.qhead < m.qcount; ++m.qhead) {

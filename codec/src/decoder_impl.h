@@ -254,9 +254,9 @@ struct PsqDecoder::Impl {
     for (int k = 0; k < 3; ++k) t[k] = direct_mesh_index(v[k]);
     direct_ni += 3;
   }
-  // Decodes the whole stream, `size` bytes at `data` of which the header
-  // has been read, into `mesh` (decode_mesh()).
-  Status decode_into(MeshBuffers* mesh, const uint8_t* data, size_t size);
+  // Decodes the rest of the stream into `mesh` (PsqDecoder::pump() into a
+  // sink that gives its arrays, psq/sequence.h).
+  Status decode_into(MeshBuffers* mesh);
 
   // The records (fast_decoder.cpp, spec section 13).
   bool fast_choices = false;  // gate records code a prediction choice (fast_codes_choices())

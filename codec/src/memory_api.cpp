@@ -92,8 +92,9 @@ Status decode_mesh(const uint8_t* data, size_t size, MeshBuffers* mesh) {
   InputStream in;
   in.open_memory(data, size, "<memory>");
   PsqDecoder decoder;
+  MeshArraySink sink(mesh);
   Status s = decoder.open(&in);
-  if (s.ok()) s = decoder.impl_->decode_into(mesh, data, size);
+  if (s.ok()) s = decoder.pump(sink);
   if (!s.ok()) {
     mesh->positions.clear();
     mesh->indices.clear();

@@ -196,7 +196,6 @@ struct PsqHeader {
   std::vector<CodedAttribute> attributes;
 };
 
-struct MeshBuffers;  // psq/psq_memory.h
 
 class PsqDecoder : public SequenceSource {
  public:
@@ -217,7 +216,10 @@ class PsqDecoder : public SequenceSource {
 
   // Pushes the rest of the sequence into `sink`: begin, every event, finish.
   // The same events as next() without copying them; the fastest way to
-  // decode. Errors: next()'s, and the sink's.
+  // decode. A sink that gives its arrays (SequenceSink::mesh_arrays(),
+  // MeshArraySink in psq/mesh_arrays.h) gets the mesh appended to them
+  // straight from the records instead, unless next() was called before.
+  // Errors: next()'s, and the sink's.
   Status pump(SequenceSink& sink);
 
   // Enables the connectivity/geometry cost split in stats() (slower).
@@ -226,8 +228,6 @@ class PsqDecoder : public SequenceSource {
   const PsqStats& stats() const;
 
  private:
-  // decode_mesh() (psq/psq_memory.h) drives the decoder without events.
-  friend Status decode_mesh(const uint8_t* data, size_t size, MeshBuffers* mesh);
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

@@ -9,59 +9,13 @@
 
 #include <cstddef>
 #include <cstdint>
-#include <memory>
-#include <new>
-#include <utility>
 #include <vector>
 
+#include "psq/mesh_arrays.h"
 #include "psq/psq_codec.h"
 #include "psq/status.h"
 
 namespace psq {
-
-// The allocator of MeshBuffers' arrays: std::allocator's memory, but an
-// element added without a value (resize(n), emplace_back(), a vector(n))
-// is default-initialized, which for float and uint32_t means not written
-// at all, where std::allocator zeroes it. decode_mesh() sizes its arrays
-// ahead and then writes every element once; zeroing them first would be a
-// pass over memory that the decoder then writes again.
-// Everything else behaves as for std::vector: data(), size(), iteration,
-// push_back(). A caller who needs a std::vector<float> copies with
-// assign(begin(), end()).
-template <class T>
-struct DefaultInitAllocator {
-  using value_type = T;
-  DefaultInitAllocator() noexcept = default;
-  template <class U>
-  DefaultInitAllocator(const DefaultInitAllocator<U>&) noexcept {}
-  T* allocate(size_t n) { return std::allocator<T>().allocate(n); }
-  void deallocate(T* p, size_t n) noexcept { std::allocator<T>().deallocate(p, n); }
-  template <class U>
-  void construct(U* p) noexcept(noexcept(::new (static_cast<void*>(p)) U)) {
-    ::new (static_cast<void*>(p)) U;  // default-initialized: no value written
-  }
-  template <class U, class... Args>
-  void construct(U* p, Args&&... args) {
-    ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
-  }
-};
-template <class T, class U>
-bool operator==(const DefaultInitAllocator<T>&, const DefaultInitAllocator<U>&) noexcept {
-  return true;
-}
-template <class T, class U>
-bool operator!=(const DefaultInitAllocator<T>&, const DefaultInitAllocator<U>&) noexcept {
-  return false;
-}
-
-// A triangle mesh in memory. The arrays are std::vectors with the
-// allocator above: resize() leaves new elements unset. (They are not
-// std::vector<float> and std::vector<uint32_t>: code that needs those
-// types copies.)
-struct MeshBuffers {
-  std::vector<float, DefaultInitAllocator<float>> positions;      // x, y, z of each vertex
-  std::vector<uint32_t, DefaultInitAllocator<uint32_t>> indices;  // the three vertex indices of each triangle
-};
 
 // Encodes the mesh of `vertex_count` vertices (`positions`: 3 floats each)
 // and `triangle_count` triangles (`indices`: 3 each) and appends the .psq

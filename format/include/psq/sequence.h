@@ -102,6 +102,8 @@ class BoundaryData {
 
 // Consumer of a processing sequence (push). Call order: begin, then vertex /
 // triangle / finalize events as described above, then finish.
+struct MeshBuffers;  // psq/mesh_arrays.h
+
 class SequenceSink {
  public:
   virtual ~SequenceSink() = default;
@@ -112,6 +114,14 @@ class SequenceSink {
   // Vertex `index` is used by no later triangle.
   virtual Status finalize(uint32_t index) = 0;
   virtual Status finish() = 0;
+  // A sink that keeps only the mesh, as MeshArraySink does (positions as
+  // floats, triangles as vertex indices, re-appearing vertices merged into
+  // their first occurrence, nothing else), may return its arrays here: a
+  // producer that can append to them directly then does so after begin()
+  // instead of calling vertex(), triangle() and finalize(), and calls
+  // finish() at the end. nullptr (the default): every event through the
+  // calls above.
+  virtual MeshBuffers* mesh_arrays() { return nullptr; }
 };
 
 struct SequenceEvent {
