@@ -17,7 +17,7 @@ namespace codec {
 // triangle, in the decoder's and the encoder's loops.
 
 // Edge k of t, whose endpoints are both old: an error when it is open
-// already or dead (spec 6.1.3), else it completes its open twin or, without
+// already or dead (spec 13.6.3), else it completes its open twin or, without
 // one, enters or is a border as t.border says.
 template <bool L>
 PSQ_INLINE bool BasicBoundary<L>::classify_old_edge(BTriangle& t, int k) const {

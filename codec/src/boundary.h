@@ -74,7 +74,7 @@ struct BEdge {
   bool live = false;
 };
 
-// A dead edge between two active vertices (spec 6.1.3): a border, or an
+// A dead edge between two active vertices (spec 13.6.3): a border, or an
 // edge two triangles completed. No later triangle may use it; remembered
 // until one of its vertices is finalized.
 struct BBorder {
@@ -82,7 +82,7 @@ struct BBorder {
   uint32_t next[2] = {kNone, kNone};  // next border record at v[0], at v[1]
 };
 
-// What a triangle does to each of its edges (spec 6.1.3).
+// What a triangle does to each of its edges (spec 6.2.2).
 enum class EdgeState : uint8_t { kCompletes, kEnters, kBorder };
 
 // A triangle in the codec's canonical corner order: corner 0 = q, 1 = p,
@@ -173,7 +173,7 @@ class BasicBoundary {
   // Fills t.completes and t.state for each edge (borders are taken from
   // t.border where an edge does not complete). Returns false when the
   // triangle would put an edge on the boundary twice or use a dead edge (a
-  // border, or an edge already used by two triangles; spec 6.1.3, errors).
+  // border, or an edge already used by two triangles; spec 13.6.3).
   bool find_completions(BTriangle& t) const;
 
   // Applies a triangle whose completions were found: removes completed

@@ -120,11 +120,12 @@ enum FastTable : int {
   kFastTables = kFastTableRotation + 1,
 };
 
-// The adaptive back-end's extra tables (spec 13.2): the B symbols of gate
-// records in shape contexts 1 to 4 (below), after the fixed list. A shape
-// context costs the decoder a parallelogram per gate record, which the
-// rANS back-end, built for speed, does not spend: its B symbols all take
-// shape context 0, the fixed list's B tables.
+// The adaptive back-end's extra tables (spec 13.2.1, 13.7.3): the B
+// symbols of gate records in shape contexts 1 to 4 (shape_context() in
+// boundary.h), after the fixed list. A shape context costs the decoder a
+// parallelogram per gate record, which the rANS back-end, built for
+// speed, does not spend: its B symbols all take shape context 0, the
+// fixed list's B tables.
 constexpr int kShapeContexts = 5;
 constexpr int kAdaptiveTables = kFastTables + (kShapeContexts - 1) * kFastBContexts;
 inline int fast_b_table(int degree_context, int shape) {

@@ -1014,7 +1014,7 @@ bool SequenceConverter::Impl::emit(uint32_t slot, int cls) {
   t.state |= Tri::kEmitted;
   // The next triangle should continue here (drain()): the neighbours across
   // this one's entering edges, starting after its first leaving edge (the
-  // reference edge of the .psq gate coder, spec/psq-format.md 6.2.1).
+  // reference edge of the .psq gate coder, spec/psq-format.md 6.1.2 step 5).
   {
     int g = 2;  // a start has no leaving edge: edge 0 first
     for (int k = 2; k >= 0; --k)
