@@ -230,7 +230,7 @@ class MemoryApiBackends : public ::testing::TestWithParam<bool> {
 };
 
 // decode_mesh decodes the fast profile's common records straight into the
-// arrays (fast_decoder.cpp) and the others through events: the result must
+// arrays (record_decoder.cpp) and the others through events: the result must
 // be exactly the events' mesh, in the same order.
 TEST_P(MemoryApiBackends, ArraysAreTheEventsMesh) {
   struct Case {

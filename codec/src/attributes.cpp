@@ -20,7 +20,7 @@
 #include <string>
 
 #include "container.h"
-#include "fast_coding.h"
+#include "records.h"
 #include "geometry.h"
 
 namespace psq {

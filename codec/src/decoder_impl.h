@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // codec/src/decoder_impl.h: the state of the .psq decoder
 // (psq/psq_codec.h), shared by its two files: decoder.cpp (the container,
-// properties, attributes and the output of events) and fast_decoder.cpp
+// properties, attributes and the output of events) and record_decoder.cpp
 // (the records of spec section 13, templates over the symbol decoder of
 // either entropy back-end, symbol_coder.h).
 #ifndef PSQ_CODEC_DECODER_IMPL_H_
@@ -18,7 +18,7 @@
 #include "container.h"
 #include "crc32c.h"
 #include "neighbors.h"
-#include "fast_coding.h"
+#include "records.h"
 #include "attributes.h"
 #include "properties.h"
 #include "psq/io.h"
@@ -258,7 +258,7 @@ struct PsqDecoder::Impl {
   // sink that gives its arrays, psq/sequence.h).
   Status decode_into(MeshBuffers* mesh);
 
-  // The records (fast_decoder.cpp, spec section 13).
+  // The records (record_decoder.cpp, spec section 13).
   bool fast_choices = false;  // gate records code a prediction choice (fast_codes_choices())
   FastBoundary fboundary{1};
   Neighbors fneighbors;  // which active vertices an edge joins (the new-edge check, spec 13.6.3)

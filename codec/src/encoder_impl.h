@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // codec/src/encoder_impl.h: the state of the .psq encoder (psq/psq_codec.h),
 // shared by its two files: encoder.cpp (the input's checks, the container,
-// properties and attributes) and fast_encoder.cpp (the records of spec
+// properties and attributes) and record_encoder.cpp (the records of spec
 // section 13 and their entropy back-ends).
 #ifndef PSQ_CODEC_ENCODER_IMPL_H_
 #define PSQ_CODEC_ENCODER_IMPL_H_
@@ -12,7 +12,7 @@
 
 #include "boundary.h"
 #include "coding.h"
-#include "fast_coding.h"
+#include "records.h"
 #include "attributes.h"
 #include "properties.h"
 #include "psq/psq_codec.h"
@@ -129,7 +129,7 @@ struct PsqEncoder::Impl {
   Status close_chunk();
   Status after_record();
 
-  // The records (fast_encoder.cpp, spec section 13).
+  // The records (record_encoder.cpp, spec section 13).
   bool rans = false;  // the back-end (spec 13.2): rANS, else adaptive
   RansSymbols fast_symbols;              // the open chunk's symbols, in order
   RawWriter fast_raw;                    // and its raw bits

@@ -22,7 +22,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "fast_coding.h"
+#include "records.h"
 #include "range_coder.h"
 #include "rans.h"
 

@@ -51,7 +51,7 @@ psq::Status decode_events(const uint8_t* data, size_t size) {
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const psq::Status events = decode_events(data, size);
   // decode_mesh() decodes the common records of a fast stream in a loop of
-  // its own (codec/src/fast_decoder.cpp): it must fail exactly as the
+  // its own (codec/src/record_decoder.cpp): it must fail exactly as the
   // events path does, and leave no mesh behind.
   psq::MeshBuffers mesh;
   const psq::Status direct = psq::decode_mesh(data, size, &mesh);

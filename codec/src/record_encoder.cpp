@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// codec/src/fast_encoder.cpp: the encoder's records (spec section 13):
+// codec/src/record_encoder.cpp: the encoder's records (spec section 13):
 // symbols and raw bits, gathered for the open chunk and coded at its end
 // by the stream's entropy back-end (13.2): static rANS tables, or
 // adaptive bit-trees with the range coder.

@@ -1,9 +1,9 @@
 // SPDX-License-Identifier: Apache-2.0
-// codec/src/fast_coding.h: the symbols, contexts and tables of the record
+// codec/src/records.h: the symbols, contexts and tables of the record
 // grammar (spec section 13), shared by its encoder and decoder and by both
 // entropy back-ends (symbol_coder.h).
-#ifndef PSQ_CODEC_FAST_CODING_H_
-#define PSQ_CODEC_FAST_CODING_H_
+#ifndef PSQ_CODEC_RECORDS_H_
+#define PSQ_CODEC_RECORDS_H_
 
 #include <algorithm>
 #include <cstdint>
@@ -256,4 +256,4 @@ inline int fast_raw_bit_count(int k) { return k - static_cast<int>(k >= 2); }
 }  // namespace codec
 }  // namespace psq
 
-#endif  // PSQ_CODEC_FAST_CODING_H_
+#endif  // PSQ_CODEC_RECORDS_H_

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// codec/src/fast_decoder.cpp: the decoder's records (spec section 13).
+// codec/src/record_decoder.cpp: the decoder's records (spec section 13).
 // The boundary is a FastBoundary: every edge a triangle completes is named
 // by its record (the gate, the gate's neighbours, or a slot in an escape),
 // so the decoder keeps no lookups by endpoints (13.6.3). The record
