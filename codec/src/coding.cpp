@@ -11,7 +11,6 @@
 namespace psq {
 namespace codec {
 
-namespace {
 // Sets the nodes of `tree` from the weights of its leaves (spec 8.3).
 void init_tree(SymbolModel& tree, const std::vector<uint64_t>& leaf) {
   const int leaves = 1 << tree.bits();
@@ -28,7 +27,7 @@ void init_tree(SymbolModel& tree, const std::vector<uint64_t>& leaf) {
     node[i].n = 2;
   }
 }
-}  // namespace
+
 
 void init_length_prior(ResidualModel& m, int c) {
   const int mu = 3 * c / 4;

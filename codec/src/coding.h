@@ -13,6 +13,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <vector>
 
 #include "range_coder.h"
 
@@ -106,6 +107,10 @@ inline int triangle_extent(const int64_t* a, const int64_t* b, const int64_t* c,
 // starting there instead of at one half saves the models' learning, which
 // weighs most on a small mesh.
 void init_length_prior(ResidualModel& m, int c);
+// Sets the nodes of bit-tree `tree` to the distribution of its leaves'
+// weights `leaf` (one per leaf; each node's p0 the share of its
+// 0-subtree, clamped to 32..65504, its count n 2).
+void init_tree(SymbolModel& tree, const std::vector<uint64_t>& leaf);
 
 // The degree context of a gate record's B symbol: the triangles already
 // around the gate's endpoints p and q (spec 13.7.3).

@@ -247,6 +247,13 @@ inline int fast_length_symbol(int k, uint64_t mag) {
   return k + static_cast<int>(k >= 2) * (k - 2 + below);
 }
 
+// The bit length that length symbol `s` stands for (spec 13.8.3): 33 for
+// the escape.
+inline int length_of_symbol(int s) {
+  if (s < 2) return s;
+  return s < kFastLengthEscape ? (s + 2) >> 1 : 33;
+}
+
 // The raw bits of a residual of bit length k (spec 13.8.3): the sign and
 // the bits below the leading two, k - 1 for k >= 2, k for k < 2 (none for
 // a zero). A comparison as a number, not a ternary, which the compiler made

@@ -18,10 +18,13 @@
 #define PSQ_CODEC_SYMBOL_CODER_H_
 
 #include <cmath>
+#include <cstdlib>
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <vector>
 
+#include "coding.h"
 #include "records.h"
 #include "range_coder.h"
 #include "rans.h"
@@ -44,6 +47,16 @@ inline void reset_adaptive_models(std::vector<SymbolModel>* models) {
   models->clear();
   models->reserve(kAdaptiveTables);
   for (int t = 0; t < kAdaptiveTables; ++t) models->emplace_back(adaptive_table_bits(t));
+  // The residual length tables start from a prior: lengths near 3c/4 in
+  // length context c, as the extents make likely (spec 13.2.1).
+  std::vector<uint64_t> leaf(128, 0);
+  for (int t = kFastTableLength; t < kFastTableDistance; ++t) {
+    const int c = (t - kFastTableLength) % kLengthContexts;
+    const int mu = 3 * c / 4;
+    for (int s = 0; s <= kFastLengthEscape; ++s)
+      leaf[s] = uint64_t{1} << (24 - std::min(24, std::abs(length_of_symbol(s) - mu)));
+    init_tree((*models)[t], leaf);
+  }
 }
 
 class RansSymbolDecoder {
