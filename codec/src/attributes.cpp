@@ -574,26 +574,15 @@ void AttributeCoder::finish_fast(FastAttributeWriter& w, std::vector<uint8_t>* o
   const std::vector<uint8_t> table_bytes = tw.finish();
   std::vector<uint8_t> rans_bytes;
   rans_encode(w.symbols.data(), w.symbols.size(), tables.data(), tables.size(), &rans_bytes);
-  const std::vector<uint8_t> raw_bytes = w.raw.finish();
-  Put put(out);
-  put.varint(table_bytes.size());
-  put.varint(rans_bytes.size());
-  put.bytes(table_bytes.data(), table_bytes.size());
-  put.bytes(rans_bytes.data(), rans_bytes.size());
-  put.bytes(raw_bytes.data(), raw_bytes.size());
+  put_rans_section(table_bytes, rans_bytes, w.raw.finish(), out);
   w.symbols.clear();
   std::fill(w.counts.begin(), w.counts.end(), 0);
 }
 
 const char* AttributeCoder::open_fast(FastAttributeReader& rd, const uint8_t* data, size_t size) const {
-  uint64_t table_bytes = 0, rans_bytes = 0;
-  const int n1 = parse_varint(data, size, &table_bytes);
-  if (n1 <= 0) return "malformed table block length";
-  const int n2 = parse_varint(data + n1, size - static_cast<size_t>(n1), &rans_bytes);
-  if (n2 <= 0) return "malformed rANS block length";
-  const size_t at = static_cast<size_t>(n1 + n2);
-  if (table_bytes > size - at || rans_bytes > size - at - table_bytes) return "block lengths exceed the section";
-  RawReader tables(data + at, table_bytes);
+  RansSection sec;
+  if (const char* why = split_rans_section(data, size, &sec)) return why;
+  RawReader tables(sec.tables, sec.table_bytes);
   const int n = fast_tables();
   rd.tables.resize(static_cast<size_t>(n));
   std::vector<bool> present(static_cast<size_t>(n));
@@ -607,9 +596,8 @@ const char* AttributeCoder::open_fast(FastAttributeReader& rd, const uint8_t* da
     }
   }
   if (!tables.at_clean_end()) return "the table block does not end with its last table";
-  rd.rans = std::make_unique<RansDecoder>(data + at + table_bytes, rans_bytes);
-  const size_t raw_at = at + table_bytes + rans_bytes;
-  rd.raw = std::make_unique<RawReader>(data + raw_at, size - raw_at);
+  rd.rans = std::make_unique<RansDecoder>(sec.rans, sec.rans_bytes);
+  rd.raw = std::make_unique<RawReader>(sec.raw, sec.raw_bytes);
   return nullptr;
 }
 

@@ -2,6 +2,8 @@
 // codec/src/rans.cpp: see rans.h.
 #include "rans.h"
 
+#include "container.h"
+
 #include <algorithm>
 #include <cstring>
 #include <memory>
@@ -218,6 +220,34 @@ std::vector<uint8_t> RawWriter::finish() {
   acc_ = 0;
   n_ = 0;
   return out;
+}
+
+const char* split_rans_section(const uint8_t* data, size_t size, RansSection* out) {
+  uint64_t table_bytes = 0, rans_bytes = 0;
+  const int n1 = parse_varint(data, size, &table_bytes);
+  if (n1 <= 0) return "malformed table block length";
+  const int n2 = parse_varint(data + n1, size - static_cast<size_t>(n1), &rans_bytes);
+  if (n2 <= 0) return "malformed rANS block length";
+  const size_t at = static_cast<size_t>(n1 + n2);
+  if (table_bytes > size - at || rans_bytes > size - at - table_bytes) return "block lengths exceed the section";
+  out->tables_at = at;
+  out->tables = data + at;
+  out->table_bytes = static_cast<size_t>(table_bytes);
+  out->rans = out->tables + table_bytes;
+  out->rans_bytes = static_cast<size_t>(rans_bytes);
+  out->raw = out->rans + rans_bytes;
+  out->raw_bytes = size - at - out->table_bytes - out->rans_bytes;
+  return nullptr;
+}
+
+void put_rans_section(const std::vector<uint8_t>& tables, const std::vector<uint8_t>& rans,
+                      const std::vector<uint8_t>& raw, std::vector<uint8_t>* out) {
+  Put put(out);
+  put.varint(tables.size());
+  put.varint(rans.size());
+  put.bytes(tables.data(), tables.size());
+  put.bytes(rans.data(), rans.size());
+  put.bytes(raw.data(), raw.size());
 }
 
 }  // namespace codec

@@ -129,6 +129,25 @@ inline void rans_encode(const std::vector<RansSymbol>& symbols, const RansTable*
   rans_encode(symbols.data(), symbols.size(), tables, ntables, out);
 }
 
+// A section of three blocks (spec 13.2.2 for records, 8.3 for
+// attributes): the sizes of the table block and of the rANS block as
+// varints, then the table block, the rANS block and the raw block, which
+// takes the rest.
+struct RansSection {
+  const uint8_t* tables;
+  size_t table_bytes;
+  const uint8_t* rans;
+  size_t rans_bytes;
+  const uint8_t* raw;
+  size_t raw_bytes;
+  size_t tables_at;  // the table block's offset in the section
+};
+// Splits the `size` bytes at `data`; nullptr, or what is wrong with them.
+const char* split_rans_section(const uint8_t* data, size_t size, RansSection* out);
+// Appends a section of these blocks to `out`.
+void put_rans_section(const std::vector<uint8_t>& tables, const std::vector<uint8_t>& rans,
+                      const std::vector<uint8_t>& raw, std::vector<uint8_t>* out);
+
 // The encoder's reciprocal of a frequency f in 1..kRansScale:
 // ceil(2^42 / f), so that x / f = (x * rans_reciprocal(f)) >> 42 for every
 // 32-bit x (Granlund and Montgomery, "Division by invariant integers using

@@ -47,15 +47,10 @@ Status PsqDecoder::Impl::fast_open_chunk() {
     fraw_geometry_bits = 0;
     return Status();
   }
-  uint64_t table_bytes = 0, rans_bytes = 0;
-  const int n1 = parse_varint(cdata, csize, &table_bytes);
-  if (n1 <= 0) return bad("malformed table block length", 0);
-  const int n2 = parse_varint(cdata + n1, csize - static_cast<size_t>(n1), &rans_bytes);
-  if (n2 <= 0) return bad("malformed rANS block length", static_cast<uint64_t>(n1));
-  const size_t at = static_cast<size_t>(n1 + n2);
-  if (table_bytes > csize - at || rans_bytes > csize - at - table_bytes)
-    return bad("block lengths exceed the section", 0);
-  RawReader tables(cdata + at, table_bytes);
+  RansSection sec;
+  if (const char* why = split_rans_section(cdata, csize, &sec)) return bad(why, 0);
+  const size_t at = sec.tables_at;
+  RawReader tables(sec.tables, sec.table_bytes);
   bool present[kFastTables];
   for (int i = 0; i < kFastTables; ++i) present[i] = tables.get(1) != 0;
   for (int i = 0; i < kFastTables; ++i) {
@@ -81,10 +76,9 @@ Status PsqDecoder::Impl::fast_open_chunk() {
     }
   }
   if (!tables.at_clean_end()) return bad("the table block does not end with its last table", at);
-  frans = std::make_unique<RansSymbolDecoder>(cdata + at + table_bytes, rans_bytes, ftables.data());
-  const size_t raw_at = at + table_bytes + rans_bytes;
-  fraw = std::make_unique<RawReader>(cdata + raw_at, csize - raw_at);
-  fraw_total_bits = 8 * static_cast<uint64_t>(csize - raw_at);
+  frans = std::make_unique<RansSymbolDecoder>(sec.rans, sec.rans_bytes, ftables.data());
+  fraw = std::make_unique<RawReader>(sec.raw, sec.raw_bytes);
+  fraw_total_bits = 8 * static_cast<uint64_t>(sec.raw_bytes);
   fraw_geometry_bits = 0;
   return Status();
 }

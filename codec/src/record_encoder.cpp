@@ -668,13 +668,7 @@ void PsqEncoder::Impl::fast_section(std::vector<uint8_t>* section) {
   const std::vector<uint8_t> table_bytes = tw.finish();
   std::vector<uint8_t> rans_bytes;
   rans_encode(fast_symbols.data(), fast_symbols.size(), tables.data(), tables.size(), &rans_bytes);
-  const std::vector<uint8_t> raw_bytes = fast_raw.finish();
-  Put put(section);
-  put.varint(table_bytes.size());
-  put.varint(rans_bytes.size());
-  put.bytes(table_bytes.data(), table_bytes.size());
-  put.bytes(rans_bytes.data(), rans_bytes.size());
-  put.bytes(raw_bytes.data(), raw_bytes.size());
+  put_rans_section(table_bytes, rans_bytes, fast_raw.finish(), section);
   fast_symbols.clear();
   // (finish() started fast_raw over, keeping its array.)
 }
