@@ -186,10 +186,10 @@ Events round_trip(const Events& ev, const EncodeOptions& o, PsqStats* stats = nu
     f.fast = true;
     Events fast_back;
     Status fs = decode(encode(ev, f), &fast_back);
-    EXPECT_TRUE(fs.ok()) << "fast profile: " << fs.to_string();
+    EXPECT_TRUE(fs.ok()) << "rANS back-end: " << fs.to_string();
     SequenceChecker fast_checker;
     Status fc = replay(fast_back, fast_checker);
-    EXPECT_TRUE(fc.ok()) << "fast profile: " << fc.to_string();
+    EXPECT_TRUE(fc.ok()) << "rANS back-end: " << fc.to_string();
     expect_same(back, fast_back, 0);
   }
   return back;

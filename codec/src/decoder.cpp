@@ -129,7 +129,7 @@ Status PsqDecoder::Impl::next_chunk() {
   PSQ_RETURN_IF_ERROR(fast_open_chunk());
   if (!attrs->empty() && rans) {
     if (const char* why = attrs->open_fast(attr_fast, attr_bytes.data(), attr_bytes.size()))
-      return Status(ErrorCode::kBadValue, std::string("fast attribute section: ") + why, attr_offset);
+      return Status(ErrorCode::kBadValue, std::string("attribute section: ") + why, attr_offset);
   } else if (!attrs->empty()) {
     attr_rc = std::make_unique<RangeDecoder>(attr_bytes.data(), attr_bytes.size());
   }
