@@ -182,7 +182,7 @@ class BasicBoundary {
   // t.final. Returns false when an entering edge would exceed the limit.
   bool apply(BTriangle& t);
   // apply() for the two triangles whose kind the decoder's common records
-  // know (fast_common()), without a BTriangle (same slots, links and ages
+  // know (common_record()), without a BTriangle (same slots, links and ages
   // as apply()).
   // lean_add(): an add of new vertex slot x on `gate` (p->q);
   // p->x and x->q enter (in that order), the gate closes. Returns the slot

@@ -126,7 +126,7 @@ Status PsqDecoder::Impl::next_chunk() {
       return Status(ErrorCode::kBadValue, "property section does not match the chunk's vertices and triangles",
                     conn_offset + conn_size);
   }
-  PSQ_RETURN_IF_ERROR(fast_open_chunk());
+  PSQ_RETURN_IF_ERROR(open_records());
   if (!attrs->empty() && rans) {
     if (const char* why = attrs->open_fast(attr_fast, attr_bytes.data(), attr_bytes.size()))
       return Status(ErrorCode::kBadValue, std::string("attribute section: ") + why, attr_offset);
@@ -314,13 +314,13 @@ const PsqStats& PsqDecoder::stats() const { return impl_->stats; }
 Status PsqDecoder::Impl::advance() {
   qhead = qcount = 0;
   if (records_left == 0) return next_chunk();
-  PSQ_RETURN_IF_ERROR(rans ? decode_record_fast<RansSymbolDecoder>() : decode_record_fast<AdaptiveSymbolDecoder>());
+  PSQ_RETURN_IF_ERROR(rans ? decode_record<RansSymbolDecoder>() : decode_record<AdaptiveSymbolDecoder>());
   if (!attrs->empty()) PSQ_RETURN_IF_ERROR(decode_attributes());
   ++record_no;
   stats.max_active_vertices = std::max(stats.max_active_vertices, active_vertices());
   stats.max_open_edges = std::max(stats.max_open_edges, open_edges());
   if (--records_left == 0) {
-    PSQ_RETURN_IF_ERROR(fast_close_chunk());
+    PSQ_RETURN_IF_ERROR(close_records());
     if (!attrs->empty() && rans) {
       // Spec 13.8.4: both blocks end where the chunk's attributes do.
       if (attr_fast.rans->overran() || attr_fast.raw->overran())
@@ -377,7 +377,7 @@ Status PsqDecoder::Impl::decode_into(MeshBuffers* mesh) {
   // earlier chunks wrote and fault in new pages for it, a noticeable share
   // of the decoding time (bench/HISTORY.md, "The decoder's memory"). A
   // hostile stream's sums are capped at four per input byte, as
-  // fast_direct_records() caps a chunk's room; the capacity is address
+  // direct_records() caps a chunk's room; the capacity is address
   // space, which stays untouched until records write it (direct_room()).
   // Memory input only: a stream's later chunks are not at hand.
   if (in->size() >= 0 && static_cast<uint64_t>(in->size()) == in->offset() + in->buffered()) {
@@ -393,7 +393,7 @@ Status PsqDecoder::Impl::decode_into(MeshBuffers* mesh) {
   }
   while (!ended) {
     if (records_left > 0 && props->empty() && attrs->empty()) {
-      PSQ_RETURN_IF_ERROR(rans ? fast_direct_records<RansSymbolDecoder>() : fast_direct_records<AdaptiveSymbolDecoder>());
+      PSQ_RETURN_IF_ERROR(rans ? direct_records<RansSymbolDecoder>() : direct_records<AdaptiveSymbolDecoder>());
       continue;
     }
     qhead = qcount = 0;

@@ -155,12 +155,12 @@ struct PsqDecoder::Impl {
   // they are not one.
   const char* position_of(const int64_t pos[3], double x[3]) const;
   void emit_triangle(FastBoundary& b, const BTriangle& bt, Op op, uint32_t r, uint8_t cut);
-  // The triangle event of a common record (fast_common), and the
+  // The triangle event of a common record (common_record), and the
   // finalizations of the corners in final_mask, whose slots it frees.
   void push_triangle(Op op, const uint32_t corner[3], const uint32_t eslot[3], uint8_t new_mask, uint8_t final_mask,
                      uint8_t leaving, uint8_t entering);
 
-  // Direct output (decode_mesh): the common records (fast_common()) write
+  // Direct output (decode_mesh): the common records (common_record()) write
   // their vertex and triangle here instead of queueing events; the other
   // records' events are drained into it by decode_into().
   MeshBuffers* direct = nullptr;
@@ -186,7 +186,7 @@ struct PsqDecoder::Impl {
   uint32_t direct_mesh_index(uint32_t dense) const { return direct_identity ? dense : direct_index[dense]; }
   // Whether positions are quantized floats (direct_position() applies).
   bool direct_float = false;
-  // fast_direct_records()'s view of the arrays, kept in locals so that
+  // direct_records()'s view of the arrays, kept in locals so that
   // the compiler holds it in registers: the lengths in use, the data, and
   // how many more vertices and triangles fit before an array must grow
   // (a common record writes at most one of each). Its records take the
@@ -281,26 +281,26 @@ struct PsqDecoder::Impl {
   int fast_context = kFastAStartContext;
   int fast_choice = 0;
   // Reads the record section `conn` of a chunk (spec 13.2).
-  Status fast_open_chunk();
+  Status open_records();
   // At the chunk's end: every byte of the symbol block and the raw block
   // used, and with the rANS back-end both states back at 2^16 (spec 13.9).
-  Status fast_close_chunk();
+  Status close_records();
   // The next record; with `cls` >= 0 its class is decoded already, and
   // with `bsym` >= 0 also its gate and B symbol (a gate record).
   template <class D>
-  Status decode_record_fast(int cls = -1, uint32_t gate = kNone, int bsym = -1);
-  // kDirect: the record goes into the arrays at `out` (fast_direct_records).
+  Status decode_record(int cls = -1, uint32_t gate = kNone, int bsym = -1);
+  // kDirect: the record goes into the arrays at `out` (direct_records).
   template <bool kDirect, class D>
-  Status fast_common(D& d, RawReader& bits, int cls, int bsym, uint32_t gate, DirectCursor* out);
-  // fast_common()'s ends and joins (B symbols kFastBEnd and kFastBJoin).
+  Status common_record(D& d, RawReader& bits, int cls, int bsym, uint32_t gate, DirectCursor* out);
+  // common_record()'s ends and joins (B symbols kFastBEnd and kFastBJoin).
   template <bool kDirect, class D>
-  Status fast_end_or_join(D& d, RawReader& bits, int cls, int bsym, uint32_t gate, DirectCursor* out);
+  Status end_or_join_record(D& d, RawReader& bits, int cls, int bsym, uint32_t gate, DirectCursor* out);
   // decode_mesh's loop over the rest of a fast chunk's records, when the
   // stream has no properties: adds and fills write the arrays directly,
-  // other records go through decode_record_fast() and their events are
+  // other records go through decode_record() and their events are
   // drained into the arrays.
   template <class D>
-  Status fast_direct_records();
+  Status direct_records();
   // measure_it: add the symbol's and raw bits' cost to `cost` (measure on).
   template <class D>
   bool fast_residual(D& d, RawReader& raw, int table, int64_t* r, int* k, bool measure_it);
@@ -331,19 +331,19 @@ struct PsqDecoder::Impl {
   uint64_t fraw_total_bits = 0;   // the chunk's raw block
   // A new vertex's event: its index and, when it re-appears, the distance.
   // A new vertex fits the chunk's count and the 2^32 - 1 vertices (spec 13.10).
-  Status fast_vertex_room();
+  Status vertex_room();
   // "Coded data ends early" for the current record (truncated).
-  Status fast_early_end() const;
+  Status early_end() const;
   // The three residuals of a new vertex predicted at `pred` (spec 13.8.1):
   // its coded position in `pos`.
   template <class D>
   Status fast_position(D& d, RawReader& bits, const int64_t pred[3], int kind, const int extent[3],
                        int64_t pos[3], bool measure_it);
   template <class D>
-  Status fast_vertex_begin(bool reappears, SequenceEvent* ev);
+  Status vertex_begin(bool reappears, SequenceEvent* ev);
   // Then its residuals against `pred`, and its position.
   template <class D>
-  Status fast_vertex_position(const int64_t pred[3], int kind, const int extent[3], int64_t pos[3],
+  Status vertex_position(const int64_t pred[3], int kind, const int extent[3], int64_t pos[3],
                               SequenceEvent* ev);
   uint32_t active_vertices() const { return fboundary.active_vertices(); }
   uint32_t open_edges() const { return fboundary.open_edges(); }

@@ -121,7 +121,7 @@ Status PsqEncoder::Impl::begin(const MeshSchema& schema) {
   if (!hs.ok()) return Status(hs.code() == ErrorCode::kLimit ? ErrorCode::kLimit : ErrorCode::kBadValue,
                               "cannot encode this mesh: " + hs.message());
   stats.header_bytes = h.size();
-  fast_begin();
+  begin_records();
   chain_crc = crc32c_update(chain_crc, h.data() + h.size() - 4, 4);
   return emit(h);
 }
@@ -265,7 +265,7 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
     return bad_sequence("vertex " + std::to_string(pending.front().in_index) +
                         " was introduced but the next triangle does not use it");
   if (nnew == 2) return bad_sequence("a triangle introduces exactly two vertices");
-  return triangle_fast(t, pend, slots, nnew);
+  return code_triangle(t, pend, slots, nnew);
 }
 
 Status PsqEncoder::Impl::register_vertex(const PendingVertex& v, uint32_t* slot) {
@@ -332,7 +332,7 @@ Status PsqEncoder::Impl::isolated(size_t at) {
   PendingVertex v = std::move(pending[at]);
   pending.erase(pending.begin() + static_cast<std::ptrdiff_t>(at));
   PSQ_RETURN_IF_ERROR(introduce(v));
-  PSQ_RETURN_IF_ERROR(isolated_fast(v));
+  PSQ_RETURN_IF_ERROR(code_isolated(v));
   code_attributes(nullptr, nullptr, 0, 0);
   return after_record();
 }
@@ -391,7 +391,7 @@ Status PsqEncoder::Impl::after_record() {
 
 Status PsqEncoder::Impl::close_chunk() {
   if (chunk_records == 0) return Status();
-  fast_section(&records);
+  record_section(&records);
   std::vector<uint8_t> raw, packed;
   if (!props->empty()) {
     props->take(&raw);

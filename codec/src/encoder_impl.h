@@ -139,12 +139,12 @@ struct PsqEncoder::Impl {
   bool fast_choices = false;  // gate records code a prediction choice (fast_codes_choices())
   int fast_choice = 0;                    // the previous prediction choice
   // Running symbol counts, per table and symbol (the chunk's tables are
-  // built from their growth since the chunk began, fast_section()); with
+  // built from their growth since the chunk began, record_section()); with
   // choices, for pricing them (fast_cost()): per table, twice its total
   // plus its alphabet size (counts doubled, half a count for every symbol)
-  // and that number's log2 in 1/65536 bits, set up by fast_begin().
+  // and that number's log2 in 1/65536 bits, set up by begin_records().
   std::vector<uint32_t> fast_count = std::vector<uint32_t>(size_t{kAdaptiveTables} * 128, 0);
-  std::vector<uint32_t> fast_chunk_base;  // fast_count when the open chunk began (fast_section())
+  std::vector<uint32_t> fast_chunk_base;  // fast_count when the open chunk began (record_section())
   std::vector<uint64_t> fast_denominator;
   std::vector<int32_t> fast_log_denominator;
   // For the priced tables, the log2 of each symbol's doubled count plus
@@ -153,22 +153,22 @@ struct PsqEncoder::Impl {
   // (int32: a log2 below 64 in 1/65536 bits fits, and the tables take
   // half the cache.)
   std::vector<int32_t> fast_log_count;
-  void fast_begin();
-  Status triangle_fast(const SequenceTriangle& t, const int pend[3], const uint32_t slots[3], int nnew);
+  void begin_records();
+  Status code_triangle(const SequenceTriangle& t, const int pend[3], const uint32_t slots[3], int nnew);
   // Spec 13.7.1: the class of a gate record among the candidate gates
   // cand (per input corner k, as candidate_gates() gives them): R, its
   // next or prev, else the lowest recency rank (kFastGateFar, *rank set),
   // else kFastEscape. Sets *rot to the input corner of the chosen gate's
   // canonical corner 0 (the first candidate for an escape). *rank must be
   // -1 on entry.
-  int fast_gate_class(const uint32_t cand[3], int* rot, int* rank) const;
+  int gate_class(const uint32_t cand[3], int* rot, int* rank) const;
   // The direct path for the common triangle of an input
   // that gives boundary slots (the converter's and the decoders'): an add
   // or a fill on a gate of class 0 to 3, without borders, re-appearances
   // or face properties. It finds the gate and the completed neighbour
   // from the input's edge slots (checked against the boundary: an open
   // edge between two vertices in one direction is unique), codes the
-  // record as triangle_fast() would, with the same bytes, and applies it
+  // record as code_triangle() would, with the same bytes, and applies it
   // with lean_add() or lean_fill(). Returns false, having changed nothing,
   // for any other triangle or any check that fails: the general path then
   // codes it, or reports the error. Otherwise sets *status.
@@ -185,21 +185,21 @@ struct PsqEncoder::Impl {
   }
   PSQ_NOINLINE void note_input_edge_grow(uint32_t in, uint32_t slot);
   void note_input_edges(const SequenceTriangle& t, int rot, const uint32_t eslot[3], const EdgeState state[3]);
-  Status isolated_fast(PendingVertex& v);
+  Status code_isolated(PendingVertex& v);
   void fast_put(int table, int symbol);
   // Codes residual r with length table `table`; returns its bit length.
   int fast_residual(int table, int64_t r);
   void fast_vertex(const PendingVertex& v, const int64_t pred[3], int kind, const int extent[3]);
   int64_t fast_cost(int table, int symbol) const;  // in 1/65536 bits
-  int fast_choose_prediction(uint32_t gate, uint32_t mask, const int64_t pos[3], Prediction* pred);
+  int choose_prediction(uint32_t gate, uint32_t mask, const int64_t pos[3], Prediction* pred);
   // Codes the new vertex v of a triangle on `gate` (spec 13.8): the
   // prediction choice among the gate's neighbours, if the stream codes
   // choices (fast_choices), `choices` is set (not for an escape, 13.7.5)
   // and there are any; then its residuals.
-  void fast_gate_vertex(const PendingVertex& v, uint32_t gate, bool choices);
+  void gate_vertex(const PendingVertex& v, uint32_t gate, bool choices);
   // The record section of the open chunk in the stream's back-end (spec
   // 13.2).
-  void fast_section(std::vector<uint8_t>* section);
+  void record_section(std::vector<uint8_t>* section);
   Status finish();
 };
 

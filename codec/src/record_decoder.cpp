@@ -27,7 +27,7 @@ PSQ_INLINE uint64_t get_raw(RawReader& raw, int bits) {
 
 }  // namespace
 
-Status PsqDecoder::Impl::fast_open_chunk() {
+Status PsqDecoder::Impl::open_records() {
   auto bad = [&](const std::string& what, uint64_t at) {
     return Status(ErrorCode::kBadValue, "record section: " + what, conn_offset + at);
   };
@@ -83,7 +83,7 @@ Status PsqDecoder::Impl::fast_open_chunk() {
   return Status();
 }
 
-Status PsqDecoder::Impl::fast_close_chunk() {
+Status PsqDecoder::Impl::close_records() {
   const bool overran = rans ? frans->overran() : fadaptive->overran();
   if (overran || fraw->overran())
     return Status(ErrorCode::kTruncated, "coded records end early", conn_offset + csize);
@@ -144,7 +144,7 @@ PSQ_INLINE bool PsqDecoder::Impl::fast_residual(D& d, RawReader& rawbits, int ta
   if (measure_it) {
     measure_symbol(d, table, s);
     // A position's raw bits are geometry; the rest of the raw block is
-    // connectivity (fast_close_chunk).
+    // connectivity (close_records).
     if (table != kFastTableDistance && s <= kFastLengthEscape)
       fraw_geometry_bits += s < kFastLengthEscape ? kLengthCodes.c[s].raw_bits : 0;
     if (s == kFastLengthEscape && table != kFastTableDistance) measure_escape = true;
@@ -179,13 +179,13 @@ PSQ_INLINE bool PsqDecoder::Impl::residual_of_symbol(RawReader& rawbits, int s, 
   return true;
 }
 
-PSQ_INLINE Status PsqDecoder::Impl::fast_vertex_room() {
+PSQ_INLINE Status PsqDecoder::Impl::vertex_room() {
   if (seen_vertices >= chunk_vertices) return corrupt("more vertices than the chunk declares");
   if (next_out >= 0xffffffffull) return Status(ErrorCode::kLimit, "more than 4294967295 vertices", conn_offset);
   return Status();
 }
 
-Status PsqDecoder::Impl::fast_early_end() const {
+Status PsqDecoder::Impl::early_end() const {
   return Status(ErrorCode::kTruncated, "record " + std::to_string(record_no) + ": coded data ends early",
                 conn_offset + csize);
 }
@@ -242,8 +242,8 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_position(D& d, RawReader& bits, const i
 }
 
 template <class D>
-Status PsqDecoder::Impl::fast_vertex_begin(bool reappears, SequenceEvent* ev) {
-  PSQ_RETURN_IF_ERROR(fast_vertex_room());
+Status PsqDecoder::Impl::vertex_begin(bool reappears, SequenceEvent* ev) {
+  PSQ_RETURN_IF_ERROR(vertex_room());
   SequenceVertex& v = ev->vertex;
   ev->kind = SequenceEvent::Kind::kVertex;
   v.index = static_cast<uint32_t>(next_out);
@@ -260,7 +260,7 @@ Status PsqDecoder::Impl::fast_vertex_begin(bool reappears, SequenceEvent* ev) {
 }
 
 template <class D>
-PSQ_INLINE Status PsqDecoder::Impl::fast_vertex_position(const int64_t pred[3], int kind, const int extent[3], int64_t pos[3],
+PSQ_INLINE Status PsqDecoder::Impl::vertex_position(const int64_t pred[3], int kind, const int extent[3], int64_t pos[3],
                                               SequenceEvent* ev) {
   PSQ_RETURN_IF_ERROR(fast_position(coder<D>(), *fraw, pred, kind, extent, pos, measure));
   return finish_vertex(pos, ev->vertex);
@@ -268,13 +268,13 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_vertex_position(const int64_t pred[3], 
 
 // The common records: an add, a fill on the gate's neighbour or a join,
 // every new edge entering, or an end, no rotation (B symbols 0, 27, 30, 18
-// and 33: fast_common_b(); spec 13.7), after
-// their class and B symbol. The general path (decode_record_fast) would do
+// and 33: common_b(); spec 13.7), after
+// their class and B symbol. The general path (decode_record) would do
 // the same in more steps. kDirect: decode_mesh's loop, which writes the
 // arrays itself (a stream without properties); otherwise the record's
 // events are queued.
 template <bool kDirect, class D>
-PSQ_INLINE Status PsqDecoder::Impl::fast_common(D& d, RawReader& bits, int cls, int bsym, uint32_t gate,
+PSQ_INLINE Status PsqDecoder::Impl::common_record(D& d, RawReader& bits, int cls, int bsym, uint32_t gate,
                                                 DirectCursor* out) {
   FastBoundary& b = fboundary;
   const BEdge& g = b.edge(gate);
@@ -282,7 +282,7 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_common(D& d, RawReader& bits, int cls, 
   if (bsym == 0) {
     // An add: the new vertex x, then the triangle (q, p, x).
     fast_context = fast_a_context_gate(cls, kFastNew);
-    PSQ_RETURN_IF_ERROR(fast_vertex_room());
+    PSQ_RETURN_IF_ERROR(vertex_room());
     // Across the gate (spec 13.8.2), or by a decoded choice when the stream
     // codes choices (fast_codes_choices(): lossless or the adaptive
     // back-end; the same for the whole stream: a branch that is predicted).
@@ -327,7 +327,7 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_common(D& d, RawReader& bits, int cls, 
     const uint32_t at = kDirect ? static_cast<uint32_t>(out->verts) : 0;
     const uint32_t s = b.new_vertex(index, at, pos);
     if (s == kNone) return Status(ErrorCode::kLimit, "more active vertices than the header's boundary limit", conn_offset);
-    if (d.overran() || bits.overran()) return fast_early_end();
+    if (d.overran() || bits.overran()) return early_end();
     const uint32_t f1 = b.lean_add(gate, s);
     if (f1 == kNone) return Status(ErrorCode::kLimit, "more open edges than the header's boundary limit", conn_offset);
     const uint32_t f2 = b.edge(f1).next;
@@ -361,7 +361,7 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_common(D& d, RawReader& bits, int cls, 
     push_triangle(Op::kAdd, corner, eslot, 4, 0, 1, 6);
     return Status();
   }
-  if (bsym == kFastBEnd || bsym == kFastBJoin) return fast_end_or_join<kDirect, D>(d, bits, cls, bsym, gate, out);
+  if (bsym == kFastBEnd || bsym == kFastBJoin) return end_or_join_record<kDirect, D>(d, bits, cls, bsym, gate, out);
   // A fill: "left" (x starts the edge before the gate; edge 1 completes
   // it, edge 2 enters) or "right" (x ends the edge after it).
   const bool left = bsym == 27;
@@ -373,7 +373,7 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_common(D& d, RawReader& bits, int cls, 
   const uint32_t from = left ? x : p, to = left ? q : x;  // the entering edge
   if (fneighbors.contains(from, to))
     return corrupt("an entering edge is open already, completes an edge the record does not name, or is dead");
-  if (d.overran() || bits.overran()) return fast_early_end();
+  if (d.overran() || bits.overran()) return early_end();
   uint32_t final;
   const uint32_t f = b.lean_fill(gate, left, &final);
   if (f == kNone) return Status(ErrorCode::kLimit, "more open edges than the header's boundary limit", conn_offset);
@@ -405,14 +405,14 @@ PSQ_INLINE Status PsqDecoder::Impl::fast_common(D& d, RawReader& bits, int cls, 
 
 // An end (B symbol 33: the gate's neighbours meet at x, and all three
 // edges complete) or a join whose two new edges enter (B symbol 18: x from
-// an open edge named by slot in the raw bits), as decode_record_fast()
+// an open edge named by slot in the raw bits), as decode_record()
 // decodes them, with the same checks in the same order, and written
 // straight to the arrays (kDirect) or as events. Joins and ends are rare,
 // but through the general path and its events they would cost decoding
 // into arrays far more than their share (bench/HISTORY.md, "The decoder's
 // memory").
 template <bool kDirect, class D>
-__attribute__((noinline)) Status PsqDecoder::Impl::fast_end_or_join(D& d, RawReader& bits, int cls, int bsym, uint32_t gate,
+__attribute__((noinline)) Status PsqDecoder::Impl::end_or_join_record(D& d, RawReader& bits, int cls, int bsym, uint32_t gate,
                                           DirectCursor* out) {
   FastBoundary& b = fboundary;
   const BEdge& g = b.edge(gate);
@@ -452,7 +452,7 @@ __attribute__((noinline)) Status PsqDecoder::Impl::fast_end_or_join(D& d, RawRea
     for (int k = 1; k < 3; ++k)
       if (fneighbors.contains(bt.c[k], bt.c[k == 2 ? 0 : k + 1]))
         return corrupt("an entering edge is open already, completes an edge the record does not name, or is dead");
-  if (d.overran() || bits.overran()) return fast_early_end();
+  if (d.overran() || bits.overran()) return early_end();
   if (!b.apply(bt)) return Status(ErrorCode::kLimit, "more open edges than the header's boundary limit", conn_offset);
   if (op == Op::kJoin)
     for (int k = 1; k < 3; ++k) {
@@ -509,7 +509,7 @@ void PsqDecoder::Impl::push_triangle(Op op, const uint32_t corner[3], const uint
 }
 
 template <class D>
-Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
+Status PsqDecoder::Impl::decode_record(int cls, uint32_t gate, int bsym) {
   D& d = coder<D>();
   RawReader& bits = *fraw;
   FastBoundary& b = fboundary;
@@ -524,8 +524,8 @@ Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
     int64_t pos[3];
     const int64_t pred[3] = {last_pos[0], last_pos[1], last_pos[2]};
     const int no_extent[3] = {0, 0, 0};
-    PSQ_RETURN_IF_ERROR(fast_vertex_begin<D>(reappears, &ev));
-    PSQ_RETURN_IF_ERROR(fast_vertex_position<D>(pred, kPredOther, no_extent, pos, &ev));
+    PSQ_RETURN_IF_ERROR(vertex_begin<D>(reappears, &ev));
+    PSQ_RETURN_IF_ERROR(vertex_position<D>(pred, kPredOther, no_extent, pos, &ev));
     SequenceEvent& fin = push();
     fin.kind = SequenceEvent::Kind::kFinalize;
     fin.finalized = ev.vertex.index;
@@ -551,7 +551,7 @@ Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
     bsym = fast_symbol(d, fast_b_table(third_context(b.vertex(g.org).degree, b.vertex(g.dst).degree),
                                        D::kAdaptive ? shape_context(b, gate) : 0));
     if (bsym >= kFastBSymbols) return corrupt("third-vertex symbol " + std::to_string(bsym));
-    if (!header.rotation && fast_common_b(bsym)) return fast_common<false>(d, *fraw, cls, bsym, gate, nullptr);
+    if (!header.rotation && common_b(bsym)) return common_record<false>(d, *fraw, cls, bsym, gate, nullptr);
   }
   BTriangle bt;
   uint32_t intro[3];
@@ -684,7 +684,7 @@ Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
     const int k = static_cast<int>(intro[i]);
     SequenceEvent& ev = push();
     // The distance, the choice, the residuals: the encoder's order.
-    PSQ_RETURN_IF_ERROR(fast_vertex_begin<D>((reappear_mask >> i) & 1, &ev));
+    PSQ_RETURN_IF_ERROR(vertex_begin<D>((reappear_mask >> i) & 1, &ev));
     int choice = kChoiceGate;
     Prediction pr;
     int64_t pos[3];
@@ -701,7 +701,7 @@ Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
     } else {
       pr = predict_new_vertex(b, kNone, i, last_pos, first, second);
     }
-    PSQ_RETURN_IF_ERROR(fast_vertex_position<D>(pr.pos, pr.kind, pr.extent, pos, &ev));
+    PSQ_RETURN_IF_ERROR(vertex_position<D>(pr.pos, pr.kind, pr.extent, pos, &ev));
     for (int a = 0; a < 3; ++a) (i == 0 ? first : second)[a] = pos[a];
     const uint32_t s = b.new_vertex(ev.vertex.index, 0, pos);
     if (s == kNone) return Status(ErrorCode::kLimit, "more active vertices than the header's boundary limit", conn_offset);
@@ -735,7 +735,7 @@ Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
                 : completed == 1 ? (nnew == 1 ? Op::kAdd : Op::kJoin)
                 : completed == 2 ? Op::kFill
                                  : Op::kEnd;
-  if (d.overran() || bits.overran()) return fast_early_end();
+  if (d.overran() || bits.overran()) return early_end();
   if (!b.apply(bt)) return Status(ErrorCode::kLimit, "more open edges than the header's boundary limit", conn_offset);
   for (int k = 0; k < 3; ++k) {
     if (bt.state[k] == EdgeState::kEnters) ring.push(b, bt.eslot[k]);
@@ -750,7 +750,7 @@ Status PsqDecoder::Impl::decode_record_fast(int cls, uint32_t gate, int bsym) {
 namespace psq {
 
 template <class D>
-Status PsqDecoder::Impl::fast_direct_records() {
+Status PsqDecoder::Impl::direct_records() {
   FastBoundary& b = fboundary;
   // The coders' states live in locals for the loop, so that the compiler
   // can keep them in registers: as members they would be reloaded after
@@ -784,7 +784,7 @@ Status PsqDecoder::Impl::fast_direct_records() {
     int done = 0;  // 1: an add decoded below, 2: a fill
     if (((cls <= kFastGatePrev && R != kNone) || cls == kFastGateFar) && seen_triangles < chunk_triangles) {
       // The gate (spec 13.7.1): an offset from R, or a far gate's rank
-      // among the ring's open edges (13.7.4), as decode_record_fast()
+      // among the ring's open edges (13.7.4), as decode_record()
       // finds it. Repeated, not shared: one inline helper for both costs
       // this loop more instructions.
       uint32_t gate;
@@ -805,15 +805,15 @@ Status PsqDecoder::Impl::fast_direct_records() {
       const int bsym = d.decode(fast_b_table(third_context(b.vertex(p).degree, b.vertex(q).degree),
                                              D::kAdaptive ? shape_context(b, gate) : 0));
       if (bsym >= kFastBSymbols) return corrupt("third-vertex symbol " + std::to_string(bsym));
-      if (!rotation && fast_common_b(bsym)) {
-        PSQ_RETURN_IF_ERROR(fast_common<true>(d, bits, cls, bsym, gate, &out));
+      if (!rotation && common_b(bsym)) {
+        PSQ_RETURN_IF_ERROR(common_record<true>(d, bits, cls, bsym, gate, &out));
         // A join adds open edges; a fill or an end does not, nor vertices.
         done = bsym == 0 || bsym == kFastBJoin ? 1 : 2;
       } else {
         qhead = qcount = 0;
         coder<D>() = d;
         *fraw = bits;
-        PSQ_RETURN_IF_ERROR(decode_record_fast<D>(cls, gate, bsym));
+        PSQ_RETURN_IF_ERROR(decode_record<D>(cls, gate, bsym));
         d = coder<D>();
         bits = *fraw;
       }
@@ -821,7 +821,7 @@ Status PsqDecoder::Impl::fast_direct_records() {
       qhead = qcount = 0;
       coder<D>() = d;
       *fraw = bits;
-      PSQ_RETURN_IF_ERROR(decode_record_fast<D>(cls));
+      PSQ_RETURN_IF_ERROR(decode_record<D>(cls));
       d = coder<D>();
       bits = *fraw;
     }
@@ -850,7 +850,7 @@ Status PsqDecoder::Impl::fast_direct_records() {
       coder<D>() = d;
       *fraw = bits;
       direct_sync(out);
-      PSQ_RETURN_IF_ERROR(fast_close_chunk());
+      PSQ_RETURN_IF_ERROR(close_records());
       if (seen_vertices != chunk_vertices || seen_triangles != chunk_triangles)
         return Status(ErrorCode::kBadHeader, "chunk declares other vertex or triangle counts than it holds", chunk_offset);
     }
@@ -858,9 +858,9 @@ Status PsqDecoder::Impl::fast_direct_records() {
   return Status();
 }
 
-template Status PsqDecoder::Impl::decode_record_fast<RansSymbolDecoder>(int, uint32_t, int);
-template Status PsqDecoder::Impl::decode_record_fast<AdaptiveSymbolDecoder>(int, uint32_t, int);
-template Status PsqDecoder::Impl::fast_direct_records<RansSymbolDecoder>();
-template Status PsqDecoder::Impl::fast_direct_records<AdaptiveSymbolDecoder>();
+template Status PsqDecoder::Impl::decode_record<RansSymbolDecoder>(int, uint32_t, int);
+template Status PsqDecoder::Impl::decode_record<AdaptiveSymbolDecoder>(int, uint32_t, int);
+template Status PsqDecoder::Impl::direct_records<RansSymbolDecoder>();
+template Status PsqDecoder::Impl::direct_records<AdaptiveSymbolDecoder>();
 
 }  // namespace psq

@@ -105,7 +105,7 @@ int64_t fixed_log2(uint64_t x) {  // x >= 1
 
 }  // namespace
 
-void PsqEncoder::Impl::fast_begin() {
+void PsqEncoder::Impl::begin_records() {
   fast_choices = fast_codes_choices(header.lossless, rans);
   fast_denominator.resize(kAdaptiveTables);
   fast_log_denominator.resize(kAdaptiveTables);
@@ -154,7 +154,7 @@ PSQ_INLINE int64_t PsqEncoder::Impl::fast_cost(int table, int symbol) const {
 // more bits than the gate's. The counts price a symbol in either back-end:
 // the adaptive models follow the same statistics. Ties go to the lower
 // choice.
-int PsqEncoder::Impl::fast_choose_prediction(uint32_t gate, uint32_t mask, const int64_t pos[3], Prediction* pred) {
+int PsqEncoder::Impl::choose_prediction(uint32_t gate, uint32_t mask, const int64_t pos[3], Prediction* pred) {
   // The five choices combine three parallelograms and the extents of
   // three triangles as predict_new_vertex() does (spec 7.3): each is
   // computed once here instead of once per choice. The rule is repeated,
@@ -230,7 +230,7 @@ int PsqEncoder::Impl::fast_choose_prediction(uint32_t gate, uint32_t mask, const
   return best;
 }
 
-PSQ_INLINE int PsqEncoder::Impl::fast_gate_class(const uint32_t cand[3], int* rot, int* rank) const {
+PSQ_INLINE int PsqEncoder::Impl::gate_class(const uint32_t cand[3], int* rot, int* rank) const {
   // Spec 13.7.1: R, R's next, R's prev, else a recency rank (13.7.4),
   // else the escape (13.7.5) with the first candidate.
   const uint32_t R = boundary.reference();
@@ -274,7 +274,7 @@ void PsqEncoder::Impl::note_input_edges(const SequenceTriangle& t, int rot, cons
     if (state[k] == EdgeState::kEnters) note_input_edge(t.eslot[(rot + k) % 3], eslot[k]);
 }
 
-void PsqEncoder::Impl::fast_gate_vertex(const PendingVertex& v, uint32_t gate, bool choices) {
+void PsqEncoder::Impl::gate_vertex(const PendingVertex& v, uint32_t gate, bool choices) {
   Prediction pr;
   // With the rANS back-end, a quantized stream predicts across the gate
   // (spec 13.8.2): the choices save few bytes on large meshes, but take a
@@ -284,7 +284,7 @@ void PsqEncoder::Impl::fast_gate_vertex(const PendingVertex& v, uint32_t gate, b
   // (fast_codes_choices()).
   const uint32_t mask = choices && fast_choices ? prediction_choices(boundary, gate) : 0;
   if (mask != 0) {
-    const int choice = fast_choose_prediction(gate, mask, v.pos, &pr);
+    const int choice = choose_prediction(gate, mask, v.pos, &pr);
     fast_put(fast_choice_table(mask, fast_choice), choice);
     fast_choice = choice;
     ++stats.predictions[choice];
@@ -295,7 +295,7 @@ void PsqEncoder::Impl::fast_gate_vertex(const PendingVertex& v, uint32_t gate, b
   fast_vertex(v, pr.pos, pr.kind, pr.extent);
 }
 
-Status PsqEncoder::Impl::triangle_fast(const SequenceTriangle& t, const int pend[3], const uint32_t slots_in[3],
+Status PsqEncoder::Impl::code_triangle(const SequenceTriangle& t, const int pend[3], const uint32_t slots_in[3],
                                        int nnew) {
   uint32_t slots[3] = {slots_in[0], slots_in[1], slots_in[2]};
   int rot = 0;  // canonical corner k is input corner (rot + k) % 3
@@ -307,7 +307,7 @@ Status PsqEncoder::Impl::triangle_fast(const SequenceTriangle& t, const int pend
   } else {
     uint32_t cand[3];
     PSQ_RETURN_IF_ERROR(candidate_gates(t, pend, slots, nnew, cand));
-    cls = fast_gate_class(cand, &rot, &rank);
+    cls = gate_class(cand, &rot, &rank);
     gate = cand[rot];
   }
   BTriangle bt;
@@ -417,7 +417,7 @@ Status PsqEncoder::Impl::triangle_fast(const SequenceTriangle& t, const int pend
       (void)fast_residual(kFastTableDistance,
                           static_cast<int64_t>(out_index_of(v.in_index) - out_index_of(v.reappears)) - 1);
     if (nnew == 1) {
-      fast_gate_vertex(v, gate, cls != kFastEscape);
+      gate_vertex(v, gate, cls != kFastEscape);
     } else {
       const int64_t* first = i >= 1 ? pending[cp[intro[0]]].pos : nullptr;
       const int64_t* second = i >= 2 ? pending[cp[intro[1]]].pos : nullptr;
@@ -486,7 +486,7 @@ bool PsqEncoder::Impl::fast_direct(const SequenceTriangle& t, Status* status) {
     if (!boundary.edge_is_new(a, b)) return false;
   }
   int rot = 0, rank = -1;
-  const int cls = fast_gate_class(cand, &rot, &rank);
+  const int cls = gate_class(cand, &rot, &rank);
   if (cls == kFastEscape) return false;
   const uint32_t gate = cand[rot];
   const BEdge& g = boundary.edge(gate);
@@ -501,7 +501,7 @@ bool PsqEncoder::Impl::fast_direct(const SequenceTriangle& t, Status* status) {
     else return false;  // named by an escape (13.7.5)
   }
 
-  // The record (spec 13.7.3), as triangle_fast() codes it.
+  // The record (spec 13.7.3), as code_triangle() codes it.
   fast_put(kFastTableA + fast_context, cls);
   if (cls == kFastGateFar) fast_put(kFastTableRank + (boundary.reference() == kNone ? 1 : 0), rank);
   fast_put(fast_b_table(third_context(boundary.vertex(p).degree, boundary.vertex(q).degree),
@@ -514,11 +514,11 @@ bool PsqEncoder::Impl::fast_direct(const SequenceTriangle& t, Status* status) {
     Status s = introduce(v);
     if (!s.ok()) return *status = std::move(s), true;
     v.coded = true;
-    fast_gate_vertex(v, gate, true);
+    gate_vertex(v, gate, true);
     uint32_t x;
     Status r = register_vertex(v, &x);
     if (!r.ok()) return *status = std::move(r), true;
-    ++stats.gates[gate_stat];  // where triangle_fast() counts it
+    ++stats.gates[gate_stat];  // where code_triangle() counts it
     const uint32_t f1 = boundary.lean_add(gate, x);
     if (f1 == kNone) {
       *status = Status(ErrorCode::kLimit, "more than " + std::to_string(opt.boundary_limit) +
@@ -573,7 +573,7 @@ bool PsqEncoder::Impl::fast_direct(const SequenceTriangle& t, Status* status) {
   return true;
 }
 
-Status PsqEncoder::Impl::isolated_fast(PendingVertex& v) {
+Status PsqEncoder::Impl::code_isolated(PendingVertex& v) {
   fast_put(kFastTableA + fast_context, kFastIsolated);
   fast_context = kFastAContexts - 2;
   // An isolated vertex re-appears only in sequences not written by psq's
@@ -588,7 +588,7 @@ Status PsqEncoder::Impl::isolated_fast(PendingVertex& v) {
   return Status();
 }
 
-void PsqEncoder::Impl::fast_section(std::vector<uint8_t>* section) {
+void PsqEncoder::Impl::record_section(std::vector<uint8_t>* section) {
   // Spec 13.2: the chunk's symbols in the stream's back-end (the range
   // coder's bytes; or the tables of this chunk's symbols and the rANS
   // block), then the raw bits.

@@ -56,9 +56,9 @@ inline int fast_b_symbol(int third, int e1, int e2) {
 }
 constexpr int kFastBJoin = 18;  // a join whose edges 1 and 2 enter
 constexpr int kFastBEnd = 33;
-// The B symbols of the records that fast_common() decodes: an add or a
+// The B symbols of the records that common_record() decodes: an add or a
 // join whose new edges enter, a fill whose new edge enters, an end.
-inline bool fast_common_b(int b) {
+inline bool common_b(int b) {
   constexpr uint64_t kCommon = 1ull << 0 | 1ull << kFastBJoin | 1ull << 27 | 1ull << 30 | 1ull << kFastBEnd;
   return (kCommon >> (b & 63)) & 1;  // b < kFastBSymbols (34)
 }
