@@ -483,6 +483,23 @@ void AttributeCoder::encode(Encoder& enc, const AttributeRecord& r, const int32_
   });
 }
 
+const char* AttributeCoder::component_value(const Component& c, int64_t pred, int64_t res, int32_t* out) {
+  int64_t value;
+  if (c.mod != 0) {
+    const int64_t lo = -(c.mod / 2);
+    if (res < lo || res > lo + c.mod - 1) return "attribute residual beyond its modulus";
+    value = pred + res;
+    if (value < 0) value += c.mod;
+    if (value >= c.mod) value -= c.mod;
+  } else {
+    if (res < -(int64_t{1} << 40) || res > (int64_t{1} << 40)) return "texture coordinate outside its grid";
+    value = pred + res;
+    if (value < c.lo || value > c.hi) return "texture coordinate outside its grid";
+  }
+  *out = static_cast<int32_t>(value);
+  return nullptr;
+}
+
 const char* AttributeCoder::decode(BasicDecoder<false>& dec, const AttributeRecord& r, int32_t* q) {
   const char* why = nullptr;
   walk(r, q, [&](int kind, const int64_t* pred, const int* extent, int32_t* x) {
@@ -495,19 +512,7 @@ const char* AttributeCoder::decode(BasicDecoder<false>& dec, const AttributeReco
       int length;
       if (!dec.residual(model(kind, d, ctx), &res, &length, kCostGeometry)) return why = "attribute residual longer than 64 bits", false;
       longest = std::max(longest, length);
-      int64_t value;
-      if (c.mod != 0) {
-        const int64_t lo = -(c.mod / 2);
-        if (res < lo || res > lo + c.mod - 1) return why = "attribute residual beyond its modulus", false;
-        value = pred[d] + res;
-        if (value < 0) value += c.mod;
-        if (value >= c.mod) value -= c.mod;
-      } else {
-        if (res < -(int64_t{1} << 40) || res > (int64_t{1} << 40)) return why = "texture coordinate outside its grid", false;
-        value = pred[d] + res;
-        if (value < c.lo || value > c.hi) return why = "texture coordinate outside its grid", false;
-      }
-      x[d] = static_cast<int32_t>(value);
+      if ((why = component_value(c, pred[d], res, &x[d]))) return false;
     }
     return true;
   });
@@ -632,19 +637,7 @@ const char* AttributeCoder::decode_fast(FastAttributeReader& rd, const Attribute
       if (!negative && mag >= (uint64_t{1} << 63)) return why = "attribute residual longer than 64 bits", false;
       int64_t res = negative ? static_cast<int64_t>(0 - mag) : static_cast<int64_t>(mag);
       longest = std::max(longest, len);
-      int64_t value;
-      if (c.mod != 0) {
-        const int64_t lo = -(c.mod / 2);
-        if (res < lo || res > lo + c.mod - 1) return why = "attribute residual beyond its modulus", false;
-        value = pred[d] + res;
-        if (value < 0) value += c.mod;
-        if (value >= c.mod) value -= c.mod;
-      } else {
-        if (res < -(int64_t{1} << 40) || res > (int64_t{1} << 40)) return why = "texture coordinate outside its grid", false;
-        value = pred[d] + res;
-        if (value < c.lo || value > c.hi) return why = "texture coordinate outside its grid", false;
-      }
-      x[d] = static_cast<int32_t>(value);
+      if ((why = component_value(c, pred[d], res, &x[d]))) return false;
     }
     return true;
   });

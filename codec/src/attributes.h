@@ -110,6 +110,10 @@ class AttributeCoder {
   };
   template <class Code>
   bool walk(const AttributeRecord& r, int32_t* q, Code&& code);
+  // Component `c`'s value from its prediction and decoded residual (spec
+  // 8.3): modulo its range for a wrapping component, within its grid for a
+  // texture coordinate; nullptr, or why the residual cannot be one.
+  static const char* component_value(const Component& c, int64_t pred, int64_t res, int32_t* out);
   void predict_normal(int d, const int32_t* a, const int32_t* b, const int32_t* o, int64_t* pred) const;
   void predict_texcoord(const AttributeRecord& r, int j, int d, const int32_t* a, const int32_t* b, const int32_t* o,
                         int64_t* pred) const;
