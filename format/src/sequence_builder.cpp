@@ -21,9 +21,10 @@
 namespace psq {
 namespace {
 
+using detail::get_record;
 using detail::get_values;
 using detail::get_values_at;
-using detail::put_values;
+using detail::put_record;
 
 // A float made into an unsigned integer that sorts like the float.
 uint32_t sortable(float f) {
@@ -113,12 +114,10 @@ Status spool_input(MeshSource& source, const BuildOptions& options, Spooled* s,
         s->hi[k] = std::max(s->hi[k], item.position[k]);
       }
       if (sampler) sampler->add(item.position);
-      PSQ_RETURN_IF_ERROR(s->vertices->write(item.position, 24));
-      PSQ_RETURN_IF_ERROR(put_values(*s->vertices, item.values));
+      PSQ_RETURN_IF_ERROR(put_record(*s->vertices, item.position, 24, item.values));
       ++s->nv;
     } else {
-      PSQ_RETURN_IF_ERROR(s->triangles->write(item.index, 12));
-      PSQ_RETURN_IF_ERROR(put_values(*s->triangles, item.values));
+      PSQ_RETURN_IF_ERROR(put_record(*s->triangles, item.index, 12, item.values));
       note_triangle(s, item.index);
     }
   }
@@ -160,8 +159,7 @@ Status feed_coherent(Spooled& s, SequenceConverter& conv) {
   PropertyValues values, vertex_values;  // apart: feeding vertices must not clobber a triangle's
   auto feed_until = [&](uint64_t end) -> Status {
     while (fed < end) {
-      PSQ_RETURN_IF_ERROR(vin.read_exact(pos, 24));
-      PSQ_RETURN_IF_ERROR(get_values(vin, &vertex_values));
+      PSQ_RETURN_IF_ERROR(get_record(vin, pos, 24, &vertex_values));
       PSQ_RETURN_IF_ERROR(conv.vertex(static_cast<uint32_t>(fed), pos, vertex_values));
       ++fed;
     }
@@ -174,8 +172,7 @@ Status feed_coherent(Spooled& s, SequenceConverter& conv) {
   };
   for (uint64_t t = 0; t < s.nt; ++t) {
     uint32_t idx[3];
-    PSQ_RETURN_IF_ERROR(tin.read_exact(idx, 12));
-    PSQ_RETURN_IF_ERROR(get_values(tin, &values));
+    PSQ_RETURN_IF_ERROR(get_record(tin, idx, 12, &values));
     PSQ_RETURN_IF_ERROR(feed_until(uint64_t{std::max({idx[0], idx[1], idx[2]})} + 1));
     PSQ_RETURN_IF_ERROR(conv.triangle(idx, values));
     if ((t + 1) % kBlock == 0 || t + 1 == s.nt) PSQ_RETURN_IF_ERROR(finalize_below(s.later_min[t / kBlock]));
@@ -204,8 +201,7 @@ Status feed_sorted(Spooled& s, const BuildOptions& options, const Shares& shares
     PropertyValues values;
     uint64_t offset = 0;
     for (uint64_t i = 0; i < s.nv; ++i) {
-      PSQ_RETURN_IF_ERROR(vin.read_exact(vk.pos, 24));
-      PSQ_RETURN_IF_ERROR(get_values(vin, &values));
+      PSQ_RETURN_IF_ERROR(get_record(vin, vk.pos, 24, &values));
       vk.key = sortable(static_cast<float>(vk.pos[axis]));
       vk.index = static_cast<uint32_t>(i);
       vk.offset = offset;
@@ -241,8 +237,7 @@ Status feed_sorted(Spooled& s, const BuildOptions& options, const Shares& shares
     PropertyValues values;
     uint64_t offset = 0;
     for (uint64_t t = 0; t < s.nt; ++t) {
-      PSQ_RETURN_IF_ERROR(tin.read_exact(tk.idx, 12));
-      PSQ_RETURN_IF_ERROR(get_values(tin, &values));
+      PSQ_RETURN_IF_ERROR(get_record(tin, tk.idx, 12, &values));
       tk.rank = std::min({rank[tk.idx[0]], rank[tk.idx[1]], rank[tk.idx[2]]});
       tk.offset = offset;
       PSQ_RETURN_IF_ERROR(tsort.add(tk));
@@ -358,6 +353,7 @@ Status build_sequence(MeshSource& source, SequenceSink& sink, const BuildOptions
   }
   const Shares shares = builder_shares(options.memory_budget);
   conv.set_lookahead_budget(shares.lookahead);
+  conv.reserve(s.nv, s.nt);
   PSQ_RETURN_IF_ERROR(conv.begin(schema));
   // Coherent enough when the vertices the window keeps waiting fit the
   // converter's share (a waiting vertex and its triangles take about 400

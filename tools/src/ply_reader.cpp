@@ -550,7 +550,11 @@ bool PlyReader::Impl::emit_triangle(MeshItem* out) {
     out->index[0] = a;
     out->index[1] = b;
     out->index[2] = c;
-    out->values = face_values;
+    if (face_values.empty()) {
+      out->values.clear();
+    } else {
+      out->values = face_values;
+    }
     return true;
   }
 }
@@ -590,15 +594,21 @@ Status PlyReader::Impl::read_element_binary(const PlyElement& e, MeshItem* out, 
                   "data ends inside " + e.name + " " + std::to_string(item) + " of " + std::to_string(e.count),
                   in->offset());
   };
+  // Makes the next n bytes readable at the cursor. Called only when fewer
+  // are buffered: most values are, and the check inline costs less than
+  // the call.
+  auto fill = [&](size_t n) {
+    size_t avail;
+    PSQ_RETURN_IF_ERROR(in->fill(n, &avail));
+    return avail < n ? truncated() : Status();
+  };
   PropertyValues& values = e.kind == ElementKind::kVertex ? out->values : face_values;
   values.clear();
   raw_indices.clear();
   for (const PlyProperty& p : e.props) {
-    size_t avail;
     if (!p.prop.is_list) {
       int sz = scalar_size(p.prop.type);
-      PSQ_RETURN_IF_ERROR(in->fill(sz, &avail));
-      if (avail < static_cast<size_t>(sz)) return truncated();
+      if (in->buffered() < static_cast<size_t>(sz)) PSQ_RETURN_IF_ERROR(fill(sz));
       double v = decode(p.prop.type, in->cursor(), swap);
       in->advance(sz);
       switch (p.role) {
@@ -611,8 +621,7 @@ Status PlyReader::Impl::read_element_binary(const PlyElement& e, MeshItem* out, 
       continue;
     }
     int csz = scalar_size(p.prop.count_type);
-    PSQ_RETURN_IF_ERROR(in->fill(csz, &avail));
-    if (avail < static_cast<size_t>(csz)) return truncated();
+    if (in->buffered() < static_cast<size_t>(csz)) PSQ_RETURN_IF_ERROR(fill(csz));
     double count = decode(p.prop.count_type, in->cursor(), swap);
     uint64_t count_offset = in->offset();
     in->advance(csz);
@@ -627,9 +636,19 @@ Status PlyReader::Impl::read_element_binary(const PlyElement& e, MeshItem* out, 
     uint64_t n = static_cast<uint64_t>(count);
     int sz = scalar_size(p.prop.type);
     if (p.role == Role::kKeep) values.push_back(count);
+    if (p.role == Role::kIndices && in->buffered() / sz >= n) {
+      // A face's indices, all buffered (so that n is bounded by the data,
+      // not only by the count): decoded in one go.
+      const size_t base = raw_indices.size();
+      raw_indices.resize(base + n);
+      const uint8_t* at = in->cursor();
+      for (uint64_t k = 0; k < n; ++k, at += sz)
+        raw_indices[base + k] = static_cast<uint64_t>(static_cast<int64_t>(decode(p.prop.type, at, swap)));
+      in->advance(n * sz);
+      continue;
+    }
     for (uint64_t k = 0; k < n; ++k) {
-      PSQ_RETURN_IF_ERROR(in->fill(sz, &avail));
-      if (avail < static_cast<size_t>(sz)) return truncated();
+      if (in->buffered() < static_cast<size_t>(sz)) PSQ_RETURN_IF_ERROR(fill(sz));
       double v = decode(p.prop.type, in->cursor(), swap);
       in->advance(sz);
       if (p.role == Role::kKeep) {
