@@ -51,6 +51,10 @@ struct TriangleKey {
   bool operator<(const TriangleKey& o) const { return rank != o.rank ? rank < o.rank : offset < o.offset; }
 };
 
+// The sort path's vertices in rank order: index (4 bytes), offset of the
+// record in the vertex spool (8), position (24).
+constexpr size_t kOrderRecord = 36;
+
 // Triangles are grouped in blocks for finalization: after block b every
 // vertex below the smallest index that any later block uses is final.
 constexpr uint64_t kBlock = 4096;
@@ -194,6 +198,7 @@ Status feed_sorted(Spooled& s, const BuildOptions& options, const Shares& shares
   so.tmpdir = options.tmpdir;
   // 1. Vertices by their coordinate along the longest axis.
   ExternalSorter<VertexKey> vsort(so);
+  vsort.reserve(s.nv);
   bool vertex_values = false;  // some vertex record has property values
   {
     InputStream& vin = s.vertices->stream();
@@ -222,14 +227,17 @@ Status feed_sorted(Spooled& s, const BuildOptions& options, const Shares& shares
     PSQ_RETURN_IF_ERROR(vsort.next(&vk, &done));
     if (done) break;
     rank[vk.index] = r;
-    PSQ_RETURN_IF_ERROR(order.write(&vk.index, 4));
-    PSQ_RETURN_IF_ERROR(order.write(&vk.offset, 8));
-    PSQ_RETURN_IF_ERROR(order.write(vk.pos, 24));
+    uint8_t rec[kOrderRecord];
+    std::memcpy(rec, &vk.index, 4);
+    std::memcpy(rec + 4, &vk.offset, 8);
+    std::memcpy(rec + 12, vk.pos, 24);
+    PSQ_RETURN_IF_ERROR(order.write(rec, kOrderRecord));
   }
   vsort = ExternalSorter<VertexKey>(so);  // release its buffers
   PSQ_RETURN_IF_ERROR(order.rewind());
   // 3. Triangles by the smallest rank of their vertices.
   ExternalSorter<TriangleKey> tsort(so);
+  tsort.reserve(s.nt);
   bool triangle_values = false;
   {
     InputStream& tin = s.triangles->stream();
@@ -270,9 +278,11 @@ Status feed_sorted(Spooled& s, const BuildOptions& options, const Shares& shares
   for (uint64_t r = 0; r < s.nv; ++r) {
     uint32_t index;
     uint64_t offset;
-    PSQ_RETURN_IF_ERROR(oin.read_exact(&index, 4));
-    PSQ_RETURN_IF_ERROR(oin.read_exact(&offset, 8));
-    PSQ_RETURN_IF_ERROR(oin.read_exact(pos, 24));
+    uint8_t rec[kOrderRecord];
+    PSQ_RETURN_IF_ERROR(oin.read_exact(rec, kOrderRecord));
+    std::memcpy(&index, rec, 4);
+    std::memcpy(&offset, rec + 4, 8);
+    std::memcpy(pos, rec + 12, 24);
     if (vertex_values) PSQ_RETURN_IF_ERROR(get_values_at(*s.vertices, offset + 24, &values));
     else values.clear();
     PSQ_RETURN_IF_ERROR(conv.vertex(index, pos, values));
