@@ -70,12 +70,19 @@ struct PlyProperty {
 
 enum class ElementKind { kVertex, kFace, kStrips, kOther };
 
+// The two layouts that most binary files have, read without the loop over
+// properties (read_element_binary): a vertex of float x, y, z alone, and a
+// face of a uchar count and int or uint indices alone (a triangle; other
+// counts take the loop).
+enum class Layout { kAny, kXyzFloat, kFaceUCharInt, kFaceUCharUInt };
+
 struct PlyElement {
   std::string name;
   uint64_t count = 0;
   ElementKind kind = ElementKind::kOther;
   std::vector<PlyProperty> props;
   uint64_t header_line = 0;
+  Layout layout = Layout::kAny;  // binary, in the host's byte order
 };
 
 template <typename T>
@@ -149,6 +156,8 @@ struct PlyReader::Impl {
   bool fixed_data_size(uint64_t* size) const;
   Status next(MeshItem* item);
   Status read_element_binary(const PlyElement& e, MeshItem* item, bool* yields);
+  // A binary vertex read: its position must be finite.
+  Status finish_vertex(uint64_t start, MeshItem* item, bool* yields);
   Status read_element_ascii(const PlyElement& e, MeshItem* item, bool* yields);
   Status accept_face(const PlyElement& e, uint64_t place_offset, uint64_t place_line);
   bool emit_triangle(MeshItem* item);
@@ -469,6 +478,20 @@ Status PlyReader::open(InputStream* in) {
     }
   }
   if (vertex == nullptr) return m.fail(Status(ErrorCode::kBadHeader, "no vertex element", Status::kNoPlace, m.line));
+  if (m.encoding != PlyEncoding::kAscii && !m.swap) {
+    for (PlyElement& e : m.elements) {
+      const std::vector<PlyProperty>& p = e.props;
+      if (e.kind == ElementKind::kVertex && p.size() == 3 && p[0].role == Role::kX && p[1].role == Role::kY &&
+          p[2].role == Role::kZ && p[0].prop.type == ScalarType::kFloat32 && p[1].prop.type == ScalarType::kFloat32 &&
+          p[2].prop.type == ScalarType::kFloat32) {
+        e.layout = Layout::kXyzFloat;
+      } else if (e.kind == ElementKind::kFace && p.size() == 1 && p[0].role == Role::kIndices &&
+                 p[0].prop.count_type == ScalarType::kUInt8) {
+        if (p[0].prop.type == ScalarType::kInt32) e.layout = Layout::kFaceUCharInt;
+        if (p[0].prop.type == ScalarType::kUInt32) e.layout = Layout::kFaceUCharUInt;
+      }
+    }
+  }
   // A file with only triangles of a face element reports its triangle count
   // once read; up front it is unknown (faces may be polygons).
   if (face_like == nullptr) m.schema.triangle_count = 0;
@@ -602,6 +625,30 @@ Status PlyReader::Impl::read_element_binary(const PlyElement& e, MeshItem* out, 
     PSQ_RETURN_IF_ERROR(in->fill(n, &avail));
     return avail < n ? truncated() : Status();
   };
+  // The common layouts, when the whole record is buffered: the same values
+  // and checks as the loop below.
+  if (e.layout == Layout::kXyzFloat && in->buffered() >= 12) {
+    float f[3];
+    std::memcpy(f, in->cursor(), 12);
+    in->advance(12);
+    out->values.clear();
+    for (int k = 0; k < 3; ++k) out->position[k] = f[k];
+    return finish_vertex(start, out, yields);
+  }
+  if ((e.layout == Layout::kFaceUCharInt || e.layout == Layout::kFaceUCharUInt) && in->buffered() >= 13 &&
+      in->cursor()[0] == 3) {
+    const uint8_t* at = in->cursor() + 1;
+    face_values.clear();
+    raw_indices.resize(3);
+    for (int k = 0; k < 3; ++k, at += 4) {
+      raw_indices[k] = e.layout == Layout::kFaceUCharInt
+                           ? static_cast<uint64_t>(static_cast<int64_t>(load<int32_t>(at, false)))
+                           : static_cast<uint64_t>(load<uint32_t>(at, false));
+    }
+    in->advance(13);
+    *yields = false;
+    return accept_face(e, start, Status::kNoPlace);
+  }
   PropertyValues& values = e.kind == ElementKind::kVertex ? out->values : face_values;
   values.clear();
   raw_indices.clear();
@@ -658,18 +705,22 @@ Status PlyReader::Impl::read_element_binary(const PlyElement& e, MeshItem* out, 
       }
     }
   }
-  if (e.kind == ElementKind::kVertex) {
-    for (int k = 0; k < 3; ++k) {
-      if (!std::isfinite(out->position[k])) {
-        return Status(ErrorCode::kBadValue, "vertex " + std::to_string(item) + ": position is not finite", start);
-      }
-    }
-    out->kind = MeshItem::Kind::kVertex;
-    *yields = true;
-  } else if (e.kind != ElementKind::kOther) {
+  if (e.kind == ElementKind::kVertex) return finish_vertex(start, out, yields);
+  if (e.kind != ElementKind::kOther) {
     PSQ_RETURN_IF_ERROR(accept_face(e, start, Status::kNoPlace));
     *yields = false;
   }
+  return Status();
+}
+
+Status PlyReader::Impl::finish_vertex(uint64_t start, MeshItem* out, bool* yields) {
+  for (int k = 0; k < 3; ++k) {
+    if (!std::isfinite(out->position[k])) {
+      return Status(ErrorCode::kBadValue, "vertex " + std::to_string(item) + ": position is not finite", start);
+    }
+  }
+  out->kind = MeshItem::Kind::kVertex;
+  *yields = true;
   return Status();
 }
 
