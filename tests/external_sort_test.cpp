@@ -265,6 +265,28 @@ TEST(ExternalSort, SameOutputWhateverTheBudget) {
   EXPECT_EQ(outputs[0].size(), input.size());
 }
 
+TEST(ExternalSort, ReserveKeepsTheOutput) {
+  // reserve() sizes the run buffer up front: exactly, beyond the budget
+  // (runs still spill at the budget), short of the input (the buffer grows
+  // or spills after it) or not at all; the output is the same.
+  std::vector<Keyed> input = random_records(100000, 1000, 7);
+  test::TempDir dir;
+  std::vector<std::vector<Keyed>> outputs;
+  for (uint64_t budget : {kMiB, 64 * kMiB}) {
+    for (uint64_t reserve : {uint64_t{0}, uint64_t{1000}, uint64_t{100000}, uint64_t{1} << 40}) {
+      ExternalSortOptions options;
+      options.tmpdir = dir.path();
+      options.memory_budget = budget;
+      ExternalSorter<Keyed, KeyThenId> sorter(options);
+      sorter.reserve(reserve);
+      outputs.push_back(sort_all(&sorter, input));
+      EXPECT_EQ(sorter.runs() > 0, budget == kMiB) << budget << " " << reserve;
+    }
+  }
+  for (size_t i = 1; i < outputs.size(); ++i) EXPECT_TRUE(same(outputs[0], outputs[i])) << i;
+  EXPECT_EQ(outputs[0].size(), input.size());
+}
+
 TEST(ExternalSort, TemporaryFilesNeverOutliveTheSorter) {
   test::TempDir dir;
 #ifdef __linux__

@@ -2,6 +2,7 @@
 // PLY reader and writer: every encoding, type and layout, and hostile input.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <csignal>
 #include <cstring>
@@ -284,6 +285,91 @@ TEST(Ply, ErrorsNameTheLineOrOffset) {
   s = read_ply(bin, &m);
   EXPECT_EQ(s.code(), ErrorCode::kBadIndex);
   EXPECT_EQ(s.offset(), eh + 4 * 12 + 13) << s.to_string();
+}
+
+// A binary PLY of float x y z vertices and uchar-counted faces of `index`
+// (int or uint) indices: mostly triangles, every 97th face a quad, in
+// either byte order. Over 1 MiB, so that records straddle a file refill.
+std::string layout_ply(bool big_endian, const char* index, uint32_t nv, uint32_t nf) {
+  std::string f = std::string("ply\nformat ") + (big_endian ? "binary_big_endian" : "binary_little_endian") +
+                  " 1.0\nelement vertex " + std::to_string(nv) +
+                  "\nproperty float x\nproperty float y\nproperty float z\nelement face " + std::to_string(nf) +
+                  "\nproperty list uchar " + index + " vertex_indices\nend_header\n";
+  auto put = [&](const void* p, size_t n) {
+    std::string b(static_cast<const char*>(p), n);
+    if (big_endian) std::reverse(b.begin(), b.end());
+    f += b;
+  };
+  for (uint32_t i = 0; i < nv; ++i) {
+    const float xyz[3] = {static_cast<float>(i) * 0.25f, -static_cast<float>(i), 1.0f / static_cast<float>(i + 1)};
+    for (float x : xyz) put(&x, 4);
+  }
+  for (uint32_t k = 0; k < nf; ++k) {
+    const uint8_t n = k % 97 == 0 ? 4 : 3;
+    f += static_cast<char>(n);
+    for (uint32_t c = 0; c < n; ++c) {
+      const uint32_t v = (k + c * 7) % nv;
+      put(&v, 4);
+    }
+  }
+  return f;
+}
+
+TEST(Ply, CommonBinaryLayoutsReadAsTheGeneralPath) {
+  // Little-endian float x y z and uchar/int (or uint) triangles are read
+  // without the loop over properties; big-endian files of the same layout
+  // take the loop. Both give the same mesh, and the same errors at the
+  // same offsets, from memory and from a file.
+  test::TempDir dir;
+  for (const char* index : {"int", "uint"}) {
+    const std::string le = layout_ply(false, index, 50000, 110000);
+    const std::string be = layout_ply(true, index, 50000, 110000);
+    ASSERT_GT(le.size(), size_t{1} << 20);
+    Mesh a, b;
+    ASSERT_TRUE(read_ply(le, &a).ok());
+    ASSERT_TRUE(read_ply(be, &b).ok());
+    EXPECT_EQ(a.positions, b.positions);
+    EXPECT_EQ(a.triangles, b.triangles);
+    ASSERT_EQ(a.positions.size(), 50000u);
+    EXPECT_EQ(a.positions[8][0], 2.0);
+    EXPECT_EQ(a.triangles.size(), 110000u + (110000u + 96) / 97);
+    EXPECT_EQ(a.triangles[1], (std::array<uint32_t, 3>{0, 14, 21}));  // face 0 is a quad
+    EXPECT_EQ(a.triangles[2], (std::array<uint32_t, 3>{1, 8, 15}));
+    // From a file: records straddle the stream's refills.
+    test::write_file(dir.file("le.ply"), le);
+    Mesh c;
+    Status s = test::load_mesh(dir.file("le.ply"), &c);
+    ASSERT_TRUE(s.ok()) << s.to_string();
+    EXPECT_EQ(c.positions, a.positions);
+    EXPECT_EQ(c.triangles, a.triangles);
+    // Corruptions: an index out of range, a negative one (int), a face of
+    // two corners, a position that is not finite, a file cut inside a face.
+    // Places count from the data's start: the headers differ in length.
+    const size_t hl = le.size() - (50000 * 12 + 110000u * 13 + (110000u + 96) / 97 * 4);
+    const size_t hb = be.size() - (le.size() - hl);
+    const size_t face_500 = 50000 * 12 + 500 * 13 + 6 * 4;  // after 6 quads
+    const size_t vertex_9 = 9 * 12;
+    std::vector<std::pair<std::string, std::string>> bad;
+    auto corrupt = [&](size_t at, const std::string& bytes_le, const std::string& bytes_be) {
+      std::string x = le, y = be;
+      x.replace(hl + at, bytes_le.size(), bytes_le);
+      y.replace(hb + at, bytes_be.size(), bytes_be);
+      bad.push_back({x, y});
+    };
+    corrupt(face_500 + 1, std::string("\x50\xc3\x00\x00", 4), std::string("\x00\x00\xc3\x50", 4));  // 50000
+    corrupt(face_500 + 5, std::string("\xff\xff\xff\xff", 4), std::string("\xff\xff\xff\xff", 4));  // -1 or 2^32-1
+    corrupt(face_500, std::string("\x02", 1), std::string("\x02", 1));
+    corrupt(vertex_9 + 4, std::string("\x00\x00\xc0\x7f", 4), std::string("\x7f\xc0\x00\x00", 4));  // NaN
+    for (size_t i = 0; i < bad.size(); ++i) {
+      Mesh m;
+      Status sl = read_ply(bad[i].first, &m);
+      Status sb = read_ply(bad[i].second, &m);
+      EXPECT_FALSE(sl.ok()) << index << " case " << i;
+      EXPECT_EQ(sl.code(), sb.code()) << index << " case " << i;
+      EXPECT_EQ(sl.message(), sb.message()) << index << " case " << i;
+      EXPECT_EQ(sl.offset() - hl, sb.offset() - hb) << index << " case " << i;
+    }
+  }
 }
 
 TEST(Ply, EveryTruncatedPrefixFailsCleanly) {

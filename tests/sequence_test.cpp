@@ -619,6 +619,77 @@ TEST(Converter, ManyTrianglesOnOneEdge) {
   EXPECT_EQ(conv.stats().nonmanifold_vertices, 2u);
 }
 
+// Feeds an n x n grid like feed_grid, with vertex `id` at x = id and
+// property values on some elements only (every 7th vertex, every 5th
+// triangle), the first of them after the waiting area holds many.
+Status feed_grid_with_values(SequenceConverter& conv, uint32_t n) {
+  const uint32_t w = n + 1;
+  PropertyValues none;
+  uint32_t t_count = 0;
+  auto vertex = [&](uint32_t id) {
+    const double p[3] = {static_cast<double>(id), 0, 0};
+    return conv.vertex(id, p, id % 7 == 3 ? PropertyValues{id + 0.5, -1.0 * id} : none);
+  };
+  auto triangle = [&](uint32_t a, uint32_t b, uint32_t c) {
+    const uint32_t t[3] = {a, b, c};
+    const uint32_t k = t_count++;
+    return conv.triangle(t, k % 5 == 4 ? PropertyValues{static_cast<double>(k)} : none);
+  };
+  PSQ_RETURN_IF_ERROR(conv.begin(MeshSchema()));
+  for (uint32_t i = 0; i < w; ++i) PSQ_RETURN_IF_ERROR(vertex(i));
+  for (uint32_t j = 0; j < n; ++j) {
+    for (uint32_t i = 0; i < w; ++i) PSQ_RETURN_IF_ERROR(vertex((j + 1) * w + i));
+    for (uint32_t i = 0; i < n; ++i) {
+      uint32_t a = j * w + i, b = a + 1, c = a + w + 1, d = a + w;
+      PSQ_RETURN_IF_ERROR(triangle(a, b, c));
+      PSQ_RETURN_IF_ERROR(triangle(a, c, d));
+    }
+    for (uint32_t i = 0; i < w; ++i) PSQ_RETURN_IF_ERROR(conv.finalize(j * w + i));
+  }
+  for (uint32_t i = 0; i < w; ++i) PSQ_RETURN_IF_ERROR(conv.finalize(n * w + i));
+  return conv.finish();
+}
+
+TEST(Converter, ReserveChangesNothingAndValuesArrive) {
+  // reserve() is a hint: none, exact, short and far beyond the input give
+  // the same events. Property values arrive with their elements although
+  // their per-slot arrays are sized only on the first element with values.
+  const uint32_t n = 200;  // 80k triangles: more than the lookahead minimum
+  std::string first;
+  for (uint64_t r : {uint64_t{0}, uint64_t{1000}, uint64_t{201 * 201}, uint64_t{1} << 40}) {
+    test::EventLog log;
+    SequenceConverter conv(&log);
+    if (r != 0) conv.reserve(r, 2 * r);
+    Status s = feed_grid_with_values(conv, n);
+    ASSERT_TRUE(s.ok()) << s.to_string();
+    if (first.empty()) {
+      first = log.text();
+      std::multiset<double> triangle_values;
+      size_t vertices = 0;
+      for (const SequenceEvent& e : log.events) {
+        if (e.kind == SequenceEvent::Kind::kVertex) {
+          ++vertices;
+          const uint32_t id = static_cast<uint32_t>(e.vertex.position[0]);
+          if (id % 7 == 3) {
+            EXPECT_EQ(e.vertex.values, (PropertyValues{id + 0.5, -1.0 * id})) << id;
+          } else {
+            EXPECT_TRUE(e.vertex.values.empty()) << id;
+          }
+        } else if (e.kind == SequenceEvent::Kind::kTriangle) {
+          ASSERT_LE(e.triangle.values.size(), 1u);
+          if (!e.triangle.values.empty()) triangle_values.insert(e.triangle.values[0]);
+        }
+      }
+      EXPECT_EQ(vertices, size_t{201} * 201);
+      std::multiset<double> fed;
+      for (uint32_t k = 4; k < 2 * n * n; k += 5) fed.insert(k);
+      EXPECT_EQ(triangle_values, fed);
+    } else {
+      EXPECT_EQ(log.text(), first) << "reserve " << r;
+    }
+  }
+}
+
 TEST(Converter, RejectsIdsFinalizedAndReleased) {
   // A 300 x 300 grid: 180k triangles, enough for regions to start and
   // vertices of the first rows to be emitted and leave the waiting area.

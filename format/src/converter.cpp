@@ -314,6 +314,8 @@ struct SequenceConverter::Impl {
   std::vector<Vert> vpool;
   std::vector<std::array<double, 3>> vert_pos;  // per vpool slot
   std::vector<std::vector<uint32_t>> vert_spill;  // per vpool slot: corners past kInlineCorners
+  // Per vpool slot, sized on the first vertex with values (and the same
+  // for tri_values): a mesh without properties never touches them.
   std::vector<PropertyValues> vert_values;  // per vpool slot, when has_values
   std::vector<uint32_t> free_verts;
   std::vector<Tri> tris;
@@ -453,7 +455,6 @@ uint32_t SequenceConverter::Impl::vertex_slot(uint32_t id) {
     vpool.emplace_back();
     vert_pos.emplace_back();
     vert_spill.emplace_back();
-    vert_values.emplace_back();
   }
   vpool[slot].id = id;
   ids.insert(id, slot);
@@ -482,6 +483,25 @@ SequenceConverter::SequenceConverter(SequenceSink* out) : impl_(std::make_unique
 SequenceConverter::~SequenceConverter() = default;
 
 void SequenceConverter::set_lookahead_budget(uint64_t bytes) { impl_->lookahead_cap = bytes / kLookaheadBytes; }
+
+// Growing the pools by doubling copies each one and touches about twice its
+// final size in fresh pages, which on a mesh of a few hundred thousand
+// triangles costs more than the pages themselves. Reserving touches
+// nothing: the pages are faulted in as slots are used. The cap keeps the reservation (about 180
+// bytes of address space a triangle, for the pools of a triangle and a
+// vertex) within the lookahead's budget.
+void SequenceConverter::reserve(uint64_t vertices, uint64_t triangles) {
+  Impl& m = *impl_;
+  const uint64_t cap = std::min<uint64_t>(std::max(m.lookahead_min, m.lookahead_cap), kMaxTriangles);
+  const size_t nt = static_cast<size_t>(std::min(triangles, cap));
+  const size_t nv = static_cast<size_t>(std::min(vertices, cap));
+  m.tris.reserve(nt);
+  m.vpool.reserve(nv);
+  m.vert_pos.reserve(nv);
+  m.vert_spill.reserve(nv);
+  m.free_tris.reserve(nt);
+  m.free_verts.reserve(nv);
+}
 void SequenceConverter::set_lookahead_minimum(uint64_t triangles) {
   impl_->lookahead_min = std::max<uint64_t>(1, triangles);
 }
@@ -529,6 +549,7 @@ bool SequenceConverter::Impl::vertex(uint32_t id, const double position[3], cons
   v.has_data = true;
   vert_pos[slot] = {position[0], position[1], position[2]};
   if (!values.empty()) {
+    if (vert_values.size() < vpool.size()) vert_values.resize(vpool.size());
     vert_values[slot] = values;
     v.has_values = true;
   }
@@ -562,7 +583,6 @@ bool SequenceConverter::Impl::triangle(const uint32_t id[3], const PropertyValue
     if (tris.size() >= kMaxTriangles) return fail(Status(ErrorCode::kLimit, "more than 2^30 triangles waiting"));
     slot = static_cast<uint32_t>(tris.size());
     tris.emplace_back();
-    tri_values.emplace_back();
   }
   Tri& t = tris[slot];
   t.reset();
@@ -572,6 +592,7 @@ bool SequenceConverter::Impl::triangle(const uint32_t id[3], const PropertyValue
     ++vpool[vs[k]].unemitted;
   }
   if (!values.empty()) {
+    if (tri_values.size() < tris.size()) tri_values.resize(tris.size());
     tri_values[slot] = values;
     t.state |= Tri::kHasValues;
   }
@@ -822,10 +843,10 @@ bool SequenceConverter::Impl::emit_vertex(uint32_t vslot, uint32_t sg) {
   sv.position[0] = pos[0];
   sv.position[1] = pos[1];
   sv.position[2] = pos[2];
-  PropertyValues& values = vert_values[vslot];
-  if (v.has_values) sv.values.swap(values);  // lent to the sink, and back
+  // Lent to the sink, and back.
+  if (v.has_values) sv.values.swap(vert_values[vslot]);
   Status s = out->vertex(sv);
-  if (v.has_values) sv.values.swap(values);
+  if (v.has_values) sv.values.swap(vert_values[vslot]);
   return s.ok() || fail(std::move(s));
 }
 

@@ -308,7 +308,8 @@ mode_t current_umask() {
 
 Status OutputFile::open(const std::string& path, bool overwrite) {
   path_ = path;
-  buffer_.reserve(kBufferSize);
+  buffer_.reset(new uint8_t[kBufferSize]);
+  buffered_ = 0;
   if (path == "-") {
     is_stdout_ = true;
     fd_ = STDOUT_FILENO;
@@ -383,21 +384,21 @@ Status OutputFile::open(const std::string& path, bool overwrite) {
 }
 
 Status OutputFile::flush() {
-  if (buffer_.empty()) return Status();
-  Status s = write_all(fd_, buffer_.data(), buffer_.size(), path_);
-  buffer_.clear();
+  if (buffered_ == 0) return Status();
+  Status s = write_all(fd_, buffer_.get(), buffered_, path_);
+  buffered_ = 0;
   return s;
 }
 
 Status OutputFile::write(const void* data, size_t n) {
   if (fd_ < 0) return Status(ErrorCode::kIo, "output is not open");
   written_ += n;
-  if (buffer_.size() + n > kBufferSize) {
+  if (n > kBufferSize - buffered_) {
     PSQ_RETURN_IF_ERROR(flush());
     if (n >= kBufferSize) return write_all(fd_, static_cast<const uint8_t*>(data), n, path_);
   }
-  const auto* p = static_cast<const uint8_t*>(data);
-  buffer_.insert(buffer_.end(), p, p + n);
+  if (n > 0) std::memcpy(buffer_.get() + buffered_, data, n);
+  buffered_ += n;
   return Status();
 }
 
@@ -444,26 +445,29 @@ SpoolFile::~SpoolFile() {
 
 Status SpoolFile::create(const std::string& dir) {
   PSQ_RETURN_IF_ERROR(detail::create_unlinked_temp(dir, "psq-spool", &fd_));
-  buffer_.reserve(kBufferSize);
+  buffer_.reset(new uint8_t[kBufferSize]);
+  buffered_ = 0;
   return Status();
 }
 
 Status SpoolFile::write(const void* data, size_t n) {
   written_ += n;
   const auto* p = static_cast<const uint8_t*>(data);
-  if (buffer_.size() + n > kBufferSize) {
-    PSQ_RETURN_IF_ERROR(write_all(fd_, buffer_.data(), buffer_.size(), "temporary file"));
-    buffer_.clear();
+  if (!buffer_) buffer_.reset(new uint8_t[kBufferSize]);  // written again after rewind()
+  if (n > kBufferSize - buffered_) {
+    PSQ_RETURN_IF_ERROR(write_all(fd_, buffer_.get(), buffered_, "temporary file"));
+    buffered_ = 0;
     if (n >= kBufferSize) return write_all(fd_, p, n, "temporary file");
   }
-  buffer_.insert(buffer_.end(), p, p + n);
+  if (n > 0) std::memcpy(buffer_.get() + buffered_, p, n);
+  buffered_ += n;
   return Status();
 }
 
 Status SpoolFile::rewind() {
-  PSQ_RETURN_IF_ERROR(write_all(fd_, buffer_.data(), buffer_.size(), "temporary file"));
-  buffer_.clear();
-  buffer_.shrink_to_fit();
+  PSQ_RETURN_IF_ERROR(write_all(fd_, buffer_.get(), buffered_, "temporary file"));
+  buffered_ = 0;
+  buffer_.reset();
   if (::lseek(fd_, 0, SEEK_SET) != 0) return io_error("cannot rewind", "temporary file");
   // The stream reads through our descriptor; it does not close it.
   return in_.open_fd(fd_, false, "temporary file");

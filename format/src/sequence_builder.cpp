@@ -21,9 +21,10 @@
 namespace psq {
 namespace {
 
+using detail::get_record;
 using detail::get_values;
 using detail::get_values_at;
-using detail::put_values;
+using detail::put_record;
 
 // A float made into an unsigned integer that sorts like the float.
 uint32_t sortable(float f) {
@@ -49,6 +50,10 @@ struct TriangleKey {
   uint64_t offset;  // of the record in the triangle spool (also a unique tie-break)
   bool operator<(const TriangleKey& o) const { return rank != o.rank ? rank < o.rank : offset < o.offset; }
 };
+
+// The sort path's vertices in rank order: index (4 bytes), offset of the
+// record in the vertex spool (8), position (24).
+constexpr size_t kOrderRecord = 36;
 
 // Triangles are grouped in blocks for finalization: after block b every
 // vertex below the smallest index that any later block uses is final.
@@ -113,12 +118,10 @@ Status spool_input(MeshSource& source, const BuildOptions& options, Spooled* s,
         s->hi[k] = std::max(s->hi[k], item.position[k]);
       }
       if (sampler) sampler->add(item.position);
-      PSQ_RETURN_IF_ERROR(s->vertices->write(item.position, 24));
-      PSQ_RETURN_IF_ERROR(put_values(*s->vertices, item.values));
+      PSQ_RETURN_IF_ERROR(put_record(*s->vertices, item.position, 24, item.values));
       ++s->nv;
     } else {
-      PSQ_RETURN_IF_ERROR(s->triangles->write(item.index, 12));
-      PSQ_RETURN_IF_ERROR(put_values(*s->triangles, item.values));
+      PSQ_RETURN_IF_ERROR(put_record(*s->triangles, item.index, 12, item.values));
       note_triangle(s, item.index);
     }
   }
@@ -160,8 +163,7 @@ Status feed_coherent(Spooled& s, SequenceConverter& conv) {
   PropertyValues values, vertex_values;  // apart: feeding vertices must not clobber a triangle's
   auto feed_until = [&](uint64_t end) -> Status {
     while (fed < end) {
-      PSQ_RETURN_IF_ERROR(vin.read_exact(pos, 24));
-      PSQ_RETURN_IF_ERROR(get_values(vin, &vertex_values));
+      PSQ_RETURN_IF_ERROR(get_record(vin, pos, 24, &vertex_values));
       PSQ_RETURN_IF_ERROR(conv.vertex(static_cast<uint32_t>(fed), pos, vertex_values));
       ++fed;
     }
@@ -174,8 +176,7 @@ Status feed_coherent(Spooled& s, SequenceConverter& conv) {
   };
   for (uint64_t t = 0; t < s.nt; ++t) {
     uint32_t idx[3];
-    PSQ_RETURN_IF_ERROR(tin.read_exact(idx, 12));
-    PSQ_RETURN_IF_ERROR(get_values(tin, &values));
+    PSQ_RETURN_IF_ERROR(get_record(tin, idx, 12, &values));
     PSQ_RETURN_IF_ERROR(feed_until(uint64_t{std::max({idx[0], idx[1], idx[2]})} + 1));
     PSQ_RETURN_IF_ERROR(conv.triangle(idx, values));
     if ((t + 1) % kBlock == 0 || t + 1 == s.nt) PSQ_RETURN_IF_ERROR(finalize_below(s.later_min[t / kBlock]));
@@ -197,6 +198,7 @@ Status feed_sorted(Spooled& s, const BuildOptions& options, const Shares& shares
   so.tmpdir = options.tmpdir;
   // 1. Vertices by their coordinate along the longest axis.
   ExternalSorter<VertexKey> vsort(so);
+  vsort.reserve(s.nv);
   bool vertex_values = false;  // some vertex record has property values
   {
     InputStream& vin = s.vertices->stream();
@@ -204,8 +206,7 @@ Status feed_sorted(Spooled& s, const BuildOptions& options, const Shares& shares
     PropertyValues values;
     uint64_t offset = 0;
     for (uint64_t i = 0; i < s.nv; ++i) {
-      PSQ_RETURN_IF_ERROR(vin.read_exact(vk.pos, 24));
-      PSQ_RETURN_IF_ERROR(get_values(vin, &values));
+      PSQ_RETURN_IF_ERROR(get_record(vin, vk.pos, 24, &values));
       vk.key = sortable(static_cast<float>(vk.pos[axis]));
       vk.index = static_cast<uint32_t>(i);
       vk.offset = offset;
@@ -226,14 +227,17 @@ Status feed_sorted(Spooled& s, const BuildOptions& options, const Shares& shares
     PSQ_RETURN_IF_ERROR(vsort.next(&vk, &done));
     if (done) break;
     rank[vk.index] = r;
-    PSQ_RETURN_IF_ERROR(order.write(&vk.index, 4));
-    PSQ_RETURN_IF_ERROR(order.write(&vk.offset, 8));
-    PSQ_RETURN_IF_ERROR(order.write(vk.pos, 24));
+    uint8_t rec[kOrderRecord];
+    std::memcpy(rec, &vk.index, 4);
+    std::memcpy(rec + 4, &vk.offset, 8);
+    std::memcpy(rec + 12, vk.pos, 24);
+    PSQ_RETURN_IF_ERROR(order.write(rec, kOrderRecord));
   }
   vsort = ExternalSorter<VertexKey>(so);  // release its buffers
   PSQ_RETURN_IF_ERROR(order.rewind());
   // 3. Triangles by the smallest rank of their vertices.
   ExternalSorter<TriangleKey> tsort(so);
+  tsort.reserve(s.nt);
   bool triangle_values = false;
   {
     InputStream& tin = s.triangles->stream();
@@ -241,8 +245,7 @@ Status feed_sorted(Spooled& s, const BuildOptions& options, const Shares& shares
     PropertyValues values;
     uint64_t offset = 0;
     for (uint64_t t = 0; t < s.nt; ++t) {
-      PSQ_RETURN_IF_ERROR(tin.read_exact(tk.idx, 12));
-      PSQ_RETURN_IF_ERROR(get_values(tin, &values));
+      PSQ_RETURN_IF_ERROR(get_record(tin, tk.idx, 12, &values));
       tk.rank = std::min({rank[tk.idx[0]], rank[tk.idx[1]], rank[tk.idx[2]]});
       tk.offset = offset;
       PSQ_RETURN_IF_ERROR(tsort.add(tk));
@@ -275,9 +278,11 @@ Status feed_sorted(Spooled& s, const BuildOptions& options, const Shares& shares
   for (uint64_t r = 0; r < s.nv; ++r) {
     uint32_t index;
     uint64_t offset;
-    PSQ_RETURN_IF_ERROR(oin.read_exact(&index, 4));
-    PSQ_RETURN_IF_ERROR(oin.read_exact(&offset, 8));
-    PSQ_RETURN_IF_ERROR(oin.read_exact(pos, 24));
+    uint8_t rec[kOrderRecord];
+    PSQ_RETURN_IF_ERROR(oin.read_exact(rec, kOrderRecord));
+    std::memcpy(&index, rec, 4);
+    std::memcpy(&offset, rec + 4, 8);
+    std::memcpy(pos, rec + 12, 24);
     if (vertex_values) PSQ_RETURN_IF_ERROR(get_values_at(*s.vertices, offset + 24, &values));
     else values.clear();
     PSQ_RETURN_IF_ERROR(conv.vertex(index, pos, values));
@@ -358,6 +363,7 @@ Status build_sequence(MeshSource& source, SequenceSink& sink, const BuildOptions
   }
   const Shares shares = builder_shares(options.memory_budget);
   conv.set_lookahead_budget(shares.lookahead);
+  conv.reserve(s.nv, s.nt);
   PSQ_RETURN_IF_ERROR(conv.begin(schema));
   // Coherent enough when the vertices the window keeps waiting fit the
   // converter's share (a waiting vertex and its triangles take about 400

@@ -3,10 +3,12 @@
 // thread, replayed into the wrapped sink by a worker.
 #include "psq/threaded_sink.h"
 
+#include <algorithm>
 #include <atomic>
 #include <condition_variable>
 #include <cstring>
 #include <deque>
+#include <memory>
 #include <mutex>
 #include <system_error>
 #include <thread>
@@ -42,10 +44,26 @@ struct Writer {
     p += values.size() * sizeof(double);
   }
 };
-Writer grow(std::vector<uint8_t>* b, size_t bytes) {
-  const size_t at = b->size();
-  b->resize(at + bytes);
-  return Writer{b->data() + at};
+// A batch: its bytes and how many hold records. Appending moves `used`
+// (a vector's resize per record would zero the bytes first, and cost a
+// call); the buffer grows only for a record that does not fit (many
+// property values).
+struct Batch {
+  std::unique_ptr<uint8_t[]> data;
+  size_t capacity = 0;
+  size_t used = 0;
+};
+Writer grow(Batch* b, size_t bytes) {
+  if (b->capacity - b->used < bytes) {
+    const size_t capacity = std::max(b->used + bytes, 2 * b->capacity);
+    std::unique_ptr<uint8_t[]> bigger(new uint8_t[capacity]);
+    if (b->used > 0) std::memcpy(bigger.get(), b->data.get(), b->used);
+    b->data = std::move(bigger);
+    b->capacity = capacity;
+  }
+  Writer w{b->data.get() + b->used};
+  b->used += bytes;
+  return w;
 }
 
 // Reads what Writer wrote; the batch is ours, so no bounds checks beyond
@@ -77,7 +95,10 @@ struct ThreadedSequenceSink::Impl {
   Impl(SequenceSink* n, size_t batch_bytes, size_t batches)
       : next(n), batch_bytes_(batch_bytes < 1 ? 1 : batch_bytes), pool_(batches < 2 ? 2 : batches) {
     for (size_t b = 1; b < pool_.size(); ++b) free_.push_back(b);
-    for (std::vector<uint8_t>& b : pool_) b.reserve(batch_bytes_ + 256);
+    for (Batch& b : pool_) {
+      b.capacity = batch_bytes_ + 256;
+      b.data.reset(new uint8_t[b.capacity]);
+    }
     try {
       worker_ = std::thread([this] { run(); });
       threaded_ = true;
@@ -99,7 +120,7 @@ struct ThreadedSequenceSink::Impl {
   // The batch to append the next record to, or null with *s set when the
   // producer may not add events (before begin(), after finish(), after the
   // wrapped sink's error).
-  std::vector<uint8_t>* batch(Status* s) {
+  Batch* batch(Status* s) {
     if (!begun_ || closed_) {
       *s = Status(ErrorCode::kUsage, closed_ ? "event after finish() of a threaded sink"
                                              : "event before begin() of a threaded sink");
@@ -126,12 +147,12 @@ struct ThreadedSequenceSink::Impl {
   // hands the batch over once it is full.
   Status appended() {
     if (!threaded_) {
-      std::vector<uint8_t>& b = pool_[cur_];
+      Batch& b = pool_[cur_];
       error_ = replay(b);
-      b.clear();
+      b.used = 0;
       return error_;
     }
-    if (pool_[cur_].size() < batch_bytes_) return Status();
+    if (pool_[cur_].used < batch_bytes_) return Status();
     std::unique_lock<std::mutex> lock(mu_);
     full_.push_back(cur_);
     work_cv_.notify_one();
@@ -148,7 +169,7 @@ struct ThreadedSequenceSink::Impl {
     if (!threaded_) return error_;
     {
       std::lock_guard<std::mutex> lock(mu_);
-      if (!pool_[cur_].empty()) full_.push_back(cur_);
+      if (pool_[cur_].used != 0) full_.push_back(cur_);
       closing_ = true;
     }
     work_cv_.notify_one();
@@ -166,7 +187,7 @@ struct ThreadedSequenceSink::Impl {
       const bool skip = failed_.load(std::memory_order_relaxed) || abandon_;
       lock.unlock();
       Status s = skip ? Status() : replay(pool_[b]);
-      pool_[b].clear();
+      pool_[b].used = 0;
       lock.lock();
       if (!s.ok()) {
         error_ = std::move(s);
@@ -179,9 +200,9 @@ struct ThreadedSequenceSink::Impl {
 
   // Replays the records of a batch into `next` (on the worker, or on the
   // caller's thread without one); stops at the first error.
-  Status replay(const std::vector<uint8_t>& batch) {
-    Reader r{batch.data()};
-    const uint8_t* end = batch.data() + batch.size();
+  Status replay(const Batch& batch) {
+    Reader r{batch.data.get()};
+    const uint8_t* end = batch.data.get() + batch.used;
     while (r.p < end) {
       const uint8_t kind = r.get<uint8_t>();
       if (kind == kVertexRecord) {
@@ -213,7 +234,7 @@ struct ThreadedSequenceSink::Impl {
   SequenceVertex sv;
   SequenceTriangle st;
   const size_t batch_bytes_;
-  std::vector<std::vector<uint8_t>> pool_;
+  std::vector<Batch> pool_;
   // Producer side only.
   size_t cur_ = 0;
   bool begun_ = false, closed_ = false;
@@ -238,7 +259,7 @@ Status ThreadedSequenceSink::begin(const MeshSchema& schema) { return impl_->beg
 
 Status ThreadedSequenceSink::vertex(const SequenceVertex& v) {
   Status s;
-  std::vector<uint8_t>* b = impl_->batch(&s);
+  Batch* b = impl_->batch(&s);
   if (!b) return s;
   Writer w = grow(b, 1 + 3 * 4 + 3 * 8 + 4 + v.values.size() * 8);
   w.put(kVertexRecord);
@@ -252,7 +273,7 @@ Status ThreadedSequenceSink::vertex(const SequenceVertex& v) {
 
 Status ThreadedSequenceSink::triangle(const SequenceTriangle& t) {
   Status s;
-  std::vector<uint8_t>* b = impl_->batch(&s);
+  Batch* b = impl_->batch(&s);
   if (!b) return s;
   Writer w = grow(b, 1 + 3 * 4 + 7 + 6 * 4 + 4 + t.values.size() * 8);
   w.put(kTriangleRecord);
@@ -268,7 +289,7 @@ Status ThreadedSequenceSink::triangle(const SequenceTriangle& t) {
 
 Status ThreadedSequenceSink::finalize(uint32_t index) {
   Status s;
-  std::vector<uint8_t>* b = impl_->batch(&s);
+  Batch* b = impl_->batch(&s);
   if (!b) return s;
   Writer w = grow(b, 1 + 4);
   w.put(kFinalizeRecord);

@@ -70,12 +70,19 @@ struct PlyProperty {
 
 enum class ElementKind { kVertex, kFace, kStrips, kOther };
 
+// The two layouts that most binary files have, read without the loop over
+// properties (read_element_binary): a vertex of float x, y, z alone, and a
+// face of a uchar count and int or uint indices alone (a triangle; other
+// counts take the loop).
+enum class Layout { kAny, kXyzFloat, kFaceUCharInt, kFaceUCharUInt };
+
 struct PlyElement {
   std::string name;
   uint64_t count = 0;
   ElementKind kind = ElementKind::kOther;
   std::vector<PlyProperty> props;
   uint64_t header_line = 0;
+  Layout layout = Layout::kAny;  // binary, in the host's byte order
 };
 
 template <typename T>
@@ -149,6 +156,8 @@ struct PlyReader::Impl {
   bool fixed_data_size(uint64_t* size) const;
   Status next(MeshItem* item);
   Status read_element_binary(const PlyElement& e, MeshItem* item, bool* yields);
+  // A binary vertex read: its position must be finite.
+  Status finish_vertex(uint64_t start, MeshItem* item, bool* yields);
   Status read_element_ascii(const PlyElement& e, MeshItem* item, bool* yields);
   Status accept_face(const PlyElement& e, uint64_t place_offset, uint64_t place_line);
   bool emit_triangle(MeshItem* item);
@@ -469,6 +478,20 @@ Status PlyReader::open(InputStream* in) {
     }
   }
   if (vertex == nullptr) return m.fail(Status(ErrorCode::kBadHeader, "no vertex element", Status::kNoPlace, m.line));
+  if (m.encoding != PlyEncoding::kAscii && !m.swap) {
+    for (PlyElement& e : m.elements) {
+      const std::vector<PlyProperty>& p = e.props;
+      if (e.kind == ElementKind::kVertex && p.size() == 3 && p[0].role == Role::kX && p[1].role == Role::kY &&
+          p[2].role == Role::kZ && p[0].prop.type == ScalarType::kFloat32 && p[1].prop.type == ScalarType::kFloat32 &&
+          p[2].prop.type == ScalarType::kFloat32) {
+        e.layout = Layout::kXyzFloat;
+      } else if (e.kind == ElementKind::kFace && p.size() == 1 && p[0].role == Role::kIndices &&
+                 p[0].prop.count_type == ScalarType::kUInt8) {
+        if (p[0].prop.type == ScalarType::kInt32) e.layout = Layout::kFaceUCharInt;
+        if (p[0].prop.type == ScalarType::kUInt32) e.layout = Layout::kFaceUCharUInt;
+      }
+    }
+  }
   // A file with only triangles of a face element reports its triangle count
   // once read; up front it is unknown (faces may be polygons).
   if (face_like == nullptr) m.schema.triangle_count = 0;
@@ -550,7 +573,11 @@ bool PlyReader::Impl::emit_triangle(MeshItem* out) {
     out->index[0] = a;
     out->index[1] = b;
     out->index[2] = c;
-    out->values = face_values;
+    if (face_values.empty()) {
+      out->values.clear();
+    } else {
+      out->values = face_values;
+    }
     return true;
   }
 }
@@ -590,15 +617,45 @@ Status PlyReader::Impl::read_element_binary(const PlyElement& e, MeshItem* out, 
                   "data ends inside " + e.name + " " + std::to_string(item) + " of " + std::to_string(e.count),
                   in->offset());
   };
+  // Makes the next n bytes readable at the cursor. Called only when fewer
+  // are buffered: most values are, and the check inline costs less than
+  // the call.
+  auto fill = [&](size_t n) {
+    size_t avail;
+    PSQ_RETURN_IF_ERROR(in->fill(n, &avail));
+    return avail < n ? truncated() : Status();
+  };
+  // The common layouts, when the whole record is buffered: the same values
+  // and checks as the loop below.
+  if (e.layout == Layout::kXyzFloat && in->buffered() >= 12) {
+    float f[3];
+    std::memcpy(f, in->cursor(), 12);
+    in->advance(12);
+    out->values.clear();
+    for (int k = 0; k < 3; ++k) out->position[k] = f[k];
+    return finish_vertex(start, out, yields);
+  }
+  if ((e.layout == Layout::kFaceUCharInt || e.layout == Layout::kFaceUCharUInt) && in->buffered() >= 13 &&
+      in->cursor()[0] == 3) {
+    const uint8_t* at = in->cursor() + 1;
+    face_values.clear();
+    raw_indices.resize(3);
+    for (int k = 0; k < 3; ++k, at += 4) {
+      raw_indices[k] = e.layout == Layout::kFaceUCharInt
+                           ? static_cast<uint64_t>(static_cast<int64_t>(load<int32_t>(at, false)))
+                           : static_cast<uint64_t>(load<uint32_t>(at, false));
+    }
+    in->advance(13);
+    *yields = false;
+    return accept_face(e, start, Status::kNoPlace);
+  }
   PropertyValues& values = e.kind == ElementKind::kVertex ? out->values : face_values;
   values.clear();
   raw_indices.clear();
   for (const PlyProperty& p : e.props) {
-    size_t avail;
     if (!p.prop.is_list) {
       int sz = scalar_size(p.prop.type);
-      PSQ_RETURN_IF_ERROR(in->fill(sz, &avail));
-      if (avail < static_cast<size_t>(sz)) return truncated();
+      if (in->buffered() < static_cast<size_t>(sz)) PSQ_RETURN_IF_ERROR(fill(sz));
       double v = decode(p.prop.type, in->cursor(), swap);
       in->advance(sz);
       switch (p.role) {
@@ -611,8 +668,7 @@ Status PlyReader::Impl::read_element_binary(const PlyElement& e, MeshItem* out, 
       continue;
     }
     int csz = scalar_size(p.prop.count_type);
-    PSQ_RETURN_IF_ERROR(in->fill(csz, &avail));
-    if (avail < static_cast<size_t>(csz)) return truncated();
+    if (in->buffered() < static_cast<size_t>(csz)) PSQ_RETURN_IF_ERROR(fill(csz));
     double count = decode(p.prop.count_type, in->cursor(), swap);
     uint64_t count_offset = in->offset();
     in->advance(csz);
@@ -627,9 +683,19 @@ Status PlyReader::Impl::read_element_binary(const PlyElement& e, MeshItem* out, 
     uint64_t n = static_cast<uint64_t>(count);
     int sz = scalar_size(p.prop.type);
     if (p.role == Role::kKeep) values.push_back(count);
+    if (p.role == Role::kIndices && in->buffered() / sz >= n) {
+      // A face's indices, all buffered (so that n is bounded by the data,
+      // not only by the count): decoded in one go.
+      const size_t base = raw_indices.size();
+      raw_indices.resize(base + n);
+      const uint8_t* at = in->cursor();
+      for (uint64_t k = 0; k < n; ++k, at += sz)
+        raw_indices[base + k] = static_cast<uint64_t>(static_cast<int64_t>(decode(p.prop.type, at, swap)));
+      in->advance(n * sz);
+      continue;
+    }
     for (uint64_t k = 0; k < n; ++k) {
-      PSQ_RETURN_IF_ERROR(in->fill(sz, &avail));
-      if (avail < static_cast<size_t>(sz)) return truncated();
+      if (in->buffered() < static_cast<size_t>(sz)) PSQ_RETURN_IF_ERROR(fill(sz));
       double v = decode(p.prop.type, in->cursor(), swap);
       in->advance(sz);
       if (p.role == Role::kKeep) {
@@ -639,18 +705,22 @@ Status PlyReader::Impl::read_element_binary(const PlyElement& e, MeshItem* out, 
       }
     }
   }
-  if (e.kind == ElementKind::kVertex) {
-    for (int k = 0; k < 3; ++k) {
-      if (!std::isfinite(out->position[k])) {
-        return Status(ErrorCode::kBadValue, "vertex " + std::to_string(item) + ": position is not finite", start);
-      }
-    }
-    out->kind = MeshItem::Kind::kVertex;
-    *yields = true;
-  } else if (e.kind != ElementKind::kOther) {
+  if (e.kind == ElementKind::kVertex) return finish_vertex(start, out, yields);
+  if (e.kind != ElementKind::kOther) {
     PSQ_RETURN_IF_ERROR(accept_face(e, start, Status::kNoPlace));
     *yields = false;
   }
+  return Status();
+}
+
+Status PlyReader::Impl::finish_vertex(uint64_t start, MeshItem* out, bool* yields) {
+  for (int k = 0; k < 3; ++k) {
+    if (!std::isfinite(out->position[k])) {
+      return Status(ErrorCode::kBadValue, "vertex " + std::to_string(item) + ": position is not finite", start);
+    }
+  }
+  out->kind = MeshItem::Kind::kVertex;
+  *yields = true;
   return Status();
 }
 

@@ -122,8 +122,8 @@ struct PlyWriter::Impl {
   std::string record;
 
   Status write_header(uint64_t nv, uint64_t nt);
-  Status emit_vertex(const std::string& data);
-  Status emit_face(const std::string& data);
+  Status emit_vertex(const char* data, size_t n);
+  Status emit_face(const char* data, size_t n);
 };
 
 PlyWriter::PlyWriter(OutputFile* out, PlyWriteOptions options) : impl_(std::make_unique<Impl>()) {
@@ -190,20 +190,20 @@ Status PlyWriter::begin(const MeshSchema& schema) {
   return Status();
 }
 
-Status PlyWriter::Impl::emit_vertex(const std::string& data) {
+Status PlyWriter::Impl::emit_vertex(const char* data, size_t n) {
   ++vertices;
-  return direct ? out->write(data) : vertex_spool.write(data.data(), data.size());
+  return direct ? out->write(data, n) : vertex_spool.write(data, n);
 }
 
-Status PlyWriter::Impl::emit_face(const std::string& data) {
+Status PlyWriter::Impl::emit_face(const char* data, size_t n) {
   ++triangles;
   bool vertices_done = direct && vertices == static_cast<uint64_t>(schema.vertex_count);
-  if (vertices_done && !face_spooled) return out->write(data);
+  if (vertices_done && !face_spooled) return out->write(data, n);
   if (!face_spooled) {
     PSQ_RETURN_IF_ERROR(face_spool.create(options.spool_dir));
     face_spooled = true;
   }
-  return face_spool.write(data.data(), data.size());
+  return face_spool.write(data, n);
 }
 
 Status PlyWriter::vertex(const double p[3], const PropertyValues& values) {
@@ -221,13 +221,15 @@ Status PlyWriter::vertex(const double p[3], const PropertyValues& values) {
     for (int k = 0; k < 3; ++k)
       e = m.schema.position_type == ScalarType::kFloat32 ? m.enc.store(static_cast<float>(p[k]), e)
                                                          : m.enc.store(p[k], e);
+    // Without properties the record is complete: out from where it was built.
+    if (values.empty() && m.schema.vertex_properties.empty()) return m.emit_vertex(b, static_cast<size_t>(e - b));
     m.record.append(b, e);
   } else {
     for (int k = 0; k < 3; ++k) PSQ_RETURN_IF_ERROR(m.enc.put(m.schema.position_type, p[k], &m.record));
   }
   PSQ_RETURN_IF_ERROR(m.enc.put_all(m.schema.vertex_properties, values, &m.record));
   if (m.options.encoding == PlyEncoding::kAscii) m.record.push_back('\n');
-  return m.emit_vertex(m.record);
+  return m.emit_vertex(m.record.data(), m.record.size());
 }
 
 Status PlyWriter::triangle(const uint32_t idx[3], const PropertyValues& values) {
@@ -242,6 +244,7 @@ Status PlyWriter::triangle(const uint32_t idx[3], const PropertyValues& values) 
     char b[13];
     char* e = m.enc.store(uint8_t{3}, b);
     for (int k = 0; k < 3; ++k) e = m.enc.store(idx[k], e);
+    if (values.empty() && m.schema.face_properties.empty()) return m.emit_face(b, static_cast<size_t>(e - b));
     m.record.append(b, e);
   } else {
     PSQ_RETURN_IF_ERROR(m.enc.put(ScalarType::kUInt8, 3, &m.record));
@@ -249,7 +252,7 @@ Status PlyWriter::triangle(const uint32_t idx[3], const PropertyValues& values) 
   }
   PSQ_RETURN_IF_ERROR(m.enc.put_all(m.schema.face_properties, values, &m.record));
   if (m.options.encoding == PlyEncoding::kAscii) m.record.push_back('\n');
-  return m.emit_face(m.record);
+  return m.emit_face(m.record.data(), m.record.size());
 }
 
 namespace {

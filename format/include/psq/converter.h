@@ -94,6 +94,12 @@ class SequenceConverter final : public StreamingMeshSink {
   // simplified foam of 200k triangles, 1.1% more bytes for two thirds of
   // the converter's memory). Call before the first triangle.
   void set_lookahead_minimum(uint64_t triangles);
+  // A hint: the input has about `vertices` vertices and `triangles`
+  // triangles, so that the waiting area takes its room at once instead of
+  // growing by copies. Reserves address space only (no page is touched),
+  // at most the lookahead's budget's worth; the output does not depend on
+  // it. Call after set_lookahead_budget(), before the first vertex.
+  void reserve(uint64_t vertices, uint64_t triangles);
   // Passes the schema on to the sink. Errors: the sink's.
   Status begin(const MeshSchema& schema) override;
   // The data of input vertex `id` (any 32-bit number but 4294967295, given

@@ -12,6 +12,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -142,7 +143,12 @@ class OutputFile {
   int fd_ = -1;
   bool is_stdout_ = false;
   bool in_place_ = false;  // a pipe or device, written directly
-  std::vector<uint8_t> buffer_;
+  // A fixed buffer and its fill: a writer appends a few bytes at a time
+  // (a PLY vertex, a spooled record), which a memcpy serves without the
+  // bookkeeping of a vector's insert. Left uninitialized, its pages are
+  // touched only as far as it fills.
+  std::unique_ptr<uint8_t[]> buffer_;
+  size_t buffered_ = 0;
   uint64_t written_ = 0;
 };
 
@@ -187,7 +193,8 @@ class SpoolFile {
   int fd_ = -1;
   std::vector<uint8_t> loaded_;  // the contents, after load()
   bool is_loaded_ = false;
-  std::vector<uint8_t> buffer_;
+  std::unique_ptr<uint8_t[]> buffer_;  // as OutputFile's
+  size_t buffered_ = 0;
   uint64_t written_ = 0;
   InputStream in_;
 };
