@@ -470,17 +470,22 @@ void AttributeCoder::encode(Encoder& enc, const AttributeRecord& r, const int32_
     for (int d = 0; d < dims_; ++d) {
       const Component& c = comp_[d];
       if (c.first) longest = 0;
-      int64_t res = x[d] - pred[d];
-      if (c.mod != 0) {
-        const int64_t lo = -(c.mod / 2);
-        if (res < lo) res += c.mod;
-        if (res > lo + c.mod - 1) res -= c.mod;
-      }
+      const int64_t res = component_residual(c, pred[d], x[d]);
       const int ctx = attribute_context(kind, c.first, extent[d], longest);
       longest = std::max(longest, enc.residual(model(kind, d, ctx), res, kCostGeometry));
     }
     return true;
   });
+}
+
+int64_t AttributeCoder::component_residual(const Component& c, int64_t pred, int64_t value) {
+  int64_t res = value - pred;
+  if (c.mod != 0) {
+    const int64_t lo = -(c.mod / 2);
+    if (res < lo) res += c.mod;
+    if (res > lo + c.mod - 1) res -= c.mod;
+  }
+  return res;
 }
 
 const char* AttributeCoder::component_value(const Component& c, int64_t pred, int64_t res, int32_t* out) {
@@ -527,12 +532,7 @@ void AttributeCoder::encode_fast(FastAttributeWriter& w, const AttributeRecord& 
     for (int d = 0; d < dims_; ++d) {
       const Component& c = comp_[d];
       if (c.first) longest = 0;
-      int64_t res = x[d] - pred[d];
-      if (c.mod != 0) {
-        const int64_t lo = -(c.mod / 2);
-        if (res < lo) res += c.mod;
-        if (res > lo + c.mod - 1) res -= c.mod;
-      }
+      const int64_t res = component_residual(c, pred[d], x[d]);
       const int table = fast_table(kind, d, attribute_context(kind, c.first, extent[d], longest));
       // Spec 13.8.3: the length symbol, then the raw bits.
       const uint64_t mag = res < 0 ? 0 - static_cast<uint64_t>(res) : static_cast<uint64_t>(res);

@@ -114,6 +114,9 @@ class AttributeCoder {
   // 8.3): modulo its range for a wrapping component, within its grid for a
   // texture coordinate; nullptr, or why the residual cannot be one.
   static const char* component_value(const Component& c, int64_t pred, int64_t res, int32_t* out);
+  // The residual that codes `value` against `pred`: for a wrapping
+  // component, the one of least magnitude modulo its range (spec 8.3).
+  static int64_t component_residual(const Component& c, int64_t pred, int64_t value);
   void predict_normal(int d, const int32_t* a, const int32_t* b, const int32_t* o, int64_t* pred) const;
   void predict_texcoord(const AttributeRecord& r, int j, int d, const int32_t* a, const int32_t* b, const int32_t* o,
                         int64_t* pred) const;
