@@ -47,11 +47,9 @@ void init_length_prior(ResidualModel& m, int c) {
 namespace {
 struct CostTable {
   double v[4097];
-  float f[4097];
   CostTable() {
     v[0] = 12;
     for (int i = 1; i <= 4096; ++i) v[i] = -std::log2(i / 4096.0);
-    for (int i = 0; i <= 4096; ++i) f[i] = static_cast<float>(v[i]);
   }
 };
 const CostTable& cost_table() {
@@ -62,7 +60,6 @@ const CostTable& cost_table() {
 
 double bit_cost(uint32_t p12) { return cost_table().v[p12 > 4096 ? 4096 : p12]; }
 
-const float* bit_cost_table() { return cost_table().f; }
 
 }  // namespace codec
 }  // namespace psq

@@ -130,8 +130,6 @@ enum Cost { kCostConnectivity = 0, kCostGeometry = 1, kCostCount = 2 };
 // -log2(p / 4096) for a probability p in 1/4096 units (callers shift
 // the models' 16-bit probabilities by 4).
 double bit_cost(uint32_t p12);
-// The same as a table of 4097 floats, for the encoder's inner loops.
-const float* bit_cost_table();
 
 // Forces the inlining of the coders' per-decision helpers, which GCC
 // otherwise leaves as calls in the encoder's large functions.
@@ -172,20 +170,6 @@ class Encoder {
     }
     rc_->encode_raw(static_cast<uint32_t>(v), bits);
   }
-  // What residual() would cost, in bits, in the model's current state
-  // (without changing it); sets *length to the bit length of r.
-  static float residual_cost(const float* table, const ResidualModel& m, int64_t r, int* length) {
-    const uint64_t mag = r < 0 ? 0 - static_cast<uint64_t>(r) : static_cast<uint64_t>(r);
-    const int k = bit_length64(mag);
-    *length = k;
-    float c = k < static_cast<int>(kLengthEscape)
-                  ? tree_cost<4>(table, m.length, static_cast<uint32_t>(k))
-                  : tree_cost<4>(table, m.length, kLengthEscape) +
-                        tree_cost<6>(table, m.escape, static_cast<uint32_t>(k) - kLengthEscape);
-    if (k == 0) return c;
-    if (k >= 2) c += cost_of(table, m.second[k], static_cast<int>((mag >> (k - 2)) & 1));
-    return c + static_cast<float>(k >= 2 ? k - 1 : 1);  // the raw sign and low bits
-  }
   // Returns the bit length it coded.
   int residual(ResidualModel& m, int64_t r, Cost c) {
     uint64_t mag = r < 0 ? 0 - static_cast<uint64_t>(r) : static_cast<uint64_t>(r);
@@ -209,21 +193,6 @@ class Encoder {
  private:
   // Out of line: only `psq info` and the tests measure costs.
   void add_cost(const BitModel& m, int b, Cost c) { cost_[c] += bit_cost((b ? 65536u - m.p0 : m.p0) >> 4); }
-  static float cost_of(const float* table, const BitModel& m, int b) {
-    return table[(b ? 65536u - m.p0 : m.p0) >> 4];
-  }
-  template <int kBits>
-  static float tree_cost(const float* table, const SymbolModel& m, uint32_t s) {
-    const BitModel* tree = m.tree();
-    float c = 0;
-    uint32_t node = 1;
-    for (int i = kBits - 1; i >= 0; --i) {
-      const int b = static_cast<int>((s >> i) & 1u);
-      c += cost_of(table, tree[node], b);
-      node = (node << 1) | static_cast<uint32_t>(b);
-    }
-    return c;
-  }
 
   RangeEncoder* rc_;
   double* cost_;
