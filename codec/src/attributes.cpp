@@ -230,6 +230,11 @@ AttributeCoder::AttributeCoder(const std::vector<Property>& vertex, const std::v
   for (size_t i = 0; i < vertex.size(); ++i)
     if (role_[i] < 0) columns_.push_back(vertex[i]);
   models_.resize(static_cast<size_t>(2 * dims_ * kLengthContexts));
+  restart_models();
+}
+
+void AttributeCoder::restart_models() {
+  for (ResidualModel& m : models_) m = ResidualModel();
   // Spec 8.3: the length trees start from a prior (init_length_prior()).
   for (int kind = 0; kind < 2; ++kind)
     for (int d = 0; d < dims_; ++d)

@@ -97,6 +97,15 @@ class AttributeCoder {
   const char* open_fast(FastAttributeReader& rd, const uint8_t* data, size_t size) const;
   const char* decode_fast(FastAttributeReader& rd, const AttributeRecord& r, int32_t* q);
   // The table of a residual (spec 13.8.4).
+  // Segments (spec 4.6): the state that carries over, by slot, and the
+  // adaptive models' fresh start.
+  const int32_t* last() const { return last_; }
+  void set_last(const int32_t* v) { std::copy(v, v + dims_, last_); }
+  int32_t* vertex_state(uint32_t slot) { return vertex_values(slot); }
+  int32_t* edge_state(uint32_t slot) { return edge_values(slot); }
+  // Whether v is a value component d can hold.
+  bool in_range(int d, int64_t v) const { return v >= comp_[d].lo && v <= comp_[d].hi; }
+  void restart_models();
   int fast_table(int kind, int d, int ctx) const { return (kind * dims_ + d) * 3 + (ctx < 4 ? 0 : ctx < 8 ? 1 : 2); }
   int fast_tables() const { return 6 * dims_; }
 

@@ -304,6 +304,51 @@ uint32_t BasicBoundary<L>::grow_edges() {
   return static_cast<uint32_t>(edges_.size() - 1);
 }
 
+template <bool L>
+void BasicBoundary<L>::load_vertex(uint32_t index, uint32_t key, uint32_t degree, const int64_t pos[3]) {
+  BVertex v;
+  v.index = index;
+  v.key = key;
+  v.degree = degree;
+  for (int i = 0; i < 3; ++i) v.pos[i] = pos[i];
+  vertices_.push_back(v);
+  if constexpr (L) links_.emplace_back();
+  vlive_.push_back(1);
+  ++active_vertices_;
+}
+
+template <bool L>
+void BasicBoundary<L>::load_edge(uint32_t org, uint32_t dst, uint64_t age, const int64_t opp[3]) {
+  const uint32_t s = static_cast<uint32_t>(edges_.size());
+  edges_.emplace_back();
+  BEdge& e = edges_[s];
+  e.org = org;
+  e.dst = dst;
+  e.age = age;
+  e.live = true;
+  for (int i = 0; i < 3; ++i) e.opp[i] = opp[i];
+  ++vertices_[org].open;
+  ++vertices_[dst].open;
+  ++open_edges_;
+  if constexpr (L) {
+    e.next_out = links_[org].first_out;
+    links_[org].first_out = s;
+    e.next_in = links_[dst].first_in;
+    links_[dst].first_in = s;
+  }
+}
+
+template <bool L>
+void BasicBoundary<L>::load_end(const uint32_t* next, uint64_t entered, uint32_t reference) {
+  // The links once every edge is there: next and prev mutual (6.1.2).
+  for (size_t s = 0; s < edges_.size(); ++s) {
+    edges_[s].next = next[s];
+    if (next[s] != kNone) edges_[next[s]].prev = static_cast<uint32_t>(s);
+  }
+  entered_ = entered;
+  reference_ = reference;
+}
+
 template class BasicBoundary<true>;
 template class BasicBoundary<false>;
 

@@ -113,6 +113,7 @@ struct BTriangle {
 class SlotStack {
  public:
   bool empty() const { return n_ == 0; }
+  void clear() { n_ = 0; }
   __attribute__((always_inline)) uint32_t pop() { return slots_[--n_]; }
   __attribute__((always_inline)) void push(uint32_t slot) {
     if (n_ == slots_.size()) grow();
@@ -210,6 +211,32 @@ class BasicBoundary {
   // 1, 2, 0, or kNone.
   uint32_t reference() const { return reference_; }
   void clear_reference() { reference_ = kNone; }
+  // Edges that ever entered (spec 6.1.2 step 2).
+  uint64_t entered() const { return entered_; }
+
+  // The other endpoints of the dead edges at vertex slot `a` (kLookups
+  // only), in no particular order.
+  template <class F>
+  void for_each_dead(uint32_t a, F f) const {
+    const BLinks& va = links_[a];
+    for (uint32_t i = 0; i < va.ndead; ++i) f(va.dead[i]);
+    for (uint32_t r = va.first_border; r != kNone;) {
+      const BBorder& e = borders_[r];
+      const int side = e.v[0] == a ? 0 : 1;
+      f(e.v[1 - side]);
+      r = e.next[side];
+    }
+  }
+  // A boundary loaded from the state of a segment record (segment.h), on
+  // a fresh one: the vertex slots 0, 1, ... in order, then the edge slots
+  // likewise, then (kLookups) the dead edges, then load_end().
+  void load_vertex(uint32_t index, uint32_t key, uint32_t degree, const int64_t pos[3]);
+  void load_edge(uint32_t org, uint32_t dst, uint64_t age, const int64_t opp[3]);
+  void load_dead(uint32_t a, uint32_t b) {
+    if constexpr (kLookups) add_border(a, b);
+  }
+  // next[s]: edge s's next edge, or kNone.
+  void load_end(const uint32_t* next, uint64_t entered, uint32_t reference);
 
 
  private:

@@ -83,6 +83,7 @@ std::vector<uint8_t> write_header(const PsqHeader& h) {
   for (int i = 0; i < 3; ++i) put.f64(h.lossless ? 0.0 : h.origin[i]);
   put.f64(h.lossless ? 0.0 : h.step);
   put.varint(h.boundary_limit);
+  put.varint(h.segment_triangles);
   // Spec 4.2: a count plus one, 0 for unknown (-1).
   put.varint(static_cast<uint64_t>(h.schema.vertex_count) + 1);
   put.varint(static_cast<uint64_t>(h.schema.triangle_count) + 1);
@@ -156,6 +157,10 @@ Status parse_header_payload(const uint8_t* p, size_t n, uint64_t base, PsqHeader
     return Status(ErrorCode::kLimit, "boundary limit " + std::to_string(limit) + " not in 1.." +
                                          std::to_string(kMaxBoundaryLimit), base + at);
   h->boundary_limit = static_cast<uint32_t>(limit);
+  at = get.pos();
+  h->segment_triangles = get.varint();
+  if (get.malformed()) return bad("malformed varint", at);
+  if (get.short_read()) return bad("header payload too short", at);
   at = get.pos();
   const uint64_t nv = get.varint();
   const size_t at_t = get.pos();

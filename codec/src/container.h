@@ -31,6 +31,10 @@ constexpr uint32_t kMaxBoundaryLimit = 1u << 28;
 
 constexpr uint8_t kChunkTag = 0x43;         // 'C'
 constexpr uint8_t kEndTag = 0x45;           // 'E'
+constexpr uint8_t kSegmentTag = 0x53;       // 'S': a segment record (spec 4.6)
+constexpr uint8_t kIndexTag = 0x49;         // 'I': the segment index (spec 4.7)
+constexpr uint32_t kMaxStateBytes = 1u << 26;  // a segment record's compressed state block
+constexpr uint32_t kMaxStateRaw = 1u << 28;    // and its size after decompression
 constexpr size_t kMaxVarintBytes = 10;      // a 64-bit value in 7-bit groups (spec 3.1)
 constexpr uint32_t kMaxChunkRecords = 1u << 24;
 constexpr uint32_t kMaxRecordBytes = 1u << 26;     // coded records of one chunk

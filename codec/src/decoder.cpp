@@ -48,7 +48,7 @@ Status PsqDecoder::Impl::open(InputStream* stream) {
   if (!checksum_ok(Get(c, 4).u32(), expect))
     return Status(ErrorCode::kChecksum, "header checksum mismatch", payload_at + length);
   in_header = false;
-  chain_crc = crc32c_update(0, c, 4);
+  chain_crc = header_chain = crc32c_update(0, c, 4);
   PSQ_RETURN_IF_ERROR(parse_header_payload(payload.data(), payload.size(), payload_at, &header));
   stats.header_bytes = payload_at + length + 4;
   {
@@ -68,6 +68,7 @@ Status PsqDecoder::Impl::open(InputStream* stream) {
   attrs = std::make_unique<AttributeCoder>(header.schema.vertex_properties, header.attributes);
   attr_q.resize(3 * static_cast<size_t>(attrs->dims()));
   props = std::make_unique<PropertyUnpacker>(attrs->column_properties(), header.schema.face_properties);
+  segment_next = header.segment_triangles;
   if (!header.lossless) {
     grid_max = static_cast<int64_t>((uint64_t{1} << header.bits) - 1);
     for (int i = 0; i < 3; ++i) last_pos[i] = grid_max / 2;
@@ -80,9 +81,34 @@ Status PsqDecoder::Impl::next_chunk() {
   chunk_offset = in->offset();
   uint8_t tag;
   PSQ_RETURN_IF_ERROR(read(&tag, 1));
-  if (tag == kEndTag) return read_end();
+  // Spec 4.6: a segment record comes exactly where the triangles reach a
+  // multiple of the segment size, unless the stream ends there.
+  const bool due = segment_next != 0 && triangles_so_far() == segment_next;
+  if (tag == kSegmentTag) {
+    if (!due || index_at != 0) return Status(ErrorCode::kBadHeader, "segment record where no segment begins", chunk_offset);
+    if (alone) {
+      // The segment decoded alone ends here; its caller compares the
+      // state it reached with the next segment's block.
+      SegmentState st;
+      capture_state(&st, &end_state);
+      stopped_at = chunk_offset;
+      ended = true;
+      return Status();
+    }
+    return read_segment(false);
+  }
+  if (tag == kIndexTag) return read_index();
+  if (tag == kEndTag) {
+    if (!seen_segment_at.empty() && index_at == 0 && !alone)
+      return Status(ErrorCode::kBadHeader, "the stream has segment records but no index", chunk_offset);
+    return read_end();
+  }
   if (tag != kChunkTag)
     return Status(ErrorCode::kBadHeader, "unknown chunk tag " + std::to_string(tag), chunk_offset);
+  if (due)
+    return Status(ErrorCode::kBadHeader, "a chunk where the segment record of triangle " +
+                                             std::to_string(segment_next) + " must come", chunk_offset);
+  if (index_at != 0) return Status(ErrorCode::kBadHeader, "a chunk after the index", chunk_offset);
   // Spec 4.3: seven varint fields.
   std::vector<uint8_t> f;
   uint64_t records, vertices, triangles, conn_size, prop_size, prop_raw, attr_size;
@@ -98,6 +124,8 @@ Status PsqDecoder::Impl::next_chunk() {
   const bool has_props = !attrs->column_properties().empty() || !header.schema.face_properties.empty();
   if (!has_props && (prop_size != 0 || prop_raw != 0)) return bad("property section without properties");
   if (has_props && prop_size == 0) return bad("no property section");
+  if (segment_next != 0 && triangles_so_far() + triangles > segment_next)
+    return bad("its triangles run past the segment start at triangle " + std::to_string(segment_next));
   uint32_t crc = crc32c_update(0, &tag, 1);
   crc = crc32c_update(crc, f.data(), f.size());
   conn_offset = in->offset();
@@ -118,6 +146,7 @@ Status PsqDecoder::Impl::next_chunk() {
   PSQ_RETURN_IF_ERROR(read(c, 4));
   if (!checksum_ok(Get(c, 4).u32(), crc)) return Status(ErrorCode::kChecksum, "chunk checksum mismatch", crc_at);
   chain_crc = crc32c_update(chain_crc, c, 4);
+  if (alone) chain_fields.insert(chain_fields.end(), c, c + 4);
   if (has_props) {
     if (!zstd_decompress(packed.data(), packed.size(), prop_raw, &raw))
       return Status(ErrorCode::kBadValue, "property section does not decompress to its declared size",
@@ -142,6 +171,123 @@ Status PsqDecoder::Impl::next_chunk() {
   stats.property_bytes += prop_size;
   stats.attribute_bytes += attr_size;
   stats.chunk_overhead_bytes += 1 + f.size() + 4;
+  return Status();
+}
+
+void PsqDecoder::Impl::capture_state(SegmentState* st, std::vector<uint8_t>* out) {
+  st->records = record_no;
+  st->vertices = next_out;
+  st->triangles = triangles_so_far();
+  st->context = static_cast<uint32_t>(fast_context);
+  st->choice = static_cast<uint32_t>(fast_choice);
+  std::copy(last_pos, last_pos + 3, st->last);
+  capture_boundary(fboundary, st);
+  capture_dead(fboundary, fneighbors, st);
+  if (!attrs->empty()) capture_attributes(*attrs, st);
+  serialize_state(*st, attrs->dims(), out);
+}
+
+void PsqDecoder::Impl::restart(const SegmentState& st) {
+  fboundary = FastBoundary(header.boundary_limit);
+  fneighbors = Neighbors();
+  load_state(st, &fboundary, &fneighbors, &ring, attrs.get());
+  attrs->restart_models();
+}
+
+Status PsqDecoder::Impl::read_segment(bool load) {
+  // Spec 4.6: the tag, two varints, the zstd frame, the checksum.
+  const uint64_t at = chunk_offset;
+  std::vector<uint8_t> f;
+  uint64_t packed_size, raw_size;
+  PSQ_RETURN_IF_ERROR(read_varint(&packed_size, &f));
+  PSQ_RETURN_IF_ERROR(read_varint(&raw_size, &f));
+  auto bad = [&](const std::string& what) { return Status(ErrorCode::kBadHeader, "segment record: " + what, at); };
+  if (packed_size == 0 || packed_size > kMaxStateBytes || raw_size > kMaxStateRaw)
+    return bad("state block sizes beyond the limits of spec 4.4");
+  const uint8_t tag = kSegmentTag;
+  uint32_t crc = crc32c_update(crc32c_update(0, &tag, 1), f.data(), f.size());
+  const uint64_t block_at = in->offset();
+  PSQ_RETURN_IF_ERROR(read_block(packed_size, &state_packed));
+  crc = crc32c_update(crc, state_packed.data(), state_packed.size());
+  uint8_t c[4];
+  const uint64_t crc_at = in->offset();
+  PSQ_RETURN_IF_ERROR(read(c, 4));
+  if (!checksum_ok(Get(c, 4).u32(), crc)) return Status(ErrorCode::kChecksum, "segment record checksum mismatch", crc_at);
+  chain_crc = crc32c_update(chain_crc, c, 4);
+  if (alone) chain_fields.insert(chain_fields.end(), c, c + 4);
+  if (!zstd_decompress(state_packed.data(), state_packed.size(), raw_size, &state_raw))
+    return Status(ErrorCode::kBadValue, "segment record: state block does not decompress to its declared size", block_at);
+  SegmentState st;
+  if (load) {
+    int64_t lo = 0, hi = grid_max;
+    if (header.lossless) {
+      const bool is_float = header.schema.position_type == ScalarType::kFloat32;
+      lo = is_float ? -(int64_t{1} << 31) : INT64_MIN;
+      hi = is_float ? (int64_t{1} << 31) - 1 : INT64_MAX;
+    }
+    if (const char* why = parse_state(state_raw.data(), state_raw.size(), header.boundary_limit, attrs->dims(), lo,
+                                      hi, attrs.get(), &st))
+      return Status(ErrorCode::kBadValue, std::string("segment record: ") + why, block_at);
+    if (st.triangles == 0 || header.segment_triangles == 0 || st.triangles % header.segment_triangles != 0)
+      return Status(ErrorCode::kBadValue, "segment record: its triangle count is no segment start", block_at);
+    base_records = record_no = st.records;
+    base_triangles = st.triangles;
+    next_out = st.vertices;
+    fast_context = static_cast<int>(st.context);
+    fast_choice = static_cast<int>(st.choice);
+    std::copy(st.last, st.last + 3, last_pos);
+    segment_next = st.triangles;
+    start_state = state_raw;
+  } else {
+    capture_state(&st, &state_mine);
+    if (state_mine != state_raw)
+      return Status(ErrorCode::kBadValue, "segment record: its state block is not the decoder's state", block_at);
+  }
+  // Spec 4.6: the state restarts in its canonical form.
+  restart(st);
+  seen_segment_at.push_back(at);
+  seen_segment_vertices.push_back(next_out);
+  seen_segment_triangles.push_back(triangles_so_far());
+  segment_next += header.segment_triangles;
+  ++stats.segments;
+  stats.segment_bytes += 1 + f.size() + packed_size + 4;
+  return Status();
+}
+
+Status PsqDecoder::Impl::read_index() {
+  // Spec 4.7: the count, then per segment record three varint deltas.
+  const uint64_t at = chunk_offset;
+  auto bad = [&](const std::string& what) { return Status(ErrorCode::kBadHeader, "index: " + what, at); };
+  if (index_at != 0) return bad("a second index");
+  std::vector<uint8_t> f;
+  uint64_t n;
+  PSQ_RETURN_IF_ERROR(read_varint(&n, &f));
+  if (alone) {
+    // A segment decoded alone knows only the segments up to its own;
+    // the index's entries are its caller's to check.
+    if (n > (uint64_t{1} << 32)) return bad("more entries than segments");
+  } else if (n != seen_segment_at.size()) {
+    return bad(std::to_string(n) + " entries for " + std::to_string(seen_segment_at.size()) + " segment records");
+  }
+  uint64_t prev[3] = {0, 0, 0};
+  for (uint64_t i = 0; i < n; ++i) {
+    uint64_t d[3];
+    for (uint64_t& x : d) PSQ_RETURN_IF_ERROR(read_varint(&x, &f));
+    for (int k = 0; k < 3; ++k) prev[k] += d[k];
+    if (!alone && (prev[0] != seen_segment_at[i] || prev[1] != seen_segment_vertices[i] ||
+                   prev[2] != seen_segment_triangles[i]))
+      return bad("entry " + std::to_string(i) + " differs from its segment record");
+  }
+  const uint8_t tag = kIndexTag;
+  const uint32_t crc = crc32c_update(crc32c_update(0, &tag, 1), f.data(), f.size());
+  uint8_t c[4];
+  const uint64_t crc_at = in->offset();
+  PSQ_RETURN_IF_ERROR(read(c, 4));
+  if (!checksum_ok(Get(c, 4).u32(), crc)) return Status(ErrorCode::kChecksum, "index checksum mismatch", crc_at);
+  chain_crc = crc32c_update(chain_crc, c, 4);
+  if (alone) chain_fields.insert(chain_fields.end(), c, c + 4);
+  index_at = at;
+  stats.segment_bytes += 1 + f.size() + 4;
   return Status();
 }
 
@@ -187,18 +333,43 @@ Status PsqDecoder::Impl::decode_attributes() {
 }
 
 Status PsqDecoder::Impl::read_end() {
-  // Spec 4.5: five varint fields.
+  // Spec 4.5: five varint fields and the index's offset.
   std::vector<uint8_t> f;
   uint64_t vertices, triangles, chunks, max_active, max_open;
   for (uint64_t* field : {&vertices, &triangles, &chunks, &max_active, &max_open})
     PSQ_RETURN_IF_ERROR(read_varint(field, &f));
+  uint8_t ix[8];
+  PSQ_RETURN_IF_ERROR(read(ix, 8));
+  f.insert(f.end(), ix, ix + 8);
+  const uint64_t index_field = Get(ix, 8).u64();
+  auto bad = [&](const std::string& what) { return Status(ErrorCode::kBadHeader, "end record: " + what, chunk_offset); };
   const uint8_t tag = kEndTag;
+  if (alone) {
+    // The stream checksum and the totals are the caller's to check, over
+    // every segment (parallel.cpp).
+    const uint64_t fields[5] = {vertices, triangles, chunks, max_active, max_open};
+    std::copy(fields, fields + 5, end_fields);
+    end_index_at = index_field;
+    end_bytes.assign(1, tag);
+    end_bytes.insert(end_bytes.end(), f.begin(), f.end());
+    uint8_t c[4];
+    PSQ_RETURN_IF_ERROR(read(c, 4));
+    end_checksum = Get(c, 4).u32();
+    if (active_vertices() != 0)
+      return bad("the stream ends with " + std::to_string(active_vertices()) + " vertices still active");
+    bool at_end = false;
+    PSQ_RETURN_IF_ERROR(in->at_end(&at_end));
+    if (!at_end) return Status(ErrorCode::kBadHeader, "data after the end record", in->offset());
+    reached_end = true;
+    ended = true;
+    return Status();
+  }
   const uint32_t expect = crc32c_update(crc32c_update(chain_crc, &tag, 1), f.data(), f.size());
   uint8_t c[4];
   uint64_t crc_at = in->offset();
   PSQ_RETURN_IF_ERROR(read(c, 4));
   if (!checksum_ok(Get(c, 4).u32(), expect)) return Status(ErrorCode::kChecksum, "stream checksum mismatch", crc_at);
-  auto bad = [&](const std::string& what) { return Status(ErrorCode::kBadHeader, "end record: " + what, chunk_offset); };
+  if (index_field != index_at) return bad("index offset " + std::to_string(index_field) + " is not the index's");
   if (vertices != stats.vertices || triangles != stats.triangles || chunks != stats.chunks)
     return bad("totals " + std::to_string(vertices) + " vertices, " + std::to_string(triangles) + " triangles, " +
                std::to_string(chunks) + " chunks differ from the stream's " + std::to_string(stats.vertices) + ", " +
@@ -215,6 +386,38 @@ Status PsqDecoder::Impl::read_end() {
   stats.connectivity_bits = cost[kCostConnectivity];
   stats.geometry_bits = cost[kCostGeometry];
   ended = true;
+  return Status();
+}
+
+Status PsqDecoder::Impl::decode_loop() {
+  while (!ended) {
+    if (records_left > 0 && props->empty() && attrs->empty()) {
+      PSQ_RETURN_IF_ERROR(rans ? direct_records<RansSymbolDecoder>() : direct_records<AdaptiveSymbolDecoder>());
+      continue;
+    }
+    qhead = qcount = 0;
+    PSQ_RETURN_IF_ERROR(advance());
+    for (int i = 0; i < qcount; ++i) {
+      const SequenceEvent& e = queue[i];
+      if (direct_fixed) PSQ_RETURN_IF_ERROR(direct_fixed_check(e));
+      if (e.kind == SequenceEvent::Kind::kVertex) direct_vertex(e.vertex);
+      else if (e.kind == SequenceEvent::Kind::kTriangle) direct_triangle(e.triangle.v);
+    }
+  }
+  qhead = qcount = 0;
+  return Status();
+}
+
+Status PsqDecoder::Impl::decode_range(MeshBuffers* mesh, size_t np_begin, size_t np_end, size_t ni_begin,
+                                      size_t ni_end) {
+  direct = mesh;
+  direct_fixed = true;
+  direct_np = np_begin;
+  direct_ni = ni_begin;
+  direct_np_end = np_end;
+  direct_ni_end = ni_end;
+  PSQ_RETURN_IF_ERROR(decode_loop());
+  if (direct_np != np_end || direct_ni != ni_end) return direct_overflow();
   return Status();
 }
 
@@ -306,6 +509,101 @@ Status PsqDecoder::open(InputStream* in) {
   return s.ok() ? s : impl_->fail(s);
 }
 
+Status PsqDecoder::segments(std::vector<PsqSegment>* out) {
+  Impl& m = *impl_;
+  if (!m.error.ok()) return m.error;
+  if (!m.opened) return m.fail(Status(ErrorCode::kUsage, "decoder not opened"));
+  out->clear();
+  InputStream& in = *m.in;
+  const uint64_t back = in.offset();
+  const uint64_t first = m.stats.header_bytes;
+  out->push_back(PsqSegment{first, 0, 0});
+  if (!in.can_rewind()) return Status(ErrorCode::kIo, "the segments of a stream need an input that can seek");
+  const uint64_t size = static_cast<uint64_t>(in.size());
+  // Spec 4.5: the end record ends with the index's offset and the stream
+  // checksum.
+  uint8_t tail[12];
+  if (size < first + 12) return Status();  // too short for an end record: the decoder tells
+  PSQ_RETURN_IF_ERROR(in.seek(size - 12));
+  PSQ_RETURN_IF_ERROR(in.read_exact(tail, 12));
+  const uint64_t at = Get(tail, 8).u64();
+  Status s;
+  if (at != 0) {
+    auto bad = [&](const std::string& what) { return Status(ErrorCode::kBadHeader, "index: " + what, at); };
+    if (at < first || at >= size - 12) {
+      s = Status(ErrorCode::kBadHeader, "end record: index offset beyond the stream", size - 12);
+    } else {
+      // Spec 4.7, read from memory: the record is at most 10 bytes per
+      // varint, three per segment.
+      std::vector<uint8_t> f;
+      uint8_t tag = 0;
+      s = in.seek(at);
+      if (s.ok()) s = in.read_exact(&tag, 1);
+      if (s.ok() && tag != kIndexTag) s = bad("no index record at the end record's offset");
+      auto varint = [&](uint64_t* v) {
+        uint8_t b[kMaxVarintBytes];
+        for (size_t i = 0; i < kMaxVarintBytes; ++i) {
+          Status r = in.read_exact(&b[i], 1);
+          if (!r.ok()) return r;
+          f.push_back(b[i]);
+          if (!(b[i] & 0x80)) return parse_varint(b, i + 1, v) > 0 ? Status() : bad("malformed varint");
+        }
+        return bad("malformed varint");
+      };
+      uint64_t n = 0;
+      if (s.ok()) s = varint(&n);
+      if (s.ok() && n > (size - at) / 3) s = bad("more entries than the index has bytes");
+      PsqSegment prev{0, 0, 0};
+      for (uint64_t i = 0; s.ok() && i < n; ++i) {
+        uint64_t d[3];
+        for (uint64_t& x : d)
+          if (s.ok()) s = varint(&x);
+        if (!s.ok()) break;
+        prev.offset += d[0];
+        prev.vertices += d[1];
+        prev.triangles += d[2];
+        if (prev.offset <= out->back().offset || prev.offset >= at) {
+          s = bad("entry " + std::to_string(i) + " is not a segment record's offset");
+          break;
+        }
+        out->push_back(prev);
+      }
+      uint8_t c[4];
+      if (s.ok()) s = in.read_exact(c, 4);
+      if (s.ok()) {
+        const uint32_t crc = crc32c_update(crc32c_update(0, &tag, 1), f.data(), f.size());
+        if (!checksum_ok(Get(c, 4).u32(), crc)) s = Status(ErrorCode::kChecksum, "index checksum mismatch", at);
+      }
+    }
+  }
+  Status r = in.seek(back);
+  if (!s.ok()) {
+    out->resize(1);
+    return s;
+  }
+  return r;
+}
+
+Status PsqDecoder::start_segment(const PsqSegment& segment) {
+  Impl& m = *impl_;
+  if (!m.error.ok()) return m.error;
+  if (!m.opened || m.record_no != 0 || m.alone || m.records_left != 0)
+    return m.fail(Status(ErrorCode::kUsage, "start_segment() right after open()"));
+  m.alone = true;
+  if (segment.offset == m.stats.header_bytes) return Status();
+  Status s = m.in->seek(segment.offset);
+  if (!s.ok()) return m.fail(s);
+  m.chunk_offset = segment.offset;
+  uint8_t tag = 0;
+  s = m.read(&tag, 1);
+  if (s.ok() && tag != kSegmentTag)
+    s = Status(ErrorCode::kBadHeader, "no segment record at this offset", segment.offset);
+  if (s.ok()) s = m.read_segment(true);
+  if (s.ok() && (m.next_out != segment.vertices || m.base_triangles != segment.triangles))
+    s = Status(ErrorCode::kBadHeader, "the segment record's counts differ from the index's", segment.offset);
+  return s.ok() ? s : m.fail(s);
+}
+
 const PsqHeader& PsqDecoder::header() const { return impl_->header; }
 const MeshSchema& PsqDecoder::schema() const { return impl_->header.schema; }
 void PsqDecoder::measure_costs(bool on) { impl_->measure = on; }
@@ -391,20 +689,7 @@ Status PsqDecoder::Impl::decode_into(MeshBuffers* mesh) {
     } catch (const std::bad_alloc&) {
     }
   }
-  while (!ended) {
-    if (records_left > 0 && props->empty() && attrs->empty()) {
-      PSQ_RETURN_IF_ERROR(rans ? direct_records<RansSymbolDecoder>() : direct_records<AdaptiveSymbolDecoder>());
-      continue;
-    }
-    qhead = qcount = 0;
-    PSQ_RETURN_IF_ERROR(advance());
-    for (int i = 0; i < qcount; ++i) {
-      const SequenceEvent& e = queue[i];
-      if (e.kind == SequenceEvent::Kind::kVertex) direct_vertex(e.vertex);
-      else if (e.kind == SequenceEvent::Kind::kTriangle) direct_triangle(e.triangle.v);
-    }
-  }
-  qhead = qcount = 0;
+  PSQ_RETURN_IF_ERROR(decode_loop());
   mesh->positions.resize(direct_np);
   mesh->indices.resize(direct_ni);
   // The arrays hold floats: a double stream's position beyond float range

@@ -26,6 +26,7 @@
 #include "psq/psq_memory.h"
 #include "range_coder.h"
 #include "rans.h"
+#include "segment.h"
 #include "symbol_coder.h"
 
 namespace psq {
@@ -68,6 +69,7 @@ struct PsqDecoder::Impl {
   uint32_t file_crc = 0;     // of the header's bytes (spec 4.2)
   bool in_header = true;
   uint32_t chain_crc = 0;    // spec 4.5: the block checksums, in order
+  uint32_t header_chain = 0;  // chain_crc after the header
 
   // The current chunk.
   std::vector<uint8_t> conn, packed, raw;
@@ -134,6 +136,43 @@ struct PsqDecoder::Impl {
     return Status(ErrorCode::kBadValue, "record " + std::to_string(record_no) + ": " + what, at);
   }
 
+  // Segments (spec 4.6, 4.7). A decoder that starts at a segment record
+  // (start_segment()) takes its counts from the state block: the records,
+  // vertex and triangle events before it (base_*); its stats count its own.
+  uint64_t base_records = 0, base_triangles = 0;
+  uint64_t segment_next = 0;  // the triangle count where the next segment begins; 0: none
+  // The segment records seen: offsets and counts before each, for the index.
+  std::vector<uint64_t> seen_segment_at, seen_segment_vertices, seen_segment_triangles;
+  uint64_t index_at = 0;  // the index record's offset, once read
+  std::vector<uint8_t> state_packed, state_raw, state_mine;
+  // Decoding one segment alone (start_segment()): it ends at the next
+  // segment record or at the end record, with what a caller that decodes
+  // every segment needs to check them together (parallel.cpp): the state
+  // block it started from and the one its state serializes to at its end,
+  // its checksum fields in order (4.5), and the end record's fields.
+  bool alone = false;
+  std::vector<uint8_t> start_state, end_state;
+  std::vector<uint8_t> chain_fields;  // the checksum fields it read (4 bytes each)
+  std::vector<uint8_t> end_bytes;     // the end record before its checksum
+  uint32_t end_checksum = 0;
+  uint64_t end_fields[5] = {0, 0, 0, 0, 0};
+  uint64_t end_index_at = 0;
+  bool reached_end = false;   // alone: this segment is the last
+  uint64_t stopped_at = 0;    // alone: the offset of the segment record it stopped at
+  uint64_t triangles_so_far() const { return base_triangles + stats.triangles; }
+  // The state now (segment.h), and serialized into `out`.
+  void capture_state(SegmentState* st, std::vector<uint8_t>* out);
+  // Restarts from a state (spec 4.6): a fresh boundary, neighbour lists,
+  // ring and attribute models.
+  void restart(const SegmentState& st);
+  // A segment record (its tag read): decompressed into state_raw, and
+  // checked against the decoder's state, or loaded by a decoder that
+  // starts here (`load`).
+  Status read_segment(bool load);
+  Status read_index();
+  // Loads a state block into a freshly opened decoder.
+  Status load_segment_state(uint64_t at);
+
   Status open(InputStream* stream);
   Status next_chunk();
   // The attributes of the record in the queue (spec 8.3), into its vertex
@@ -199,8 +238,31 @@ struct PsqDecoder::Impl {
   };
   // The cursor of the members' arrays and lengths; back into the members.
   DirectCursor direct_cursor() {
+    const size_t np_end = std::min(direct->positions.size(), direct_np_end);
+    const size_t ni_end = std::min(direct->indices.size(), direct_ni_end);
     return DirectCursor{direct->positions.data(), direct->indices.data(), direct_np / 3, direct_ni,
-                        (direct->positions.size() - direct_np) / 3, (direct->indices.size() - direct_ni) / 3};
+                        (np_end - direct_np) / 3, (ni_end - direct_ni) / 3};
+  }
+  // A segment decoded into its part of arrays that every segment shares
+  // (decode_range()): the arrays never grow, and the segment writes
+  // nothing beyond the ends of its part.
+  bool direct_fixed = false;
+  size_t direct_np_end = SIZE_MAX, direct_ni_end = SIZE_MAX;
+  // The event path's check of fixed arrays: room for event e, and no
+  // re-appearing vertex (whose mesh index another segment knows).
+  Status direct_fixed_check(const SequenceEvent& e) const {
+    if (e.kind == SequenceEvent::Kind::kVertex) {
+      if (e.vertex.reappears != kNoVertex)
+        return Status(ErrorCode::kUnsupported, "a re-appearing vertex in a segment decoded alone into arrays");
+      if (direct_np + 3 > direct_np_end) return direct_overflow();
+    } else if (e.kind == SequenceEvent::Kind::kTriangle) {
+      if (direct_ni + 3 > direct_ni_end) return direct_overflow();
+    }
+    return Status();
+  }
+  Status direct_overflow() const {
+    return Status(ErrorCode::kBadHeader, "the segment holds more vertex or triangle events than the index declares",
+                  conn_offset);
   }
   void direct_sync(const DirectCursor& c) {
     direct_np = 3 * c.verts;
@@ -210,11 +272,14 @@ struct PsqDecoder::Impl {
   // (geometrically, or up to the capacity decode_into() reserved). Each
   // grows only when a record needs it: a chunk's room for vertices is its
   // declared count, which fills before its last fills come.
-  void direct_grow(DirectCursor& c) {
+  // False, with fixed arrays (direct_fixed), when there is no room left.
+  bool direct_grow(DirectCursor& c) {
+    if (direct_fixed) return false;
     direct_sync(c);
     if (c.vroom == 0) direct_room(direct->positions, direct_np, 3);
     if (c.troom == 0) direct_room(direct->indices, direct_ni, 3);
     c = direct_cursor();
+    return true;
   }
   // The float position of quantized float coordinates (spec 7.1) straight
   // into `out`: position_of() and the cast in one rounding; the same
@@ -257,6 +322,12 @@ struct PsqDecoder::Impl {
   // Decodes the rest of the stream into `mesh` (PsqDecoder::pump() into a
   // sink that gives its arrays, psq/sequence.h).
   Status decode_into(MeshBuffers* mesh);
+  // A segment decoded alone (start_segment()) into its part of `mesh`,
+  // whose arrays are sized for the whole stream: positions [np_begin,
+  // np_end) and indices [ni_begin, ni_end) (parallel.cpp).
+  Status decode_range(MeshBuffers* mesh, size_t np_begin, size_t np_end, size_t ni_begin, size_t ni_end);
+  // decode_into()'s and decode_range()'s loop.
+  Status decode_loop();
 
   // The records (record_decoder.cpp, spec section 13).
   bool fast_choices = false;  // gate records code a prediction choice (fast_codes_choices())

@@ -13,6 +13,7 @@
 #include "properties.h"
 #include "attributes.h"
 #include "psq/psq_codec.h"
+#include "segment.h"
 
 namespace psq {
 
@@ -51,6 +52,10 @@ Status PsqEncoder::Impl::begin(const MeshSchema& schema) {
   header.fast = rans = opt.fast;
   header.rotation = !schema.face_properties.empty();
   header.boundary_limit = opt.boundary_limit;
+  if (opt.segment_triangles == EncodeOptions::kAutoSegments)
+    opt.segment_triangles = EncodeOptions::auto_segment_triangles(schema);
+  header.segment_triangles = opt.segment_triangles;
+  segment_next = opt.segment_triangles;
   if (!opt.lossless) {
     if (opt.bits < 1 || opt.bits > 31) return Status(ErrorCode::kUsage, "quantization bits must be 1..31");
     if (!schema.has_bounds)
@@ -222,6 +227,7 @@ Status PsqEncoder::Impl::candidate_gates(const SequenceTriangle& t, const int pe
 }
 
 Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
+  if (segment_due) PSQ_RETURN_IF_ERROR(write_segment());
   {
     Status s;
     if (fast_direct(t, &s)) return s;
@@ -329,6 +335,7 @@ Status PsqEncoder::Impl::close_triangle(const SequenceTriangle& t, BTriangle& bt
 }
 
 Status PsqEncoder::Impl::isolated(size_t at) {
+  if (segment_due) PSQ_RETURN_IF_ERROR(write_segment());
   PendingVertex v = std::move(pending[at]);
   pending.erase(pending.begin() + static_cast<std::ptrdiff_t>(at));
   PSQ_RETURN_IF_ERROR(introduce(v));
@@ -363,6 +370,7 @@ void PsqEncoder::Impl::code_attributes(const uint32_t* corner, const uint32_t* e
 
 Status PsqEncoder::Impl::after_record() {
   ++chunk_records;
+  ++records_so_far;
   stats.max_active_vertices = std::max(stats.max_active_vertices, boundary.active_vertices());
   stats.max_open_edges = std::max(stats.max_open_edges, boundary.open_edges());
   // The back-ends code a chunk at its end: estimate 4 bits a symbol for
@@ -382,6 +390,13 @@ Status PsqEncoder::Impl::after_record() {
   const bool full = fast_raw.bits() / 8 + symbol_bound + 8 + kRecordBound >= kMaxRecordBytes;
   // The attribute section is closed at the property target too, far
   // below its limit (spec 4.4): a record adds at most a few hundred bytes.
+  // Spec 4.6: a segment begins after the record that brings the
+  // triangles to a multiple of the segment size; its chunk ends there.
+  if (segment_next != 0 && stats.triangles == segment_next) {
+    segment_next += opt.segment_triangles;
+    segment_due = true;
+    return close_chunk();
+  }
   if (coded >= opt.chunk_bytes || full || props->raw_size() >= kChunkPropertyTarget ||
       std::max(attr_bytes.size(), attr_fast.size_estimate()) >= kChunkPropertyTarget ||
       chunk_records >= kMaxChunkRecords)
@@ -427,6 +442,53 @@ Status PsqEncoder::Impl::close_chunk() {
   return emit(chunk);
 }
 
+Status PsqEncoder::Impl::write_segment() {
+  segment_due = false;
+  SegmentState st;
+  st.records = records_so_far;
+  st.vertices = next_out;
+  st.triangles = stats.triangles;
+  st.context = static_cast<uint32_t>(fast_context);
+  st.choice = static_cast<uint32_t>(fast_choice);
+  std::copy(last_pos, last_pos + 3, st.last);
+  capture_boundary(boundary, &st);
+  capture_dead(boundary, &st);
+  if (!attrs->empty()) capture_attributes(*attrs, &st);
+  std::vector<uint8_t> raw, packed;
+  serialize_state(st, attrs->dims(), &raw);
+  if (raw.size() > kMaxStateRaw)
+    return Status(ErrorCode::kLimit, "the boundary at triangle " + std::to_string(stats.triangles) +
+                                         " is too large for a segment record (use fewer segments)");
+  zstd_compress(raw, std::max(opt.zstd_level, 19), &packed);
+  std::vector<uint8_t> rec;
+  Put put(&rec);
+  put.u8(kSegmentTag);
+  put.varint(packed.size());
+  put.varint(raw.size());
+  put.bytes(packed.data(), packed.size());
+  put.u32(crc32c_update(0, rec.data(), rec.size()));
+  chain_crc = crc32c_update(chain_crc, rec.data() + rec.size() - 4, 4);
+  segment_at.push_back(stats.total_bytes);
+  segment_vertices.push_back(st.vertices);
+  segment_triangles.push_back(st.triangles);
+  ++stats.segments;
+  stats.segment_bytes += rec.size();
+  // Spec 4.6: the state restarts in its canonical form, as a decoder's
+  // does: the slots renumbered, the ring rebuilt, the attribute models
+  // fresh. The maps from the input's slots follow the renumbering.
+  std::vector<uint32_t> vmap(boundary.vertex_capacity(), kNone), emap(boundary.edge_capacity(), kNone);
+  for (uint32_t i = 0; i < st.old_vertex.size(); ++i) vmap[st.old_vertex[i]] = i;
+  for (uint32_t i = 0; i < st.old_edge.size(); ++i) emap[st.old_edge[i]] = i;
+  auto remap = [](const std::vector<uint32_t>& map, uint32_t s) { return s < map.size() ? map[s] : kNone; };
+  for (uint32_t& s : by_inslot) s = remap(vmap, s);
+  for (auto& kv : slot_of) kv.second = remap(vmap, kv.second);
+  for (uint32_t& s : by_ineslot) s = remap(emap, s);
+  boundary = Boundary(opt.boundary_limit);
+  load_state(st, &boundary, nullptr, &ring, attrs.get());
+  attrs->restart_models();
+  return emit(rec);
+}
+
 Status PsqEncoder::Impl::finish() {
   if (!expect_final.empty())
     return bad_sequence("vertex " + std::to_string(expect_final.front()) + " is never finalized");
@@ -435,6 +497,28 @@ Status PsqEncoder::Impl::finish() {
   if (boundary.active_vertices() != 0)
     return bad_sequence(std::to_string(boundary.active_vertices()) + " vertices are still active at the end");
   PSQ_RETURN_IF_ERROR(close_chunk());
+  // Spec 4.7: the index of the segment records, when there are any.
+  uint64_t index_at = 0;
+  if (!segment_at.empty()) {
+    std::vector<uint8_t> index;
+    Put put(&index);
+    put.u8(kIndexTag);
+    put.varint(segment_at.size());
+    uint64_t prev[3] = {0, 0, 0};
+    for (size_t i = 0; i < segment_at.size(); ++i) {
+      put.varint(segment_at[i] - prev[0]);
+      put.varint(segment_vertices[i] - prev[1]);
+      put.varint(segment_triangles[i] - prev[2]);
+      prev[0] = segment_at[i];
+      prev[1] = segment_vertices[i];
+      prev[2] = segment_triangles[i];
+    }
+    put.u32(crc32c_update(0, index.data(), index.size()));
+    chain_crc = crc32c_update(chain_crc, index.data() + index.size() - 4, 4);
+    index_at = stats.total_bytes;
+    stats.segment_bytes += index.size();
+    PSQ_RETURN_IF_ERROR(emit(index));
+  }
   std::vector<uint8_t> end;
   Put put(&end);
   put.u8(kEndTag);
@@ -443,6 +527,7 @@ Status PsqEncoder::Impl::finish() {
   put.varint(stats.chunks);
   put.varint(stats.max_active_vertices);
   put.varint(stats.max_open_edges);
+  put.u64(index_at);
   put.u32(crc32c_update(chain_crc, end.data(), end.size()));
   stats.chunk_overhead_bytes += end.size();
   stats.connectivity_bits = cost[kCostConnectivity];

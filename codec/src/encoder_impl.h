@@ -127,6 +127,17 @@ struct PsqEncoder::Impl {
   Status close_triangle(const SequenceTriangle& t, BTriangle& bt, int nnew);
   Status isolated(size_t pending_at);
   Status close_chunk();
+  // Segments (spec 4.6): the triangle count at which the next segment
+  // begins; set when a chunk closed there and the next record must come
+  // after a segment record; the records so far; the segment records'
+  // offsets and the counts before each (the index, 4.7).
+  uint64_t segment_next = 0;
+  bool segment_due = false;
+  uint64_t records_so_far = 0;
+  std::vector<uint64_t> segment_at, segment_vertices, segment_triangles;
+  // Writes the segment record of the state now, then restarts the free
+  // slots and the attribute models as a decoder does.
+  Status write_segment();
   Status after_record();
 
   // The records (record_encoder.cpp, spec section 13).

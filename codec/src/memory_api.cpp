@@ -86,20 +86,4 @@ Status encode_mesh(const float* positions, size_t vertex_count, const uint32_t* 
   return Status();
 }
 
-Status decode_mesh(const uint8_t* data, size_t size, MeshBuffers* mesh) {
-  mesh->positions.clear();
-  mesh->indices.clear();
-  InputStream in;
-  in.open_memory(data, size, "<memory>");
-  PsqDecoder decoder;
-  MeshArraySink sink(mesh);
-  Status s = decoder.open(&in);
-  if (s.ok()) s = decoder.pump(sink);
-  if (!s.ok()) {
-    mesh->positions.clear();
-    mesh->indices.clear();
-  }
-  return s;
-}
-
 }  // namespace psq

@@ -69,6 +69,22 @@ class Neighbors {
     if (vq.count < kInline) vq.e[vq.count++] = es;
     else spill(q, es);
   }
+  // Calls f(b) for each neighbour slot b that slot `s` lists with b's
+  // current generation (a neighbour whose vertex was finalized and whose
+  // slot no new vertex took since is among them: the caller tells).
+  template <class F>
+  void for_each_current(uint32_t s, F f) const {
+    if (s >= slots_.size()) return;
+    const Slot& v = slots_[s];
+    auto visit = [&](uint64_t x) {
+      const uint32_t b = static_cast<uint32_t>(x >> 32);
+      if (slots_[b].gen == static_cast<uint32_t>(x)) f(b);
+    };
+    const uint32_t n = v.count < kInline ? v.count : kInline;
+    for (uint32_t i = 0; i < n; ++i) visit(v.e[i]);
+    if (v.count > kInline)
+      for (uint64_t x : spill_[s]) visit(x);
+  }
   // How many neighbours slot `s` lists, stale ones included (for tests).
   uint32_t listed(uint32_t s) const { return s < slots_.size() ? slots_[s].count : 0; }
   // Whether an edge joins the vertices now in slots a and b.

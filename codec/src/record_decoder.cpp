@@ -307,7 +307,7 @@ PSQ_INLINE Status PsqDecoder::Impl::common_record(D& d, RawReader& bits, int cls
     PSQ_RETURN_IF_ERROR(fast_position(d, bits, pr.pos, pr.kind, pr.extent, pos, !kDirect && measure));
     double xyz[3];
     if (kDirect) {
-      if (out->vroom == 0) direct_grow(*out);
+      if (out->vroom == 0 && !direct_grow(*out)) return direct_overflow();
       float* f = out->pos + 3 * out->verts;
       if (direct_float) {
         if (const char* why = direct_position(pos, f)) return corrupt(why);
@@ -772,13 +772,17 @@ Status PsqDecoder::Impl::direct_records() {
   const uint64_t cap = std::min<uint64_t>(4 * static_cast<uint64_t>(csize) + 64, uint64_t{1} << 21);
   const size_t ni = 3 * static_cast<size_t>(std::min<uint64_t>(chunk_triangles, cap));
   const size_t np = 3 * static_cast<size_t>(std::min<uint64_t>(chunk_vertices, cap));
-  codec::populate_for_write(direct_room(mesh.indices, direct_ni, ni), ni * sizeof(uint32_t));
-  codec::populate_for_write(direct_room(mesh.positions, direct_np, np), np * sizeof(float));
+  if (!direct_fixed) {
+    codec::populate_for_write(direct_room(mesh.indices, direct_ni, ni), ni * sizeof(uint32_t));
+    codec::populate_for_write(direct_room(mesh.positions, direct_np, np), np * sizeof(float));
+  }
   direct_float = !header.lossless && header.schema.position_type == ScalarType::kFloat32;
   DirectCursor out = direct_cursor();
   const bool rotation = header.rotation;
   while (records_left > 0) {
-    if (out.troom == 0) direct_grow(out);
+    // Without room for a triangle (fixed arrays: the segment's part is
+    // full), the record takes the general path, whose events are checked.
+    const bool room = out.troom != 0 || direct_grow(out);
     const int cls = d.decode(kFastTableA + fast_context);
     const uint32_t R = b.reference();
     int done = 0;  // 1: an add decoded below, 2: a fill
@@ -805,7 +809,7 @@ Status PsqDecoder::Impl::direct_records() {
       const int bsym = d.decode(fast_b_table(third_context(b.vertex(p).degree, b.vertex(q).degree),
                                              D::kAdaptive ? shape_context(b, gate) : 0));
       if (bsym >= kFastBSymbols) return corrupt("third-vertex symbol " + std::to_string(bsym));
-      if (!rotation && common_b(bsym)) {
+      if (room && !rotation && common_b(bsym)) {
         PSQ_RETURN_IF_ERROR(common_record<true>(d, bits, cls, bsym, gate, &out));
         // A join adds open edges; a fill or an end does not, nor vertices.
         done = bsym == 0 || bsym == kFastBJoin ? 1 : 2;
@@ -829,6 +833,7 @@ Status PsqDecoder::Impl::direct_records() {
       direct_sync(out);
       for (int i = 0; i < qcount; ++i) {
         const SequenceEvent& e = queue[i];
+        if (direct_fixed) PSQ_RETURN_IF_ERROR(direct_fixed_check(e));
         if (e.kind == SequenceEvent::Kind::kVertex) {
           const uint32_t at = direct_vertex(e.vertex);
           if (e.vertex.slot != kNoSlot) b.vertex(e.vertex.slot).key = at;

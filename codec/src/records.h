@@ -193,6 +193,20 @@ class FastRing {
   void push(const B& boundary, uint32_t slot) {
     ring_[head_++ & (kFastRing - 1)] = Entry{slot, boundary.edge(slot).age};
   }
+  // A decoder that starts at a segment (segment.h): the ring of a
+  // boundary whose edges entered long ago, rebuilt from their ages. For
+  // each of the last kFastRingScan ages, the open edge of that age or an
+  // entry that never matches (kNone), oldest first: the ranks are those
+  // of the decoder that pushed every edge (spec 13.6.2).
+  template <class B>
+  void rebuild(const B& boundary) {
+    head_ = 0;
+    const uint64_t entered = boundary.entered();
+    const uint64_t from = entered > kFastRingScan ? entered - kFastRingScan : 0;
+    for (uint64_t a = from; a < entered; ++a) ring_[head_++ & (kFastRing - 1)] = Entry{kNone, a};
+    for (uint32_t s = 0; s < boundary.edge_capacity(); ++s)
+      if (boundary.edge_live(s) && boundary.edge(s).age >= from) ring_[(boundary.edge(s).age - from) & (kFastRing - 1)].slot = s;
+  }
   // The open edge of rank `rank` (the rank-th current entry, 0 the newest,
   // among the newest kFastRingScan), or kNone.
   template <class B>

@@ -168,16 +168,17 @@ const uint8_t* InputStream::view(size_t n) {
   return p;
 }
 
-Status InputStream::rewind() {
+Status InputStream::seek(uint64_t offset) {
+  if (!can_rewind()) return Status(ErrorCode::kIo, "input cannot seek (a pipe)");
+  if (offset > static_cast<uint64_t>(size_)) return Status(ErrorCode::kIo, "seek beyond the end of the input");
   if (fd_ < 0) {  // memory
-    pos_ = 0;
+    pos_ = static_cast<size_t>(offset);
     return Status();
   }
-  if (!can_rewind() || ::lseek(fd_, 0, SEEK_SET) != 0) {
-    return Status(ErrorCode::kIo, "input cannot be rewound");
-  }
+  if (::lseek(fd_, static_cast<off_t>(offset), SEEK_SET) != static_cast<off_t>(offset))
+    return Status(ErrorCode::kIo, "input cannot seek");
   pos_ = end_ = 0;
-  base_ = 0;
+  base_ = offset;
   eof_ = false;
   return Status();
 }

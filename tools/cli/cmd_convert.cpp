@@ -58,6 +58,9 @@ const char kHelp[] =
     "                 lookahead (a quarter) and of Draco input or output\n"
     "                 (default 512M)\n"
     "  --chunk SIZE   .psq: close a chunk at this many coded bytes (default 1M)\n"
+    "  --segment N    .psq: a segment every N triangles, where a decoder can\n"
+    "                 start: segments decode in parallel. 0: one segment;\n"
+    "                 auto (default): four, of at least 2M triangles each\n"
     "  --profile P    .psq: compact (the smallest files), fast (table-driven:\n"
     "                 several times faster to decode, a few percent larger;\n"
     "                 bench/RESULTS.md has the figures) or auto (the default:\n"
@@ -183,6 +186,7 @@ int cmd_convert(int argc, char** argv) {
   std::string uv_bits_text = args.option("--uv-bits", "12");
   std::string memory = args.option("--memory", "512M");
   std::string chunk = args.option("--chunk", "1M");
+  std::string segment = args.option("--segment", "auto");
   std::string profile = args.option("--profile", "auto");
   std::string threads_text = args.option("--threads", std::thread::hardware_concurrency() >= 2 ? "2" : "1");
   std::vector<std::string> files = args.positionals();
@@ -216,6 +220,9 @@ int cmd_convert(int argc, char** argv) {
   if (!parse_size(chunk, &chunk_bytes) || chunk_bytes > (uint64_t{1} << 24))
     return usage_error("convert", "bad --chunk '" + chunk + "' (1 to 16M)");
   encode_options.chunk_bytes = static_cast<uint32_t>(chunk_bytes);
+  if (segment == "0") encode_options.segment_triangles = 0;
+  else if (segment != "auto" && !parse_size(segment, &encode_options.segment_triangles))
+    return usage_error("convert", "bad --segment '" + segment + "' (a count of triangles, 0 for one segment)");
   // The JSON summary splits the bits into connectivity and geometry.
   encode_options.measure_costs = json;
   if (profile != "compact" && profile != "fast" && profile != "auto")
@@ -266,6 +273,11 @@ int cmd_convert(int argc, char** argv) {
   if (profile == "auto")
     encode_options.fast = mesh.decoder ? mesh.decoder->header().fast || auto_fast(mesh.decoder->schema())
                                        : auto_fast(mesh.source->schema());
+  // Spec 4.6: the input's counts size the segments (the sequence builder
+  // does not pass them on).
+  if (encode_options.segment_triangles == EncodeOptions::kAutoSegments)
+    encode_options.segment_triangles =
+        EncodeOptions::auto_segment_triangles(mesh.decoder ? mesh.decoder->schema() : mesh.source->schema());
   if (out_format == MeshFormat::kPsq) return to_psq(in, out, mesh, output, encode_options, build_options, threads, quiet, json);
   WriteOptions write_options;
   write_options.ascii = ascii;

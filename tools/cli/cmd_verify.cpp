@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 // psq verify: decode a .psq completely and check it.
+#include <charconv>
 #include <cstdio>
 #include <string>
 
@@ -12,7 +13,7 @@ namespace psq::cli {
 namespace {
 
 const char kHelp[] =
-    "Usage: psq verify FILE [-q] [--json]\n"
+    "Usage: psq verify FILE [-q] [--json] [--threads N]\n"
     "\n"
     "Decodes the .psq FILE ('-' for standard input) in one pass, checks every\n"
     "checksum, limit and count of the stream (spec/psq-format.md), and every\n"
@@ -24,6 +25,8 @@ const char kHelp[] =
     "\n"
     "Options:\n"
     "  -q, --quiet    print nothing on success\n"
+    "  --threads N    decode N segments at once (spec 4.6; default 0: one\n"
+    "                 per core); a stream of one segment, or a pipe, takes one\n"
     "  --json         print the summary as one JSON object (file, version,\n"
     "                 profile, vertices, triangles, chunks, bytes,\n"
     "                 max_boundary_vertices)\n"
@@ -39,6 +42,15 @@ int cmd_verify(int argc, char** argv) {
   }
   bool quiet = args.flag("--quiet", "-q");
   bool json = args.flag("--json");
+  const std::string threads_text = args.option("--threads", "0");
+  int threads = 0;
+  {
+    const char* b = threads_text.data();
+    const char* e = b + threads_text.size();
+    auto r = std::from_chars(b, e, threads);
+    if (r.ec != std::errc() || r.ptr != e || threads < 0 || threads > 1024)
+      return usage_error("verify", "bad --threads '" + threads_text + "' (0 for one per core)");
+  }
   std::vector<std::string> files = args.positionals();
   if (!args.error().empty()) return usage_error("verify", args.error());
   if (files.size() != 1) return usage_error("verify", files.empty() ? "missing FILE" : "verify takes one FILE");
@@ -57,12 +69,26 @@ int cmd_verify(int argc, char** argv) {
     Status finalize(uint32_t) override { return Status(); }
     Status finish() override { return Status(); }
   } discard;
-  Progress progress(mesh.stream.get(), !quiet);
-  ProgressSequenceSink sink(&discard, &progress);
-  s = mesh.decoder->pump(sink);
-  if (!s.ok()) return report_error(file, s);
-  progress.finish(file, "verified", std::to_string(mesh.decoder->stats().triangles) + " triangles");
-  const PsqStats& st = mesh.decoder->stats();
+  // A stream of several segments (spec 4.6) in a file: every segment at
+  // once, each thread with its own view of the file.
+  std::vector<PsqSegment> segments;
+  PsqStats parallel_stats;
+  bool parallel = false;
+  if (threads != 1 && mesh.stream->can_rewind() && mesh.decoder->segments(&segments).ok() && segments.size() > 1) {
+    auto open = [&](InputStream* in) { return in->open(file); };
+    auto work = [&](PsqDecoder& d, size_t) { return d.pump(discard); };
+    s = decode_segments(open, threads, work, &parallel_stats);
+    if (!s.ok()) return report_error(file, s);
+    parallel = true;
+    if (!quiet && !json) std::fprintf(stderr, "%s: verified %zu segments\n", file.c_str(), segments.size());
+  } else {
+    Progress progress(mesh.stream.get(), !quiet);
+    ProgressSequenceSink sink(&discard, &progress);
+    s = mesh.decoder->pump(sink);
+    if (!s.ok()) return report_error(file, s);
+    progress.finish(file, "verified", std::to_string(mesh.decoder->stats().triangles) + " triangles");
+  }
+  const PsqStats& st = parallel ? parallel_stats : mesh.decoder->stats();
   if (json) {
     const PsqHeader& h = mesh.decoder->header();
     std::printf("{\"file\": \"%s\", \"ok\": true, \"version\": \"%d.%d\", \"profile\": \"%s\", "

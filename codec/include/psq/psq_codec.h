@@ -23,7 +23,9 @@
 #ifndef PSQ_PSQ_CODEC_H_
 #define PSQ_PSQ_CODEC_H_
 
+#include <algorithm>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -110,6 +112,33 @@ struct EncodeOptions {
   // vertices and open edges the stream may have at once. The encoder fails
   // with kLimit when the sequence exceeds it.
   uint32_t boundary_limit = 1u << 24;
+  // Triangles per segment (spec 4.6): every this many triangles the
+  // encoder writes a segment record, the decoder's state at that point,
+  // where a decoder can start (PsqDecoder::start_segment()), so that the
+  // segments decode in parallel (decode_segments()). 0: one segment.
+  // kAutoSegments (the default): a quarter of the schema's triangle count
+  // rounded up to a multiple of 2^16 (four segments, two per core on two
+  // cores), at least 2^21; 2^21 when the count is unknown. A segment record costs about 5 bytes per vertex
+  // of the boundary where it is (bench/RESULTS.md).
+  static constexpr uint64_t kAutoSegments = ~uint64_t{0};
+  uint64_t segment_triangles = kAutoSegments;
+  // kAutoSegments's size for a mesh with the counts of `schema` (the
+  // triangles, else twice the vertices, as a closed mesh has; a PLY
+  // header's faces may be polygons): for a caller that knows the input's
+  // schema when the encoder's does not have the counts (the sequence
+  // builder does not promise them).
+  static uint64_t auto_segment_triangles(const MeshSchema& schema) {
+    constexpr uint64_t kLeast = uint64_t{1} << 21;
+    // Rounded up to a multiple of 2^16, so that a count a little short
+    // (an estimate) leaves no tiny fifth segment.
+    constexpr uint64_t kRound = uint64_t{1} << 16;
+    const int64_t t = schema.triangle_count >= 0 ? schema.triangle_count
+                      : schema.vertex_count >= 0 ? 2 * schema.vertex_count
+                                                 : -1;
+    if (t < 0) return kLeast;
+    const uint64_t quarter = (static_cast<uint64_t>(t) + 3) / 4;
+    return std::max<uint64_t>(kLeast, (quarter + kRound - 1) / kRound * kRound);
+  }
   // Split stats()'s coded bits into connectivity and geometry
   // (PsqStats::connectivity_bits, geometry_bits); off, they stay 0 and
   // encoding is faster (the pricing is skipped).
@@ -123,6 +152,8 @@ struct PsqStats {
   uint64_t chunks = 0;
   uint64_t header_bytes = 0;
   uint64_t chunk_overhead_bytes = 0;   // chunk fields, checksums, the end record
+  uint64_t segments = 0;               // segment records (spec 4.6): the segments less one
+  uint64_t segment_bytes = 0;          // segment records and the index (spec 4.6, 4.7)
   uint64_t record_bytes = 0;           // coded connectivity and geometry (spec 13.2)
   uint64_t property_bytes = 0;         // zstd-compressed properties
   uint64_t attribute_bytes = 0;        // coded attributes (spec 8.3)
@@ -190,12 +221,24 @@ struct PsqHeader {
   double origin[3] = {0, 0, 0};
   double step = 0;
   uint32_t boundary_limit = 0;
+  // Triangles per segment (spec 4.6): a decoder can start at each segment
+  // record, one every this many triangles; 0: the stream is one segment.
+  uint64_t segment_triangles = 0;
   MeshSchema schema;
   // The vertex attributes coded by prediction (spec 8.3), with their bits:
   // what a quantized stream changed beyond the positions.
   std::vector<CodedAttribute> attributes;
 };
 
+
+// A segment of a stream (spec/psq-format.md 4.6): where its segment
+// record starts (for the first, the first byte after the header), and the
+// vertex and triangle events before it.
+struct PsqSegment {
+  uint64_t offset = 0;
+  uint64_t vertices = 0;
+  uint64_t triangles = 0;
+};
 
 class PsqDecoder : public SequenceSource {
  public:
@@ -222,15 +265,49 @@ class PsqDecoder : public SequenceSource {
   // Errors: next()'s, and the sink's.
   Status pump(SequenceSink& sink);
 
+  // Independent segments (spec/psq-format.md 4.6, 4.7). After open(), on
+  // an input that can seek (a file or memory): the stream's segments from
+  // its index, in order; the first starts after the header. A stream
+  // without segment records is one segment. Errors: kIo (a pipe), the
+  // index's errors (kBadHeader, kChecksum, kTruncated).
+  Status segments(std::vector<PsqSegment>* out);
+  // After open() and before any event: decode only `segment` (one of
+  // segments()). next() and pump() then give its events, with the
+  // stream's vertex indices (its first vertex event has index
+  // segment.vertices; its triangles may use vertices of earlier segments
+  // that are still active, and re-appearing vertices may name any earlier
+  // vertex), and end (Kind::kEnd) at its end. The checks that need the
+  // other segments (the stream checksum, the totals of the end record,
+  // and that each segment ends in the state the next one starts from) are
+  // decode_segments()'s (psq_parallel.h). Errors: next()'s, and
+  // kBadValue for a state block that is not one.
+  Status start_segment(const PsqSegment& segment);
   // Enables the connectivity/geometry cost split in stats() (slower).
   void measure_costs(bool on);
   // Complete once next() returned Kind::kEnd.
   const PsqStats& stats() const;
 
  private:
+  friend class SegmentRun;
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
+
+// Decodes a stream segment by segment (spec/psq-format.md 4.6), `threads`
+// segments at a time (0: one per core): each thread opens the stream
+// with `open` (a fresh InputStream on the same bytes: a file or memory),
+// and `work(decoder, k)` decodes segment k with a decoder that
+// start_segment() began there (pump() or next() to the end). Then it
+// makes the checks that need every segment, so that it accepts exactly
+// the streams that one decoder reading from the start accepts: each
+// segment ends in the state the next one starts from, the stream
+// checksum, the end record's totals and maxima. `stats` (optional): the
+// sums over the segments. A stream of one segment is decoded by one
+// thread. Errors: the first segment's error in stream order, else the
+// decoder's errors for the checks above; kIo for an input that cannot
+// seek.
+Status decode_segments(const std::function<Status(InputStream*)>& open, int threads,
+                       const std::function<Status(PsqDecoder&, size_t)>& work, PsqStats* stats);
 
 // True when `data` (at least 8 bytes) starts with the .psq magic.
 bool is_psq(const uint8_t* data, size_t size);

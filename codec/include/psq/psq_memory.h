@@ -39,8 +39,10 @@ Status encode_mesh(const float* positions, size_t vertex_count, const uint32_t* 
 // Positions are converted to float. Vertex and face properties are not
 // returned: read them with PsqDecoder. Errors: the decoder's (every one
 // names the byte offset), and kLimit when a position of a double stream is
-// beyond float range; on an error `mesh` is empty.
-Status decode_mesh(const uint8_t* data, size_t size, MeshBuffers* mesh);
+// beyond float range; on an error `mesh` is empty. A stream of several
+// segments (EncodeOptions::segment_triangles) decodes on `threads` threads
+// (0: one per core) into the same arrays, unless a vertex re-appears.
+Status decode_mesh(const uint8_t* data, size_t size, MeshBuffers* mesh, int threads = 0);
 
 }  // namespace psq
 

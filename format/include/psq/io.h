@@ -64,7 +64,10 @@ class InputStream {
   // True when rewind() works: a regular file or memory.
   bool can_rewind() const { return size_ >= 0; }
   // Moves the cursor back to offset 0. Errors: kIo (a pipe cannot rewind).
-  Status rewind();
+  Status rewind() { return seek(0); }
+  // Moves the cursor to `offset`, at most size(). Errors: kIo (a pipe, or
+  // an offset beyond the end).
+  Status seek(uint64_t offset);
 
   // Reads exactly `n` bytes. Errors: kTruncated (with the offset) at end of
   // input, kIo.

@@ -1,0 +1,257 @@
+// SPDX-License-Identifier: Apache-2.0
+// codec/src/parallel.cpp: decoding the segments of a stream at once
+// (spec/psq-format.md 4.6, 4.7), with the checks that tie them together
+// (psq/psq_codec.h, decode_segments()), and decode_mesh() on every core.
+#include <algorithm>
+#include <atomic>
+#include <thread>
+
+#include "decoder_impl.h"
+#include "psq/mesh_arrays.h"
+#include "psq/psq_memory.h"
+
+namespace psq {
+
+// The decoder's state, for the functions of this file (a friend).
+class SegmentRun {
+ public:
+  static PsqDecoder::Impl& of(PsqDecoder& d) { return *d.impl_; }
+};
+
+namespace {
+
+// What a segment decoded alone leaves for the checks of all of them.
+struct SegmentResult {
+  bool ran = false;
+  Status status;
+  std::vector<uint8_t> start_state, end_state, chain, end_bytes;
+  uint32_t end_checksum = 0;
+  uint64_t end_fields[5] = {0, 0, 0, 0, 0};
+  uint64_t end_index_at = 0, stopped_at = 0;
+  bool reached_end = false;
+  uint32_t header_chain = 0;
+  PsqStats stats;
+};
+
+void add_stats(const PsqStats& s, PsqStats* t) {
+  t->vertices += s.vertices;
+  t->triangles += s.triangles;
+  t->chunks += s.chunks;
+  t->chunk_overhead_bytes += s.chunk_overhead_bytes;
+  t->segments += s.segments;
+  t->segment_bytes += s.segment_bytes;
+  t->record_bytes += s.record_bytes;
+  t->property_bytes += s.property_bytes;
+  t->attribute_bytes += s.attribute_bytes;
+  t->connectivity_bits += s.connectivity_bits;
+  t->geometry_bits += s.geometry_bits;
+  t->max_active_vertices = std::max(t->max_active_vertices, s.max_active_vertices);
+  t->max_open_edges = std::max(t->max_open_edges, s.max_open_edges);
+  for (int i = 0; i < 4; ++i) t->gates[i] += s.gates[i];
+  for (int i = 0; i < 2; ++i) t->far_gates[i] += s.far_gates[i];
+  for (int i = 0; i < 5; ++i) t->predictions[i] += s.predictions[i];
+}
+
+int thread_count(int threads, size_t segments) {
+  if (threads <= 0) threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  return static_cast<int>(std::min<size_t>(static_cast<size_t>(threads), segments));
+}
+
+}  // namespace
+
+Status decode_segments(const std::function<Status(InputStream*)>& open, int threads,
+                       const std::function<Status(PsqDecoder&, size_t)>& work, PsqStats* stats) {
+  std::vector<PsqSegment> segs;
+  uint64_t size = 0;
+  {
+    InputStream in;
+    PSQ_RETURN_IF_ERROR(open(&in));
+    PsqDecoder d;
+    PSQ_RETURN_IF_ERROR(d.open(&in));
+    PSQ_RETURN_IF_ERROR(d.segments(&segs));
+    size = static_cast<uint64_t>(in.size());
+  }
+  const size_t n = segs.size();
+  std::vector<SegmentResult> res(n);
+  std::atomic<size_t> next{0};
+  std::atomic<bool> failed{false};
+  auto run = [&] {
+    for (;;) {
+      if (failed.load()) return;
+      const size_t k = next.fetch_add(1);
+      if (k >= n) return;
+      SegmentResult& r = res[k];
+      r.ran = true;
+      InputStream in;
+      PsqDecoder d;
+      Status s = open(&in);
+      if (s.ok()) s = d.open(&in);
+      if (s.ok()) s = d.start_segment(segs[k]);
+      if (s.ok()) s = work(d, k);
+      auto& m = SegmentRun::of(d);
+      if (s.ok() && !m.ended) s = Status(ErrorCode::kUsage, "a segment's work did not decode it to its end");
+      r.status = s;
+      if (!s.ok()) {
+        failed.store(true);
+        return;
+      }
+      r.start_state = std::move(m.start_state);
+      r.end_state = std::move(m.end_state);
+      r.chain = std::move(m.chain_fields);
+      r.end_bytes = std::move(m.end_bytes);
+      r.end_checksum = m.end_checksum;
+      std::copy(m.end_fields, m.end_fields + 5, r.end_fields);
+      r.end_index_at = m.end_index_at;
+      r.stopped_at = m.stopped_at;
+      r.reached_end = m.reached_end;
+      r.header_chain = m.header_chain;
+      r.stats = m.stats;
+    }
+  };
+  const int t = thread_count(threads, n);
+  std::vector<std::thread> pool;
+  for (int i = 1; i < t; ++i) pool.emplace_back(run);
+  run();
+  for (std::thread& th : pool) th.join();
+  for (const SegmentResult& r : res)
+    if (r.ran && !r.status.ok()) return r.status;
+  // Every segment ran (no failure stopped them). Spec 4.6: each ends
+  // where the next begins, in the state that the next one's block holds.
+  for (size_t k = 0; k + 1 < n; ++k) {
+    if (res[k].reached_end || res[k].stopped_at != segs[k + 1].offset)
+      return Status(ErrorCode::kBadHeader, "index: segment " + std::to_string(k + 1) +
+                                               " does not begin where the one before it ends",
+                    segs[k + 1].offset);
+    if (res[k].end_state != res[k + 1].start_state)
+      return Status(ErrorCode::kBadValue, "segment record: its state block is not the decoder's state",
+                    segs[k + 1].offset);
+  }
+  const SegmentResult& last = res.back();
+  if (!last.reached_end) return Status(ErrorCode::kBadHeader, "the last segment does not reach the end record", size);
+  // Spec 4.5: the stream checksum over every segment's checksum fields.
+  uint32_t crc = res[0].header_chain;
+  for (const SegmentResult& r : res) crc = crc32c_update(crc, r.chain.data(), r.chain.size());
+  crc = crc32c_update(crc, last.end_bytes.data(), last.end_bytes.size());
+  const uint64_t end_at = size - 4 - last.end_bytes.size();
+  if (!checksum_ok(last.end_checksum, crc)) return Status(ErrorCode::kChecksum, "stream checksum mismatch", size - 4);
+  PsqStats total;
+  for (const SegmentResult& r : res) add_stats(r.stats, &total);
+  total.header_bytes = res[0].stats.header_bytes;
+  total.total_bytes = size;
+  auto bad = [&](const std::string& what) { return Status(ErrorCode::kBadHeader, "end record: " + what, end_at); };
+  const uint64_t* f = last.end_fields;
+  if (f[0] != total.vertices || f[1] != total.triangles || f[2] != total.chunks)
+    return bad("totals " + std::to_string(f[0]) + " vertices, " + std::to_string(f[1]) + " triangles, " +
+               std::to_string(f[2]) + " chunks differ from the stream's " + std::to_string(total.vertices) + ", " +
+               std::to_string(total.triangles) + ", " + std::to_string(total.chunks));
+  if (f[3] != total.max_active_vertices || f[4] != total.max_open_edges)
+    return bad("boundary maxima differ from the stream's");
+  // segments() read the index at the offset the end record gives; a
+  // stream of one segment has none.
+  if ((n > 1) != (last.end_index_at != 0)) return bad("index offset does not match the segment records");
+  if (stats) *stats = total;
+  return Status();
+}
+
+Status decode_mesh(const uint8_t* data, size_t size, MeshBuffers* mesh, int threads) {
+  mesh->positions.clear();
+  mesh->indices.clear();
+  InputStream in;
+  in.open_memory(data, size, "<memory>");
+  PsqDecoder decoder;
+  Status s = decoder.open(&in);
+  std::vector<PsqSegment> segs;
+  // A stream whose index cannot be read is decoded by one thread, which
+  // reports what is wrong in stream order.
+  if (s.ok() && !decoder.segments(&segs).ok()) segs.clear();
+  if (s.ok() && segs.size() > 1 && thread_count(threads, segs.size()) > 1 && size >= 12) {
+    // The end record's totals size the arrays (spec 4.5); each segment
+    // writes its part, between its index entry's counts and the next's.
+    // Its vertices are the mesh's vertices in order unless one re-appears
+    // (spec 2.2), whose mesh index another segment knows: such a stream
+    // is decoded by one thread.
+    uint64_t vertices = 0, triangles = 0;
+    {
+      const size_t tail = std::min<size_t>(size, 64);
+      const uint8_t* p = data + size - tail;
+      // The end record begins at its tag; its five varints precede the
+      // index offset and the checksum (12 bytes).
+      for (size_t at = 0; at + 12 < tail; ++at) {
+        if (p[at] != kEndTag) continue;
+        uint64_t f[5];
+        size_t k = at + 1;
+        bool ok = true;
+        for (uint64_t& x : f) {
+          const int len = parse_varint(p + k, tail - 12 - k, &x);
+          if (len <= 0) {
+            ok = false;
+            break;
+          }
+          k += static_cast<size_t>(len);
+        }
+        if (ok && k == tail - 12) {
+          vertices = f[0];
+          triangles = f[1];
+          break;
+        }
+      }
+    }
+    const uint64_t cap = 4 * static_cast<uint64_t>(size) + 64;  // as decode_into()'s hint
+    if (vertices > 0 && triangles > 0 && vertices <= cap && triangles <= cap && segs.back().vertices <= vertices &&
+        segs.back().triangles <= triangles) {
+      std::vector<PsqSegment> bounds = segs;
+      bounds.push_back(PsqSegment{size, vertices, triangles});
+      bool ordered = true;
+      for (size_t k = 0; k + 1 < bounds.size(); ++k)
+        ordered = ordered && bounds[k].vertices <= bounds[k + 1].vertices && bounds[k].triangles <= bounds[k + 1].triangles;
+      if (ordered) {
+        mesh->positions.resize(3 * static_cast<size_t>(vertices));
+        mesh->indices.resize(3 * static_cast<size_t>(triangles));
+        auto open = [&](InputStream* is) {
+          is->open_memory(data, size, "<memory>");
+          return Status();
+        };
+        auto work = [&](PsqDecoder& d, size_t k) {
+          return SegmentRun::of(d).decode_range(
+              mesh, 3 * static_cast<size_t>(bounds[k].vertices), 3 * static_cast<size_t>(bounds[k + 1].vertices),
+              3 * static_cast<size_t>(bounds[k].triangles), 3 * static_cast<size_t>(bounds[k + 1].triangles));
+        };
+        s = decode_segments(open, threads, work, nullptr);
+        if (s.ok() && decoder.header().schema.position_type == ScalarType::kFloat64) {
+          for (size_t i = 0; i < mesh->positions.size(); ++i)
+            if (!std::isfinite(mesh->positions[i])) {
+              s = Status(ErrorCode::kLimit, "vertex " + std::to_string(i / 3) +
+                                                ": position beyond float range (decode_mesh returns floats; "
+                                                "PsqDecoder gives doubles)");
+              break;
+            }
+        }
+        if (s.code() != ErrorCode::kUnsupported) {
+          if (!s.ok()) {
+            mesh->positions.clear();
+            mesh->indices.clear();
+          }
+          return s;
+        }
+        mesh->positions.clear();
+        mesh->indices.clear();
+      }
+    }
+  }
+  // One thread: the streaming decoder into the mesh's arrays.
+  if (s.ok() || s.code() == ErrorCode::kUnsupported) {
+    InputStream one;
+    one.open_memory(data, size, "<memory>");
+    PsqDecoder d;
+    MeshArraySink sink(mesh);
+    s = d.open(&one);
+    if (s.ok()) s = d.pump(sink);
+  }
+  if (!s.ok()) {
+    mesh->positions.clear();
+    mesh->indices.clear();
+  }
+  return s;
+}
+
+}  // namespace psq
