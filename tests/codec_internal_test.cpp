@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <random>
@@ -16,10 +17,133 @@
 #include "container.h"
 #include "crc32c.h"
 #include "neighbors.h"
+#include "properties.h"
+#include "psq/psq_memory.h"
+#include "records.h"
+#include "segment.h"
 
 namespace psq {
 namespace codec {
 namespace {
+
+// A segmented stream of a small torus (spec 4.6), and where its first
+// segment record is: the offset of its tag, of its zstd frame, its sizes.
+struct SegmentedStream {
+  std::vector<uint8_t> bytes;
+  size_t record = 0, frame = 0, packed = 0, raw = 0;
+};
+
+SegmentedStream segmented_torus(bool fast) {
+  SegmentedStream t;
+  std::vector<float> pos;
+  std::vector<uint32_t> idx;
+  const int n = 24, m = 16;
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < m; ++j) {
+      const double a = 6.283185307179586 * i / n, b = 6.283185307179586 * j / m;
+      pos.push_back(static_cast<float>((1 + 0.3 * std::cos(b)) * std::cos(a)));
+      pos.push_back(static_cast<float>((1 + 0.3 * std::cos(b)) * std::sin(a)));
+      pos.push_back(static_cast<float>(0.3 * std::sin(b)));
+    }
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < m; ++j) {
+      const uint32_t a = static_cast<uint32_t>(i * m + j), b = static_cast<uint32_t>(((i + 1) % n) * m + j);
+      const uint32_t c = static_cast<uint32_t>(((i + 1) % n) * m + (j + 1) % m), d = static_cast<uint32_t>(i * m + (j + 1) % m);
+      idx.insert(idx.end(), {a, b, c, a, c, d});
+    }
+  EncodeOptions o;
+  o.fast = fast;
+  o.segment_triangles = 200;
+  EXPECT_TRUE(encode_mesh(pos.data(), pos.size() / 3, idx.data(), idx.size() / 3, o, &t.bytes).ok());
+  // Walk the chunks (spec 4.3) to the first segment record.
+  uint64_t hlen = 0;
+  size_t at = 12 + static_cast<size_t>(parse_varint(t.bytes.data() + 12, 10, &hlen));
+  at += static_cast<size_t>(hlen) + 4;
+  while (at < t.bytes.size() && t.bytes[at] == kChunkTag) {
+    ++at;
+    uint64_t f[7];
+    for (uint64_t& x : f) at += static_cast<size_t>(parse_varint(t.bytes.data() + at, 10, &x));
+    at += static_cast<size_t>(f[3] + f[4] + f[6] + 4);
+  }
+  EXPECT_EQ(t.bytes[at], kSegmentTag);
+  t.record = at;
+  uint64_t packed = 0, raw = 0;
+  at += 1;
+  at += static_cast<size_t>(parse_varint(t.bytes.data() + at, 10, &packed));
+  at += static_cast<size_t>(parse_varint(t.bytes.data() + at, 10, &raw));
+  t.frame = at;
+  t.packed = static_cast<size_t>(packed);
+  t.raw = static_cast<size_t>(raw);
+  return t;
+}
+
+// `t` with its first segment record's state replaced by `state`, the
+// record's sizes and checksum made right, and the index's offsets moved
+// (their checksum and the stream checksum are left: start_segment() does
+// not read them).
+std::vector<uint8_t> with_state(const SegmentedStream& t, const std::vector<uint8_t>& state) {
+  std::vector<uint8_t> packed, rec;
+  zstd_compress(state, 3, &packed);
+  Put put(&rec);
+  put.u8(kSegmentTag);
+  put.varint(packed.size());
+  put.varint(state.size());
+  put.bytes(packed.data(), packed.size());
+  put.u32(crc32c_update(0, rec.data(), rec.size()));
+  std::vector<uint8_t> out(t.bytes.begin(), t.bytes.begin() + static_cast<std::ptrdiff_t>(t.record));
+  out.insert(out.end(), rec.begin(), rec.end());
+  out.insert(out.end(), t.bytes.begin() + static_cast<std::ptrdiff_t>(t.frame + t.packed + 4), t.bytes.end());
+  return out;
+}
+
+// A hostile state block: whatever parse_state() accepts, a decoder that
+// starts from it decodes the segment's records or refuses them, with no
+// crash (the sanitizer build runs this), and nothing parse_state() refuses
+// reaches load_state().
+TEST(SegmentState, HostileBlocksAreRefusedOrDecodeSafely) {
+  for (bool fast : {false, true}) {
+    const SegmentedStream t = segmented_torus(fast);
+    std::vector<uint8_t> state;
+    ASSERT_TRUE(zstd_decompress(t.bytes.data() + t.frame, t.packed, t.raw, &state));
+    // The block as written parses, and serializes back to itself.
+    SegmentState s;
+    ASSERT_EQ(parse_state(state.data(), state.size(), 1u << 24, 0, 0, (1 << 16) - 1, nullptr, &s), nullptr);
+    std::vector<uint8_t> again;
+    serialize_state(s, 0, &again);
+    EXPECT_EQ(again, state);
+    std::mt19937 rng(fast ? 3 : 4);
+    int accepted = 0;
+    for (int trial = 0; trial < 400; ++trial) {
+      std::vector<uint8_t> b = state;
+      const int flips = 1 + trial % 3;
+      for (int f = 0; f < flips; ++f) {
+        const size_t at = std::uniform_int_distribution<size_t>(0, b.size() - 1)(rng);
+        b[at] = static_cast<uint8_t>(std::uniform_int_distribution<int>(0, 255)(rng));
+      }
+      if (trial % 50 == 49) b.resize(b.size() / 2);
+      SegmentState h;
+      if (parse_state(b.data(), b.size(), 1u << 24, 0, 0, (1 << 16) - 1, nullptr, &h) != nullptr) continue;
+      ++accepted;
+      FastBoundary boundary(1u << 24);
+      Neighbors neighbors;
+      FastRing ring;
+      load_state(h, &boundary, &neighbors, &ring, static_cast<AttributeCoder*>(nullptr));
+      // The whole stream with this block: decoded alone from the record.
+      const std::vector<uint8_t> stream = with_state(t, b);
+      InputStream in;
+      in.open_memory(stream.data(), stream.size(), "mem.psq");
+      PsqDecoder d;
+      ASSERT_TRUE(d.open(&in).ok());
+      PsqSegment seg{t.record, h.vertices, h.triangles};
+      if (!d.start_segment(seg).ok()) continue;
+      SequenceEvent e;
+      for (int guard = 0; guard < 100000; ++guard)
+        if (!d.next(&e).ok() || e.kind == SequenceEvent::Kind::kEnd) break;
+    }
+    EXPECT_GT(accepted, 0);
+  }
+}
+
 
 // The CRC-32C check value, and the processor's instruction (where
 // crc32c_update() uses it) against the tables: every length from 0 to 88

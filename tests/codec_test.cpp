@@ -11,6 +11,8 @@
 #include <limits>
 #include <random>
 
+#include <unistd.h>
+
 #include "psq/psq_codec.h"
 #include "psq/psq_memory.h"
 #include "psq/sequence_builder.h"
@@ -891,6 +893,210 @@ TEST(CodecHostile, BadHeaders) {
   b = bytes;
   b.push_back(0);  // trailing data
   EXPECT_EQ(decode_all(b).code(), ErrorCode::kBadHeader);
+}
+
+
+// Independent segments (spec 4.6, 4.7): a stream cut into segments decodes
+// to the same sequence whether one decoder reads it from the start, each
+// segment is decoded alone, or all of them at once on several threads.
+struct SegmentCase {
+  const char* name;
+  Mesh mesh;
+  EncodeOptions options;
+};
+
+std::vector<SegmentCase> segment_cases() {
+  std::vector<SegmentCase> cases;
+  for (bool fast : {false, true})
+    for (bool lossless : {false, true}) {
+      EncodeOptions o;
+      o.fast = fast;
+      o.lossless = lossless;
+      o.segment_triangles = 97;
+      o.chunk_bytes = 700;  // chunks inside segments too
+      cases.push_back({"torus", test::make_torus(40, 24), o});
+      o.segment_triangles = 31;
+      cases.push_back({"messy", messy_mesh(), o});  // re-appearances, isolated vertices
+    }
+  return cases;
+}
+
+// Every segment of `bytes` decoded on `threads` threads, their events in
+// order.
+Status decode_by_segments(const std::vector<uint8_t>& bytes, int threads, test::EventLog* all, PsqStats* stats) {
+  std::vector<test::EventLog> logs(64);
+  auto open = [&](InputStream* in) {
+    in->open_memory(bytes.data(), bytes.size(), "mem.psq");
+    return Status();
+  };
+  auto work = [&](PsqDecoder& d, size_t k) {
+    if (k >= logs.size()) return Status(ErrorCode::kUsage, "more segments than the test expects");
+    return d.pump(logs[k]);
+  };
+  PSQ_RETURN_IF_ERROR(decode_segments(open, threads, work, stats));
+  for (const test::EventLog& l : logs) all->events.insert(all->events.end(), l.events.begin(), l.events.end());
+  return Status();
+}
+
+TEST(Segments, EverySegmentDecoderYieldsTheSameSequence) {
+  for (const SegmentCase& c : segment_cases()) {
+    SCOPED_TRACE(std::string(c.name) + (c.options.fast ? " rANS" : " adaptive") + (c.options.lossless ? " lossless" : ""));
+    const Events ev = sequence_of(c.mesh);
+    PsqStats enc_stats;
+    const std::vector<uint8_t> bytes = encode(ev, c.options, &enc_stats);
+    ASSERT_GE(enc_stats.segments, 3u);
+    // From the start: the encoded sequence (spec 2.3), as without segments.
+    test::EventLog seq;
+    {
+      InputStream in;
+      in.open_memory(bytes.data(), bytes.size(), "mem.psq");
+      PsqDecoder dec;
+      ASSERT_TRUE(dec.open(&in).ok());
+      EXPECT_EQ(dec.header().segment_triangles, c.options.segment_triangles);
+      Status s = dec.pump(seq);
+      ASSERT_TRUE(s.ok()) << s.to_string();
+      EXPECT_EQ(dec.stats().segments, enc_stats.segments);
+      EXPECT_EQ(dec.stats().total_bytes, bytes.size());
+      // A valid sequence: slots keep their vertices and edges across the
+      // segment records (consumers index their data by slot).
+      SequenceChecker checker;
+      Status checked = replay(seq, checker);
+      EXPECT_TRUE(checked.ok()) << checked.to_string();
+      EncodeOptions one = c.options;
+      one.segment_triangles = 0;
+      Events plain;
+      ASSERT_TRUE(decode(encode(ev, one), &plain).ok());
+      Events back;
+      back.schema = seq.schema;
+      back.events = seq.events;
+      expect_same(back, plain, 0);
+    }
+    // By segments, on one thread and on two: every field of every event
+    // (slots included: each decoder restarts in the same canonical state).
+    for (int threads : {1, 2}) {
+      test::EventLog par;
+      PsqStats st;
+      Status s = decode_by_segments(bytes, threads, &par, &st);
+      ASSERT_TRUE(s.ok()) << s.to_string();
+      EXPECT_EQ(par.text(), seq.text());
+      EXPECT_EQ(st.vertices, enc_stats.vertices);
+      EXPECT_EQ(st.triangles, enc_stats.triangles);
+      EXPECT_EQ(st.chunks, enc_stats.chunks);
+      EXPECT_EQ(st.max_active_vertices, enc_stats.max_active_vertices);
+      EXPECT_EQ(st.total_bytes, bytes.size());
+    }
+    // decode_mesh on two threads: the arrays of one thread.
+    MeshBuffers one, two;
+    ASSERT_TRUE(decode_mesh(bytes.data(), bytes.size(), &one, 1).ok());
+    Status s = decode_mesh(bytes.data(), bytes.size(), &two, 2);
+    ASSERT_TRUE(s.ok()) << s.to_string();
+    EXPECT_EQ(one.positions, two.positions);
+    EXPECT_EQ(one.indices, two.indices);
+  }
+}
+
+TEST(Segments, ASegmentDecodesAloneFromItsIndexEntry) {
+  const Events ev = sequence_of(test::make_torus(40, 24));
+  EncodeOptions o;
+  o.segment_triangles = 500;
+  const std::vector<uint8_t> bytes = encode(ev, o);
+  Events all;
+  ASSERT_TRUE(decode(bytes, &all).ok());
+  InputStream in;
+  in.open_memory(bytes.data(), bytes.size(), "mem.psq");
+  PsqDecoder index;
+  ASSERT_TRUE(index.open(&in).ok());
+  std::vector<PsqSegment> segs;
+  ASSERT_TRUE(index.segments(&segs).ok());
+  ASSERT_EQ(segs.size(), 4u);  // 1,920 triangles
+  // Segment 2 alone: the events between its index entry's counts.
+  const PsqSegment& seg = segs[2];
+  EXPECT_EQ(seg.triangles, 1000u);
+  InputStream in2;
+  in2.open_memory(bytes.data(), bytes.size(), "mem.psq");
+  PsqDecoder d;
+  ASSERT_TRUE(d.open(&in2).ok());
+  ASSERT_TRUE(d.start_segment(seg).ok());
+  Events part;
+  SequenceEvent e;
+  for (;;) {
+    Status s = d.next(&e);
+    ASSERT_TRUE(s.ok()) << s.to_string();
+    if (e.kind == SequenceEvent::Kind::kEnd) break;
+    part.events.push_back(e);
+  }
+  uint64_t triangles = 0;
+  size_t first = 0;
+  while (triangles < seg.triangles || all.events[first].kind == SequenceEvent::Kind::kFinalize) {
+    if (all.events[first].kind == SequenceEvent::Kind::kTriangle) ++triangles;
+    ++first;
+  }
+  ASSERT_FALSE(part.events.empty());
+  ASSERT_EQ(part.events[0].kind, SequenceEvent::Kind::kVertex);
+  EXPECT_EQ(part.events[0].vertex.index, seg.vertices);
+  size_t t = 0;
+  for (const SequenceEvent& x : part.events) t += x.kind == SequenceEvent::Kind::kTriangle;
+  EXPECT_EQ(t, 500u);
+  for (size_t i = 0; i < part.events.size(); ++i) {
+    const SequenceEvent& x = part.events[i];
+    const SequenceEvent& y = all.events[first + i];
+    ASSERT_EQ(x.kind, y.kind) << i;
+    if (x.kind == SequenceEvent::Kind::kVertex) {
+      EXPECT_EQ(x.vertex.index, y.vertex.index);
+      EXPECT_EQ(x.vertex.position[0], y.vertex.position[0]);
+    } else if (x.kind == SequenceEvent::Kind::kTriangle) {
+      EXPECT_EQ(x.triangle.v[0], y.triangle.v[0]);
+      EXPECT_EQ(x.triangle.v[1], y.triangle.v[1]);
+      EXPECT_EQ(x.triangle.v[2], y.triangle.v[2]);
+    } else {
+      EXPECT_EQ(x.finalized, y.finalized);
+    }
+  }
+  // A pipe cannot find its segments (it decodes from the start).
+  ASSERT_LT(bytes.size(), 60000u);  // fits a pipe's buffer
+  int fds[2];
+  ASSERT_EQ(::pipe(fds), 0);
+  ASSERT_EQ(::write(fds[1], bytes.data(), bytes.size()), static_cast<ssize_t>(bytes.size()));
+  ::close(fds[1]);
+  InputStream pipe;
+  ASSERT_TRUE(pipe.open_fd(fds[0], true, "pipe").ok());
+  PsqDecoder p;
+  ASSERT_TRUE(p.open(&pipe).ok());
+  EXPECT_EQ(p.segments(&segs).code(), ErrorCode::kIo);
+  Events piped;
+  SequenceEvent pe;
+  do {
+    ASSERT_TRUE(p.next(&pe).ok());
+  } while (pe.kind != SequenceEvent::Kind::kEnd);
+}
+
+// Damage to a segmented stream: every decoder refuses exactly the streams
+// that one decoder reading from the start refuses.
+TEST(Segments, DamagedStreamsFailOnEveryDecoder) {
+  const Events ev = sequence_of(test::make_torus(30, 20));
+  EncodeOptions o;
+  o.segment_triangles = 150;
+  const std::vector<uint8_t> bytes = encode(ev, o);
+  std::mt19937 rng(7);
+  int refused = 0;
+  for (int trial = 0; trial < 300; ++trial) {
+    std::vector<uint8_t> b = bytes;
+    if (trial % 3 == 0) {
+      b.resize(std::uniform_int_distribution<size_t>(0, b.size() - 1)(rng));
+    } else {
+      const size_t at = std::uniform_int_distribution<size_t>(0, b.size() - 1)(rng);
+      b[at] = static_cast<uint8_t>(b[at] ^ (1u << (trial % 8)));
+    }
+    Events seq;
+    const bool ok = decode(b, &seq).ok();
+    test::EventLog par;
+    const bool par_ok = decode_by_segments(b, 2, &par, nullptr).ok();
+    EXPECT_EQ(ok, par_ok) << "trial " << trial;
+    MeshBuffers m;
+    EXPECT_EQ(decode_mesh(b.data(), b.size(), &m, 2).ok(), ok) << "trial " << trial;
+    refused += !ok;
+  }
+  EXPECT_EQ(refused, 300);
 }
 
 }  // namespace

@@ -305,23 +305,27 @@ uint32_t BasicBoundary<L>::grow_edges() {
 }
 
 template <bool L>
-void BasicBoundary<L>::load_vertex(uint32_t index, uint32_t key, uint32_t degree, const int64_t pos[3]) {
-  BVertex v;
+void BasicBoundary<L>::load_vertex(uint32_t slot, uint32_t index, uint32_t key, uint32_t degree,
+                                   const int64_t pos[3]) {
+  if (slot >= vertices_.size()) {
+    vertices_.resize(size_t{slot} + 1);
+    vlive_.resize(size_t{slot} + 1, 0);
+    if constexpr (L) links_.resize(size_t{slot} + 1);
+  }
+  BVertex& v = vertices_[slot];
+  v = BVertex();
   v.index = index;
   v.key = key;
   v.degree = degree;
   for (int i = 0; i < 3; ++i) v.pos[i] = pos[i];
-  vertices_.push_back(v);
-  if constexpr (L) links_.emplace_back();
-  vlive_.push_back(1);
+  vlive_[slot] = 1;
   ++active_vertices_;
 }
 
 template <bool L>
-void BasicBoundary<L>::load_edge(uint32_t org, uint32_t dst, uint64_t age, const int64_t opp[3]) {
-  const uint32_t s = static_cast<uint32_t>(edges_.size());
-  edges_.emplace_back();
-  BEdge& e = edges_[s];
+void BasicBoundary<L>::load_edge(uint32_t slot, uint32_t org, uint32_t dst, uint64_t age, const int64_t opp[3]) {
+  if (slot >= edges_.size()) edges_.resize(size_t{slot} + 1);
+  BEdge& e = edges_[slot];
   e.org = org;
   e.dst = dst;
   e.age = age;
@@ -330,23 +334,34 @@ void BasicBoundary<L>::load_edge(uint32_t org, uint32_t dst, uint64_t age, const
   ++vertices_[org].open;
   ++vertices_[dst].open;
   ++open_edges_;
+  loaded_.push_back(slot);
   if constexpr (L) {
     e.next_out = links_[org].first_out;
-    links_[org].first_out = s;
+    links_[org].first_out = slot;
     e.next_in = links_[dst].first_in;
-    links_[dst].first_in = s;
+    links_[dst].first_in = slot;
   }
 }
 
 template <bool L>
 void BasicBoundary<L>::load_end(const uint32_t* next, uint64_t entered, uint32_t reference) {
   // The links once every edge is there: next and prev mutual (6.1.2).
-  for (size_t s = 0; s < edges_.size(); ++s) {
-    edges_[s].next = next[s];
-    if (next[s] != kNone) edges_[next[s]].prev = static_cast<uint32_t>(s);
+  for (size_t i = 0; i < loaded_.size(); ++i) {
+    BEdge& e = edges_[loaded_[i]];
+    e.next = next[i] == kNone ? kNone : loaded_[next[i]];
+    e.prev = kNone;
   }
+  for (uint32_t s : loaded_)
+    if (edges_[s].next != kNone) edges_[edges_[s].next].prev = s;
   entered_ = entered;
-  reference_ = reference;
+  reference_ = reference == kNone ? kNone : loaded_[reference];
+  loaded_.clear();
+  loaded_.shrink_to_fit();
+  // Spec 4.6: the free slots below the highest live one, the lowest on top.
+  for (size_t s = vertices_.size(); s-- > 0;)
+    if (!vlive_[s]) free_vertices_.push(static_cast<uint32_t>(s));
+  for (size_t s = edges_.size(); s-- > 0;)
+    if (!edges_[s].live) free_edges_.push(static_cast<uint32_t>(s));
 }
 
 template class BasicBoundary<true>;

@@ -228,14 +228,15 @@ class BasicBoundary {
     }
   }
   // A boundary loaded from the state of a segment record (segment.h), on
-  // a fresh one: the vertex slots 0, 1, ... in order, then the edge slots
-  // likewise, then (kLookups) the dead edges, then load_end().
-  void load_vertex(uint32_t index, uint32_t key, uint32_t degree, const int64_t pos[3]);
-  void load_edge(uint32_t org, uint32_t dst, uint64_t age, const int64_t opp[3]);
+  // a fresh one: its vertices and edges in their slots, then (kLookups)
+  // the dead edges, then load_end(), which makes every other slot below
+  // the highest one of each kind free, the lowest taken first (spec 4.6).
+  void load_vertex(uint32_t slot, uint32_t index, uint32_t key, uint32_t degree, const int64_t pos[3]);
+  void load_edge(uint32_t slot, uint32_t org, uint32_t dst, uint64_t age, const int64_t opp[3]);
   void load_dead(uint32_t a, uint32_t b) {
     if constexpr (kLookups) add_border(a, b);
   }
-  // next[s]: edge s's next edge, or kNone.
+  // next[i] (kNone: none) for the i-th edge loaded.
   void load_end(const uint32_t* next, uint64_t entered, uint32_t reference);
 
 
@@ -287,6 +288,7 @@ class BasicBoundary {
   uint32_t open_edges_ = 0;
   uint32_t reference_ = kNone;
   uint64_t entered_ = 0;  // edges that ever entered
+  std::vector<uint32_t> loaded_;  // load_edge()'s slots, in order, until load_end()
 };
 
 // The members that the fast decoder runs once or twice per triangle are

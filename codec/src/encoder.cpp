@@ -473,16 +473,9 @@ Status PsqEncoder::Impl::write_segment() {
   segment_triangles.push_back(st.triangles);
   ++stats.segments;
   stats.segment_bytes += rec.size();
-  // Spec 4.6: the state restarts in its canonical form, as a decoder's
-  // does: the slots renumbered, the ring rebuilt, the attribute models
-  // fresh. The maps from the input's slots follow the renumbering.
-  std::vector<uint32_t> vmap(boundary.vertex_capacity(), kNone), emap(boundary.edge_capacity(), kNone);
-  for (uint32_t i = 0; i < st.old_vertex.size(); ++i) vmap[st.old_vertex[i]] = i;
-  for (uint32_t i = 0; i < st.old_edge.size(); ++i) emap[st.old_edge[i]] = i;
-  auto remap = [](const std::vector<uint32_t>& map, uint32_t s) { return s < map.size() ? map[s] : kNone; };
-  for (uint32_t& s : by_inslot) s = remap(vmap, s);
-  for (auto& kv : slot_of) kv.second = remap(vmap, kv.second);
-  for (uint32_t& s : by_ineslot) s = remap(emap, s);
+  // Spec 4.6: the state restarts from its canonical form, as a decoder's
+  // does: the same slots, the free ones taken lowest first, the ring
+  // rebuilt, the attribute models fresh.
   boundary = Boundary(opt.boundary_limit);
   load_state(st, &boundary, nullptr, &ring, attrs.get());
   attrs->restart_models();

@@ -70,8 +70,6 @@ void capture_boundary(const BasicBoundary<L>& b, SegmentState* s) {
   s->vertex.clear();
   s->edge.clear();
   s->loop.clear();
-  s->old_vertex.clear();
-  s->old_edge.clear();
   // Spec 4.6: the loops in order: first the chains (an edge that no edge
   // links to begins one), then the closed loops, each begun at its oldest
   // edge not yet taken; chains likewise by the age of their first edge.
@@ -79,53 +77,56 @@ void capture_boundary(const BasicBoundary<L>& b, SegmentState* s) {
   for (uint32_t e = 0; e < b.edge_capacity(); ++e)
     if (b.edge_live(e)) by_age.emplace_back(b.edge(e).age, e);
   std::sort(by_age.begin(), by_age.end());
-  std::vector<uint32_t> new_edge(b.edge_capacity(), kNone), new_vertex(b.vertex_capacity(), kNone);
+  std::vector<uint32_t> edge_at(b.edge_capacity(), kNone), vertex_at(b.vertex_capacity(), kNone);
+  std::vector<uint32_t> edges, vertices;  // slots in canonical order
   auto walk = [&](uint32_t e0, bool closed) {
     uint32_t n = 0;
-    for (uint32_t e = e0; e != kNone && new_edge[e] == kNone; e = b.edge(e).next) {
-      new_edge[e] = static_cast<uint32_t>(s->old_edge.size());
-      s->old_edge.push_back(e);
+    for (uint32_t e = e0; e != kNone && edge_at[e] == kNone; e = b.edge(e).next) {
+      edge_at[e] = static_cast<uint32_t>(edges.size());
+      edges.push_back(e);
       ++n;
     }
     s->loop.emplace_back(n, closed);
   };
   for (const auto& a : by_age)
-    if (new_edge[a.second] == kNone && b.edge(a.second).prev == kNone) walk(a.second, false);
+    if (edge_at[a.second] == kNone && b.edge(a.second).prev == kNone) walk(a.second, false);
   for (const auto& a : by_age)
-    if (new_edge[a.second] == kNone) walk(a.second, true);
+    if (edge_at[a.second] == kNone) walk(a.second, true);
   auto number = [&](uint32_t v) {
-    if (new_vertex[v] == kNone) {
-      new_vertex[v] = static_cast<uint32_t>(s->old_vertex.size());
-      s->old_vertex.push_back(v);
+    if (vertex_at[v] == kNone) {
+      vertex_at[v] = static_cast<uint32_t>(vertices.size());
+      vertices.push_back(v);
     }
   };
-  for (uint32_t e : s->old_edge) {
+  for (uint32_t e : edges) {
     number(b.edge(e).org);
     number(b.edge(e).dst);
   }
   for (uint32_t v = 0; v < b.vertex_capacity(); ++v)
     if (b.vertex_live(v)) number(v);
-  for (uint32_t v : s->old_vertex) {
+  for (uint32_t v : vertices) {
     const BVertex& x = b.vertex(v);
     SegmentState::Vertex y;
+    y.slot = v;
     y.index = x.index;
     y.degree = x.degree;
     y.key = x.key;
     std::copy(x.pos, x.pos + 3, y.pos);
     s->vertex.push_back(y);
   }
-  for (uint32_t e : s->old_edge) {
+  for (uint32_t e : edges) {
     const BEdge& x = b.edge(e);
     SegmentState::Edge y;
-    y.org = new_vertex[x.org];
-    y.dst = new_vertex[x.dst];
-    y.next = x.next == kNone ? kNone : new_edge[x.next];
+    y.slot = e;
+    y.org = vertex_at[x.org];
+    y.dst = vertex_at[x.dst];
+    y.next = x.next == kNone ? kNone : edge_at[x.next];
     const uint64_t back = s->entered - x.age;
     y.recency = back <= kStateRecency ? static_cast<uint32_t>(back) : 0;
     std::copy(x.opp, x.opp + 3, y.opp);
     s->edge.push_back(y);
   }
-  s->reference = b.reference() == kNone ? kNone : new_edge[b.reference()];
+  s->reference = b.reference() == kNone ? kNone : edge_at[b.reference()];
   // Spec 4.6: the state keeps an edge's opposite vertex only where the
   // loop names it; it forgets the others (their midpoints).
   const LoopLinks links(*s);
@@ -140,19 +141,19 @@ template void capture_boundary(const BasicBoundary<true>&, SegmentState*);
 template void capture_boundary(const BasicBoundary<false>&, SegmentState*);
 
 namespace {
-// Sorts the dead pairs (in old slots) into new slots, without open edges.
-void finish_dead(SegmentState* s, std::vector<std::pair<uint32_t, uint32_t>>* old) {
-  std::vector<uint32_t> new_vertex;
-  for (uint32_t i = 0; i < s->old_vertex.size(); ++i) {
-    if (s->old_vertex[i] >= new_vertex.size()) new_vertex.resize(s->old_vertex[i] + 1, kNone);
-    new_vertex[s->old_vertex[i]] = i;
+// Sorts the dead pairs (by slot) into positions, without open edges.
+void finish_dead(SegmentState* s, std::vector<std::pair<uint32_t, uint32_t>>* by_slot) {
+  std::vector<uint32_t> at;
+  for (uint32_t i = 0; i < s->vertex.size(); ++i) {
+    if (s->vertex[i].slot >= at.size()) at.resize(s->vertex[i].slot + 1, kNone);
+    at[s->vertex[i].slot] = i;
   }
   std::vector<std::pair<uint32_t, uint32_t>> open;
   for (const SegmentState::Edge& e : s->edge) open.emplace_back(std::min(e.org, e.dst), std::max(e.org, e.dst));
   std::sort(open.begin(), open.end());
   s->dead.clear();
-  for (const auto& d : *old) {
-    const uint32_t a = new_vertex[d.first], c = new_vertex[d.second];
+  for (const auto& d : *by_slot) {
+    const uint32_t a = at[d.first], c = at[d.second];
     const std::pair<uint32_t, uint32_t> p(std::min(a, c), std::max(a, c));
     if (!std::binary_search(open.begin(), open.end(), p)) s->dead.push_back(p);
   }
@@ -163,18 +164,18 @@ void finish_dead(SegmentState* s, std::vector<std::pair<uint32_t, uint32_t>>* ol
 
 void capture_dead(const BasicBoundary<false>& b, const Neighbors& n, SegmentState* s) {
   std::vector<std::pair<uint32_t, uint32_t>> old;
-  for (uint32_t v : s->old_vertex)
-    n.for_each_current(v, [&](uint32_t w) {
-      if (w > v && b.vertex_live(w)) old.emplace_back(v, w);
+  for (const SegmentState::Vertex& x : s->vertex)
+    n.for_each_current(x.slot, [&](uint32_t w) {
+      if (w > x.slot && b.vertex_live(w)) old.emplace_back(x.slot, w);
     });
   finish_dead(s, &old);
 }
 
 void capture_dead(const BasicBoundary<true>& b, SegmentState* s) {
   std::vector<std::pair<uint32_t, uint32_t>> old;
-  for (uint32_t v : s->old_vertex)
-    b.for_each_dead(v, [&](uint32_t w) {
-      if (w > v) old.emplace_back(v, w);
+  for (const SegmentState::Vertex& x : s->vertex)
+    b.for_each_dead(x.slot, [&](uint32_t w) {
+      if (w > x.slot) old.emplace_back(x.slot, w);
     });
   finish_dead(s, &old);
 }
@@ -184,12 +185,12 @@ void capture_attributes(AttributeCoder& a, SegmentState* s) {
   s->attr_last.assign(a.last(), a.last() + d);
   s->attr_vertex.clear();
   s->attr_edge.clear();
-  for (uint32_t v : s->old_vertex) {
-    const int32_t* x = a.vertex_state(v);
+  for (const SegmentState::Vertex& v : s->vertex) {
+    const int32_t* x = a.vertex_state(v.slot);
     s->attr_vertex.insert(s->attr_vertex.end(), x, x + d);
   }
-  for (uint32_t e : s->old_edge) {
-    const int32_t* x = a.edge_state(e);
+  for (const SegmentState::Edge& e : s->edge) {
+    const int32_t* x = a.edge_state(e.slot);
     s->attr_edge.insert(s->attr_edge.end(), x, x + d);
   }
 }
@@ -205,12 +206,14 @@ void serialize_state(const SegmentState& s, int dims, std::vector<uint8_t>* out)
   put.varint(s.context);
   put.varint(s.choice);
   for (int i = 0; i < 3; ++i) put.varint(zigzag(s.last[i]));
-  // A new vertex's fields: its index and position from the previous new
-  // vertex's, its degree.
+  // A new vertex's fields: its slot, index and position from the previous
+  // new vertex's, its degree.
   uint32_t numbered = 0;
-  int64_t prev_index = static_cast<int64_t>(s.vertices), prev_pos[3] = {0, 0, 0};
+  int64_t prev_index = static_cast<int64_t>(s.vertices), prev_pos[3] = {0, 0, 0}, prev_slot = 0;
   auto vertex = [&](uint32_t v) {
     const SegmentState::Vertex& x = s.vertex[v];
+    put.varint(zigzag(static_cast<int64_t>(x.slot) - prev_slot));
+    prev_slot = x.slot;
     put.varint(zigzag(static_cast<int64_t>(x.index) - prev_index));
     put.varint(x.degree);
     for (int i = 0; i < 3; ++i) put.varint(zigzag(minus(x.pos[i], prev_pos[i])));
@@ -220,6 +223,7 @@ void serialize_state(const SegmentState& s, int dims, std::vector<uint8_t>* out)
   };
   put.varint(s.loop.size());
   uint32_t e = 0;
+  int64_t prev_edge_slot = 0;
   for (const auto& l : s.loop) {
     put.varint(uint64_t{l.first} << 1 | (l.second ? 1 : 0));
     const uint32_t first = e;
@@ -237,6 +241,8 @@ void serialize_state(const SegmentState& s, int dims, std::vector<uint8_t>* out)
       } else {
         put.varint(x.dst == s.edge[first].org ? kSameVertex : kSlotBase + x.dst);
       }
+      put.varint(zigzag(static_cast<int64_t>(x.slot) - prev_edge_slot));
+      prev_edge_slot = x.slot;
       put.varint(x.recency);
     }
   }
@@ -287,21 +293,25 @@ const char* parse_state(const uint8_t* p, size_t n, uint32_t limit, int dims, in
   s->choice = static_cast<uint32_t>(choice);
   auto coordinate_ok = [&](const int64_t* v) { return v[0] >= lo && v[0] <= hi && v[1] >= lo && v[1] <= hi && v[2] >= lo && v[2] <= hi; };
   if (!coordinate_ok(s->last)) return "prediction state outside the coordinates";
-  int64_t prev_index = static_cast<int64_t>(s->vertices), prev_pos[3] = {0, 0, 0};
+  int64_t prev_index = static_cast<int64_t>(s->vertices), prev_pos[3] = {0, 0, 0}, prev_slot = 0;
   // Every element takes at least one byte, so no count below allocates
   // beyond the bytes of the block.
   auto vertex = [&]() -> const char* {
     if (s->vertex.size() >= limit) return "more active vertices than the boundary limit";
     SegmentState::Vertex v;
+    const int64_t slot = plus(prev_slot, unzigzag(get.varint()));
     const int64_t index = plus(prev_index, unzigzag(get.varint()));
     const uint64_t degree = get.varint();
     for (int i = 0; i < 3; ++i) v.pos[i] = plus(prev_pos[i], unzigzag(get.varint()));
     if (!ok()) return kShort;
+    if (slot < 0 || slot >= static_cast<int64_t>(limit)) return "vertex slot beyond the boundary limit";
     if (index < 0 || static_cast<uint64_t>(index) >= s->vertices) return "active vertex index beyond the vertices so far";
     if (degree > 0xffffffffu) return "vertex degree out of range";
     if (!coordinate_ok(v.pos)) return "active vertex position outside the coordinates";
+    v.slot = static_cast<uint32_t>(slot);
     v.index = v.key = static_cast<uint32_t>(index);
     v.degree = static_cast<uint32_t>(degree);
+    prev_slot = slot;
     prev_index = index;
     std::copy(v.pos, v.pos + 3, prev_pos);
     s->vertex.push_back(v);
@@ -309,6 +319,7 @@ const char* parse_state(const uint8_t* p, size_t n, uint32_t limit, int dims, in
   };
   const uint64_t loops = get.varint();
   if (!ok() || loops > get.left()) return "bad loop count";
+  int64_t prev_edge_slot = 0;
   for (uint64_t l = 0; l < loops; ++l) {
     const uint64_t head = get.varint();
     if (!ok()) return kShort;
@@ -335,8 +346,12 @@ const char* parse_state(const uint8_t* p, size_t n, uint32_t limit, int dims, in
         (end == 0 ? x.org : x.dst) = v;
       }
       if (x.org == x.dst) return "open edge from a vertex to itself";
+      const int64_t slot = plus(prev_edge_slot, unzigzag(get.varint()));
       const uint64_t r = get.varint();
       if (!ok()) return kShort;
+      if (slot < 0 || slot >= static_cast<int64_t>(limit)) return "edge slot beyond the boundary limit";
+      x.slot = static_cast<uint32_t>(slot);
+      prev_edge_slot = slot;
       if (r > kStateRecency || r > s->entered) return "edge recency out of range";
       x.recency = static_cast<uint32_t>(r);
       x.next = i + 1 < len ? static_cast<uint32_t>(s->edge.size() + 1) : (head & 1) ? first : kNone;
@@ -348,6 +363,17 @@ const char* parse_state(const uint8_t* p, size_t n, uint32_t limit, int dims, in
   if (!ok() || extra > get.left()) return "bad count of vertices off the loops";
   for (uint64_t i = 0; i < extra; ++i)
     if (const char* why = vertex()) return why;
+  // Slots distinct within each kind.
+  {
+    std::vector<uint32_t> slots;
+    for (const SegmentState::Vertex& v : s->vertex) slots.push_back(v.slot);
+    std::sort(slots.begin(), slots.end());
+    if (std::adjacent_find(slots.begin(), slots.end()) != slots.end()) return "two active vertices in one slot";
+    slots.clear();
+    for (const SegmentState::Edge& x : s->edge) slots.push_back(x.slot);
+    std::sort(slots.begin(), slots.end());
+    if (std::adjacent_find(slots.begin(), slots.end()) != slots.end()) return "two open edges in one slot";
+  }
   const LoopLinks links(*s);
   for (uint32_t k = 0; k < s->edge.size(); ++k) {
     SegmentState::Edge& x = s->edge[k];
@@ -400,31 +426,30 @@ const char* parse_state(const uint8_t* p, size_t n, uint32_t limit, int dims, in
 
 template <bool L>
 void load_state(const SegmentState& s, BasicBoundary<L>* b, Neighbors* n, FastRing* ring, AttributeCoder* a) {
-  b->reserve(static_cast<uint32_t>(std::max(s.vertex.size(), s.edge.size())));
-  for (const SegmentState::Vertex& v : s.vertex) b->load_vertex(v.index, v.key, v.degree, v.pos);
+  for (const SegmentState::Vertex& v : s.vertex) b->load_vertex(v.slot, v.index, v.key, v.degree, v.pos);
   std::vector<uint32_t> next;
   next.reserve(s.edge.size());
   for (const SegmentState::Edge& e : s.edge) {
     // Spec 4.6: an edge beyond the recency window gets age 0, which no
     // rank reaches.
-    b->load_edge(e.org, e.dst, e.recency ? s.entered - e.recency : 0, e.opp);
+    b->load_edge(e.slot, s.vertex[e.org].slot, s.vertex[e.dst].slot, e.recency ? s.entered - e.recency : 0, e.opp);
     next.push_back(e.next);
   }
   b->load_end(next.data(), s.entered, s.reference);
-  for (const auto& d : s.dead) b->load_dead(d.first, d.second);
+  for (const auto& d : s.dead) b->load_dead(s.vertex[d.first].slot, s.vertex[d.second].slot);
   if (n) {
-    for (uint32_t v = 0; v < s.vertex.size(); ++v) n->vertex_begins(v);
-    for (const SegmentState::Edge& e : s.edge) n->insert(e.org, e.dst);
-    for (const auto& d : s.dead) n->insert(d.first, d.second);
+    for (const SegmentState::Vertex& v : s.vertex) n->vertex_begins(v.slot);
+    for (const SegmentState::Edge& e : s.edge) n->insert(s.vertex[e.org].slot, s.vertex[e.dst].slot);
+    for (const auto& d : s.dead) n->insert(s.vertex[d.first].slot, s.vertex[d.second].slot);
   }
   ring->rebuild(*b);
   const size_t d = a ? static_cast<size_t>(a->dims()) : 0;
   if (d > 0) {
     a->set_last(s.attr_last.data());
     for (size_t i = 0; i < s.vertex.size(); ++i)
-      std::copy_n(s.attr_vertex.data() + i * d, d, a->vertex_state(static_cast<uint32_t>(i)));
+      std::copy_n(s.attr_vertex.data() + i * d, d, a->vertex_state(s.vertex[i].slot));
     for (size_t i = 0; i < s.edge.size(); ++i)
-      std::copy_n(s.attr_edge.data() + i * d, d, a->edge_state(static_cast<uint32_t>(i)));
+      std::copy_n(s.attr_edge.data() + i * d, d, a->edge_state(s.edge[i].slot));
   }
 }
 template void load_state(const SegmentState&, BasicBoundary<true>*, Neighbors*, FastRing*, AttributeCoder*);

@@ -6,17 +6,18 @@
 // The processing sequence at a segment start has an open boundary: a
 // restart with an empty one would cut the mesh along every segment start.
 // So the block holds the boundary as it is, in a canonical form: its open
-// edges loop by loop, the vertices in the order the loops reach them, and
-// only what the records can still see (an edge's age only among the last
-// 128 edges that entered, 13.6.2). At a segment start, the encoder and
-// every decoder put their state in this form and load it back: the slots
-// renumbered in loop order, fresh neighbour lists and attribute models.
-// One serialization: the encoder writes the block from its own state, a
-// decoder that reads the stream from the start checks that its state
-// serializes to the same bytes, and a decoder that starts at the segment
-// loads the block, then checks at its end that its state serializes to
-// the next segment's block. Every decoder therefore accepts exactly the
-// same streams.
+// edges loop by loop, the vertices in the order the loops reach them, each
+// with its slot (slots are part of the decoded sequence, psq/sequence.h,
+// so they do not change), and only what the records can still see (an
+// edge's age only among the last 128 edges that entered, 13.6.2). At a
+// segment start, the encoder and every decoder load this form back: the
+// free slots taken lowest first, fresh neighbour lists, the ring rebuilt,
+// fresh attribute models. One serialization: the encoder writes the block
+// from its own state, a decoder that reads the stream from the start
+// checks that its state serializes to the same bytes, and a decoder that
+// starts at the segment loads the block, then checks at its end that its
+// state serializes to the next segment's block. Every decoder therefore
+// accepts exactly the same streams and yields the same events.
 #ifndef PSQ_CODEC_SEGMENT_H_
 #define PSQ_CODEC_SEGMENT_H_
 
@@ -41,35 +42,35 @@ struct SegmentState {
   // What came before: records, vertex events (the next dense index) and
   // triangle events; edges that ever entered (spec 6.1.2 step 2).
   uint64_t records = 0, vertices = 0, triangles = 0, entered = 0;
-  uint32_t reference = kNone;  // the reference edge R (its slot below)
+  uint32_t reference = kNone;  // the reference edge R (its position in `edge`)
   uint32_t context = 0;        // the context of table A (13.7.1)
   uint32_t choice = 0;         // the previous prediction choice (13.8.2)
   int64_t last[3] = {0, 0, 0};  // the prediction state (7.3)
   struct Vertex {
+    uint32_t slot = 0;
     uint32_t index = 0, degree = 0;
     uint32_t key = 0;  // BVertex::key: carried over, not serialized
     int64_t pos[3] = {0, 0, 0};
   };
   struct Edge {
-    uint32_t org = 0, dst = 0;  // vertex slots below
-    uint32_t next = kNone;      // edge slot below, or kNone
+    uint32_t slot = 0;
+    uint32_t org = 0, dst = 0;  // vertices: positions in `vertex`
+    uint32_t next = kNone;      // a position in `edge`, or kNone
     uint32_t recency = 0;       // entered - age when at most kStateRecency, else 0
     int64_t opp[3] = {0, 0, 0};
   };
-  // Slots in canonical order: vertex[s] and edge[s] take slot s.
+  // The active vertices and open edges in canonical order.
   std::vector<Vertex> vertex;
   std::vector<Edge> edge;
   // The loops: the lengths of the runs of `edge` that follow one another
   // by `next`, and whether each closes (the last one's next is the first).
   std::vector<std::pair<uint32_t, bool>> loop;
-  // Pairs of active vertices (slots, first < second, ascending) joined by
+  // Pairs of active vertices (positions, first < second, ascending) joined by
   // an edge that is not open: the dead edges of the new-edge check (13.6.3).
   std::vector<std::pair<uint32_t, uint32_t>> dead;
-  // Attributes (8.3): the last values, then dims() values per vertex slot
-  // and per edge slot.
+  // Attributes (8.3): the last values, then dims() values per vertex and
+  // per edge, in the order above.
   std::vector<int32_t> attr_last, attr_vertex, attr_edge;
-  // capture() only: the slot each vertex and edge had before.
-  std::vector<uint32_t> old_vertex, old_edge;
 };
 
 // The boundary's part of a state (slots, links, ages, R, `entered`, and
@@ -87,16 +88,16 @@ void capture_attributes(AttributeCoder& a, SegmentState* s);
 // The bytes of a state (before compression), with `attr_dims` attribute
 // values per vertex (AttributeCoder::dims()).
 void serialize_state(const SegmentState& s, int attr_dims, std::vector<uint8_t>* out);
-// Parses and checks the bytes of a state: at most `limit` vertices and
-// edges, endpoints distinct, indices below the vertex count, coordinates
+// Parses and checks the bytes of a state: slots below `limit` and distinct
+// per kind, endpoints distinct, indices below the vertex count, coordinates
 // within [lo, hi], attribute values within their components' ranges
 // (`attrs`, when attr_dims > 0). Returns nullptr, or what is wrong.
 const char* parse_state(const uint8_t* p, size_t n, uint32_t limit, int attr_dims, int64_t lo, int64_t hi,
                         const AttributeCoder* attrs, SegmentState* s);
 
-// Loads a state into a fresh boundary and fresh neighbour lists (either
-// may be null), the ring and the attributes' values (their models are
-// the caller's to restart).
+// Loads a state into a fresh boundary and fresh neighbour lists (null:
+// none), the ring and the attributes' values (their models are the
+// caller's to restart).
 template <bool L>
 void load_state(const SegmentState& s, BasicBoundary<L>* b, Neighbors* n, FastRing* ring, AttributeCoder* a);
 

@@ -6,7 +6,7 @@
 // connectivity, geometry and property decoders. The decoder must return an
 // error or a sequence; a sequence it yields must be valid (SequenceChecker)
 // and must not end without its end record having been checked, and
-// decode_mesh() must agree with it. A crash, hang, sanitizer report, an
+// decode_mesh() must agree with it, on one thread and on two. A crash, hang, sanitizer report, an
 // invalid sequence or a disagreement traps.
 #include <cstddef>
 #include <cstdint>
@@ -54,11 +54,21 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   // its own (codec/src/record_decoder.cpp): it must fail exactly as the
   // events path does, and leave no mesh behind.
   psq::MeshBuffers mesh;
-  const psq::Status direct = psq::decode_mesh(data, size, &mesh);
+  const psq::Status direct = psq::decode_mesh(data, size, &mesh, 1);
   if (direct.to_string() != events.to_string()) {
     std::fprintf(stderr, "decode_mesh: %s\nevents: %s\n", direct.to_string().c_str(), events.to_string().c_str());
     std::abort();
   }
   if (!direct.ok() && (!mesh.positions.empty() || !mesh.indices.empty())) std::abort();
+  // A stream of several segments decodes on two threads (spec 4.6): the
+  // same streams are accepted, into the same mesh (the errors may name
+  // another place: each segment reports its own first).
+  psq::MeshBuffers parallel;
+  const psq::Status segments = psq::decode_mesh(data, size, &parallel, 2);
+  if (segments.ok() != direct.ok() || parallel.positions != mesh.positions || parallel.indices != mesh.indices) {
+    std::fprintf(stderr, "decode_mesh on two threads: %s\none thread: %s\n", segments.to_string().c_str(),
+                 direct.to_string().c_str());
+    std::abort();
+  }
   return 0;
 }

@@ -116,6 +116,12 @@ void print_text(const std::string& file, const detail::InfoReport& r) {
     std::printf("  properties           %.3f bits/vertex\n", 8.0 * p.property_bytes / nv);
     std::printf("  attributes           %.3f bits/vertex\n", 8.0 * p.attribute_bytes / nv);
     std::printf("  framing              %.3f bits/vertex\n", 8.0 * (p.header_bytes + p.chunk_overhead_bytes) / nv);
+    std::printf("  segments             %.3f bits/vertex\n", 8.0 * p.segment_bytes / nv);
+    if (h.segment_triangles == 0) std::printf("segments               1 (no segment records)\n");
+    else
+      std::printf("segments               %llu of %llu triangles, %llu bytes of state (%.2f%%)\n", u(p.segments + 1),
+                  u(h.segment_triangles), u(p.segment_bytes),
+                  p.total_bytes ? 100.0 * static_cast<double>(p.segment_bytes) / static_cast<double>(p.total_bytes) : 0.0);
     std::printf("gates                  offset 0 %llu, offset %llu, far %llu (rank %llu, slot %llu), "
                 "start or isolated %llu\n",
                 u(p.gates[0]), u(p.gates[1]), u(p.gates[2]), u(p.far_gates[0]), u(p.far_gates[1]),

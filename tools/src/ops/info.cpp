@@ -191,6 +191,8 @@ std::string info_json(const std::string& file, const InfoReport& r) {
          ", \"attribute_bits_per_vertex\": " + json_number(8.0 * p.attribute_bytes / nv) +
          ", \"attributes\": " + attribute_json(h) +
          ", \"overhead_bits_per_vertex\": " + json_number(8.0 * (p.header_bytes + p.chunk_overhead_bytes) / nv) +
+         ", \"segments\": " + n(p.segments + 1) + ", \"segment_triangles\": " + n(h.segment_triangles) +
+         ", \"segment_bytes\": " + n(p.segment_bytes) +
          ", \"gates\": {\"offset_0\": " + n(p.gates[0]) + ", \"offset\": " + n(p.gates[1]) +
          ", \"far_rank\": " + n(p.far_gates[0]) + ", \"far_slot\": " + n(p.far_gates[1]) +
          ", \"start_or_isolated\": " + n(p.gates[3]) +
