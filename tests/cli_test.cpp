@@ -247,8 +247,8 @@ TEST(Cli, ConvertWritesTheSameBytesOnOneOrTwoThreads) {
   EXPECT_EQ(test::read_file(dir.file("s1.psq")), test::read_file(dir.file("s2.psq")));
   EXPECT_EQ(test::read_file(dir.file("r1.psq")), test::read_file(dir.file("r2.psq")));
   EXPECT_NE(test::read_file(dir.file("r1.psq")), test::read_file(dir.file("s1.psq")));
-  EXPECT_EQ(run_psq("convert --threads 3 " + ply + " " + dir.file("s3.psq"), &out, &err), 2);
-  EXPECT_NE(err.find("bad --threads '3'"), std::string::npos) << err;
+  EXPECT_EQ(run_psq("convert --threads 0 " + ply + " " + dir.file("s3.psq"), &out, &err), 2);
+  EXPECT_NE(err.find("bad --threads '0'"), std::string::npos) << err;
   // A truncated input fails while the encoder's thread runs: one line, exit
   // 1, no output left behind.
   const std::string bytes = test::read_file(ply);
@@ -258,6 +258,33 @@ TEST(Cli, ConvertWritesTheSameBytesOnOneOrTwoThreads) {
   EXPECT_NE(err.find("psq: error: " + dir.file("cut.ply") + ": byte "), std::string::npos) << err;
   EXPECT_FALSE(test::file_exists(dir.file("cut.psq")));
   EXPECT_EQ(dir.entries(), (std::vector<std::string>{"cut.ply", "r1.psq", "r2.psq", "s.ply", "s1.psq", "s2.psq"}));
+}
+
+// .psq to binary PLY in a file: the segments decode at once and write
+// their parts in place (spec 4.6); the bytes are those of the streaming
+// writer, which a pipe gets.
+TEST(Cli, PsqToPlyBySegmentsWritesTheStreamingWritersBytes) {
+  test::TempDir dir;
+  std::string ply = write_sphere(dir, "s.ply", true, 80, 120);
+  std::string out, err;
+  ASSERT_EQ(run_psq("convert --segment 4000 " + ply + " " + dir.file("s.psq"), &out, &err), 0) << err;
+  ASSERT_EQ(run_psq("info " + dir.file("s.psq"), &out, &err), 0) << err;
+  EXPECT_NE(out.find("segments               5 of 4000 triangles"), std::string::npos) << out;
+  std::string piped;
+  ASSERT_EQ(run_psq("convert " + dir.file("s.psq") + " - --to ply", &piped, &err), 0) << err;
+  for (const char* t : {"1", "2", "3"}) {
+    const std::string target = dir.file(std::string("o") + t + ".ply");
+    ASSERT_EQ(run_psq("convert -q --threads " + std::string(t) + " " + dir.file("s.psq") + " " + target, &out, &err), 0)
+        << err;
+    EXPECT_EQ(test::read_file(target), piped) << t;
+  }
+  // A damaged stream: one error line, no output left behind.
+  std::string bytes = test::read_file(dir.file("s.psq"));
+  bytes[bytes.size() / 2] ^= 0x40;
+  test::write_file(dir.file("bad.psq"), bytes);
+  EXPECT_EQ(run_psq("convert " + dir.file("bad.psq") + " " + dir.file("bad.ply"), &out, &err), 1);
+  EXPECT_EQ(count_lines(err), 1) << err;
+  EXPECT_FALSE(test::file_exists(dir.file("bad.ply")));
 }
 
 // --profile auto (the default) picks the fast profile for large inputs,

@@ -99,8 +99,7 @@ Status PsqDecoder::Impl::next_chunk() {
   }
   if (tag == kIndexTag) return read_index();
   if (tag == kEndTag) {
-    if (!seen_segment_at.empty() && index_at == 0 && !alone)
-      return Status(ErrorCode::kBadHeader, "the stream has segment records but no index", chunk_offset);
+    if (index_at == 0 && !alone) return Status(ErrorCode::kBadHeader, "the end record comes without an index", chunk_offset);
     return read_end();
   }
   if (tag != kChunkTag)
@@ -391,6 +390,7 @@ Status PsqDecoder::Impl::read_end() {
 
 Status PsqDecoder::Impl::decode_loop() {
   while (!ended) {
+    if (records_left == 0) PSQ_RETURN_IF_ERROR(flush_direct());
     if (records_left > 0 && props->empty() && attrs->empty()) {
       PSQ_RETURN_IF_ERROR(rans ? direct_records<RansSymbolDecoder>() : direct_records<AdaptiveSymbolDecoder>());
       continue;
@@ -416,9 +416,11 @@ Status PsqDecoder::Impl::decode_range(MeshBuffers* mesh, size_t np_begin, size_t
   direct_ni = ni_begin;
   direct_np_end = np_end;
   direct_ni_end = ni_end;
+  flushed_np = np_begin;
+  flushed_ni = ni_begin;
   PSQ_RETURN_IF_ERROR(decode_loop());
   if (direct_np != np_end || direct_ni != ni_end) return direct_overflow();
-  return Status();
+  return flush_direct();
 }
 
 const char* PsqDecoder::Impl::position_of(const int64_t pos[3], double out[3]) const {
@@ -509,8 +511,9 @@ Status PsqDecoder::open(InputStream* in) {
   return s.ok() ? s : impl_->fail(s);
 }
 
-Status PsqDecoder::segments(std::vector<PsqSegment>* out) {
+Status PsqDecoder::segments(std::vector<PsqSegment>* out, PsqSegment* end) {
   Impl& m = *impl_;
+  if (end) *end = PsqSegment();
   if (!m.error.ok()) return m.error;
   if (!m.opened) return m.fail(Status(ErrorCode::kUsage, "decoder not opened"));
   out->clear();
@@ -528,7 +531,9 @@ Status PsqDecoder::segments(std::vector<PsqSegment>* out) {
   PSQ_RETURN_IF_ERROR(in.read_exact(tail, 12));
   const uint64_t at = Get(tail, 8).u64();
   Status s;
-  if (at != 0) {
+  if (at == 0) {
+    s = Status(ErrorCode::kBadHeader, "end record: no index offset", size - 12);
+  } else {
     auto bad = [&](const std::string& what) { return Status(ErrorCode::kBadHeader, "index: " + what, at); };
     if (at < first || at >= size - 12) {
       s = Status(ErrorCode::kBadHeader, "end record: index offset beyond the stream", size - 12);
@@ -573,6 +578,17 @@ Status PsqDecoder::segments(std::vector<PsqSegment>* out) {
       if (s.ok()) {
         const uint32_t crc = crc32c_update(crc32c_update(0, &tag, 1), f.data(), f.size());
         if (!checksum_ok(Get(c, 4).u32(), crc)) s = Status(ErrorCode::kChecksum, "index checksum mismatch", at);
+      }
+      // Spec 4.5: the end record follows the index: its tag, then the
+      // totals.
+      if (s.ok() && end) {
+        PsqSegment e{in.offset(), 0, 0};
+        uint8_t etag = 0;
+        s = in.read_exact(&etag, 1);
+        if (s.ok() && etag != kEndTag) s = Status(ErrorCode::kBadHeader, "no end record after the index", e.offset);
+        if (s.ok()) s = varint(&e.vertices);
+        if (s.ok()) s = varint(&e.triangles);
+        if (s.ok()) *end = e;
       }
     }
   }

@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -248,6 +249,17 @@ struct PsqDecoder::Impl {
   // nothing beyond the ends of its part.
   bool direct_fixed = false;
   size_t direct_np_end = SIZE_MAX, direct_ni_end = SIZE_MAX;
+  // Called between chunks with the ranges of the arrays written since the
+  // last call (decode_mesh_segments()'s flush).
+  std::function<Status(size_t, size_t, size_t, size_t)> direct_flush;
+  size_t flushed_np = 0, flushed_ni = 0;
+  Status flush_direct() {
+    if (!direct_flush || (direct_np == flushed_np && direct_ni == flushed_ni)) return Status();
+    PSQ_RETURN_IF_ERROR(direct_flush(flushed_np, direct_np, flushed_ni, direct_ni));
+    flushed_np = direct_np;
+    flushed_ni = direct_ni;
+    return Status();
+  }
   // The event path's check of fixed arrays: room for event e, and no
   // re-appearing vertex (whose mesh index another segment knows).
   Status direct_fixed_check(const SequenceEvent& e) const {

@@ -460,6 +460,9 @@ Status PsqEncoder::Impl::write_segment() {
     return Status(ErrorCode::kLimit, "the boundary at triangle " + std::to_string(stats.triangles) +
                                          " is too large for a segment record (use fewer segments)");
   zstd_compress(raw, std::max(opt.zstd_level, 19), &packed);
+  if (packed.size() > kMaxStateBytes)
+    return Status(ErrorCode::kLimit, "the boundary at triangle " + std::to_string(stats.triangles) +
+                                         " is too large for a segment record (use fewer segments)");
   std::vector<uint8_t> rec;
   Put put(&rec);
   put.u8(kSegmentTag);
@@ -490,9 +493,10 @@ Status PsqEncoder::Impl::finish() {
   if (boundary.active_vertices() != 0)
     return bad_sequence(std::to_string(boundary.active_vertices()) + " vertices are still active at the end");
   PSQ_RETURN_IF_ERROR(close_chunk());
-  // Spec 4.7: the index of the segment records, when there are any.
+  // Spec 4.7: the index of the segment records (none for a stream of one
+  // segment), which also tells a reader where the end record is.
   uint64_t index_at = 0;
-  if (!segment_at.empty()) {
+  {
     std::vector<uint8_t> index;
     Put put(&index);
     put.u8(kIndexTag);

@@ -27,7 +27,7 @@ struct SegmentResult {
   std::vector<uint8_t> start_state, end_state, chain, end_bytes;
   uint32_t end_checksum = 0;
   uint64_t end_fields[5] = {0, 0, 0, 0, 0};
-  uint64_t end_index_at = 0, stopped_at = 0;
+  uint64_t end_index_at = 0, stopped_at = 0, index_at = 0;
   bool reached_end = false;
   uint32_t header_chain = 0;
   PsqStats stats;
@@ -102,6 +102,7 @@ Status decode_segments(const std::function<Status(InputStream*)>& open, int thre
       r.end_checksum = m.end_checksum;
       std::copy(m.end_fields, m.end_fields + 5, r.end_fields);
       r.end_index_at = m.end_index_at;
+      r.index_at = m.index_at;
       r.stopped_at = m.stopped_at;
       r.reached_end = m.reached_end;
       r.header_chain = m.header_chain;
@@ -146,105 +147,80 @@ Status decode_segments(const std::function<Status(InputStream*)>& open, int thre
                std::to_string(total.triangles) + ", " + std::to_string(total.chunks));
   if (f[3] != total.max_active_vertices || f[4] != total.max_open_edges)
     return bad("boundary maxima differ from the stream's");
-  // segments() read the index at the offset the end record gives; a
-  // stream of one segment has none.
-  if ((n > 1) != (last.end_index_at != 0)) return bad("index offset does not match the segment records");
+  // segments() read the index at the offset the end record gives.
+  if (last.end_index_at == 0 || last.end_index_at != last.index_at)
+    return bad("index offset " + std::to_string(last.end_index_at) + " is not the index's");
   if (stats) *stats = total;
+  return Status();
+}
+
+Status decode_mesh_segments(const std::function<Status(InputStream*)>& open, int threads, MeshBuffers* mesh,
+                            const std::function<Status(size_t, size_t, size_t, size_t)>& flush) {
+  auto cannot = [](const char* why) { return Status(ErrorCode::kUnsupported, why); };
+  std::vector<PsqSegment> segs;
+  PsqSegment end;
+  bool is_double = false;
+  {
+    InputStream in;
+    PSQ_RETURN_IF_ERROR(open(&in));
+    PsqDecoder d;
+    PSQ_RETURN_IF_ERROR(d.open(&in));
+    if (!d.segments(&segs, &end).ok()) return cannot("the stream's index cannot be read");
+    is_double = d.header().schema.position_type == ScalarType::kFloat64;
+  }
+  // Each segment writes its part of the arrays, between its index entry's
+  // counts and the next one's (the end record's totals for the last).
+  // Its vertices are the mesh's vertices in order unless one re-appears
+  // (spec 2.2), whose mesh index another segment knows: such a stream
+  // cannot be decoded this way (decode_range() says so).
+  std::vector<PsqSegment> bounds = segs;
+  bounds.push_back(end);
+  for (size_t k = 0; k + 1 < bounds.size(); ++k)
+    if (bounds[k].vertices > bounds[k + 1].vertices || bounds[k].triangles > bounds[k + 1].triangles ||
+        bounds[k + 1].offset <= bounds[k].offset)
+      return cannot("the index's counts do not grow");
+  // The arrays' pages are touched only as the segments write them.
+  mesh->positions.resize(3 * static_cast<size_t>(end.vertices));
+  mesh->indices.resize(3 * static_cast<size_t>(end.triangles));
+  auto work = [&](PsqDecoder& d, size_t k) {
+    auto& m = SegmentRun::of(d);
+    m.direct_flush = flush;
+    return m.decode_range(mesh, 3 * static_cast<size_t>(bounds[k].vertices), 3 * static_cast<size_t>(bounds[k + 1].vertices),
+                          3 * static_cast<size_t>(bounds[k].triangles), 3 * static_cast<size_t>(bounds[k + 1].triangles));
+  };
+  PSQ_RETURN_IF_ERROR(decode_segments(open, threads, work, nullptr));
+  if (is_double) {
+    for (size_t i = 0; i < mesh->positions.size(); ++i)
+      if (!std::isfinite(mesh->positions[i]))
+        return Status(ErrorCode::kLimit, "vertex " + std::to_string(i / 3) +
+                                             ": position beyond float range (decode_mesh returns floats; "
+                                             "PsqDecoder gives doubles)");
+  }
   return Status();
 }
 
 Status decode_mesh(const uint8_t* data, size_t size, MeshBuffers* mesh, int threads) {
   mesh->positions.clear();
   mesh->indices.clear();
-  InputStream in;
-  in.open_memory(data, size, "<memory>");
-  PsqDecoder decoder;
-  Status s = decoder.open(&in);
-  std::vector<PsqSegment> segs;
-  // A stream whose index cannot be read is decoded by one thread, which
-  // reports what is wrong in stream order.
-  if (s.ok() && !decoder.segments(&segs).ok()) segs.clear();
-  if (s.ok() && segs.size() > 1 && thread_count(threads, segs.size()) > 1 && size >= 12) {
-    // The end record's totals size the arrays (spec 4.5); each segment
-    // writes its part, between its index entry's counts and the next's.
-    // Its vertices are the mesh's vertices in order unless one re-appears
-    // (spec 2.2), whose mesh index another segment knows: such a stream
-    // is decoded by one thread.
-    uint64_t vertices = 0, triangles = 0;
-    {
-      const size_t tail = std::min<size_t>(size, 64);
-      const uint8_t* p = data + size - tail;
-      // The end record begins at its tag; its five varints precede the
-      // index offset and the checksum (12 bytes).
-      for (size_t at = 0; at + 12 < tail; ++at) {
-        if (p[at] != kEndTag) continue;
-        uint64_t f[5];
-        size_t k = at + 1;
-        bool ok = true;
-        for (uint64_t& x : f) {
-          const int len = parse_varint(p + k, tail - 12 - k, &x);
-          if (len <= 0) {
-            ok = false;
-            break;
-          }
-          k += static_cast<size_t>(len);
-        }
-        if (ok && k == tail - 12) {
-          vertices = f[0];
-          triangles = f[1];
-          break;
-        }
-      }
-    }
-    const uint64_t cap = 4 * static_cast<uint64_t>(size) + 64;  // as decode_into()'s hint
-    if (vertices > 0 && triangles > 0 && vertices <= cap && triangles <= cap && segs.back().vertices <= vertices &&
-        segs.back().triangles <= triangles) {
-      std::vector<PsqSegment> bounds = segs;
-      bounds.push_back(PsqSegment{size, vertices, triangles});
-      bool ordered = true;
-      for (size_t k = 0; k + 1 < bounds.size(); ++k)
-        ordered = ordered && bounds[k].vertices <= bounds[k + 1].vertices && bounds[k].triangles <= bounds[k + 1].triangles;
-      if (ordered) {
-        mesh->positions.resize(3 * static_cast<size_t>(vertices));
-        mesh->indices.resize(3 * static_cast<size_t>(triangles));
-        auto open = [&](InputStream* is) {
-          is->open_memory(data, size, "<memory>");
-          return Status();
-        };
-        auto work = [&](PsqDecoder& d, size_t k) {
-          return SegmentRun::of(d).decode_range(
-              mesh, 3 * static_cast<size_t>(bounds[k].vertices), 3 * static_cast<size_t>(bounds[k + 1].vertices),
-              3 * static_cast<size_t>(bounds[k].triangles), 3 * static_cast<size_t>(bounds[k + 1].triangles));
-        };
-        s = decode_segments(open, threads, work, nullptr);
-        if (s.ok() && decoder.header().schema.position_type == ScalarType::kFloat64) {
-          for (size_t i = 0; i < mesh->positions.size(); ++i)
-            if (!std::isfinite(mesh->positions[i])) {
-              s = Status(ErrorCode::kLimit, "vertex " + std::to_string(i / 3) +
-                                                ": position beyond float range (decode_mesh returns floats; "
-                                                "PsqDecoder gives doubles)");
-              break;
-            }
-        }
-        if (s.code() != ErrorCode::kUnsupported) {
-          if (!s.ok()) {
-            mesh->positions.clear();
-            mesh->indices.clear();
-          }
-          return s;
-        }
-        mesh->positions.clear();
-        mesh->indices.clear();
-      }
-    }
+  Status s(ErrorCode::kUnsupported, "one thread");
+  // A stream of several segments on every core; one that cannot be
+  // decoded so (kUnsupported) by one thread, which also reports what is
+  // wrong with a damaged stream in stream order.
+  if (threads != 1) {
+    auto open = [&](InputStream* in) {
+      in->open_memory(data, size, "<memory>");
+      return Status();
+    };
+    s = decode_mesh_segments(open, threads, mesh, nullptr);
   }
-  // One thread: the streaming decoder into the mesh's arrays.
-  if (s.ok() || s.code() == ErrorCode::kUnsupported) {
-    InputStream one;
-    one.open_memory(data, size, "<memory>");
+  if (s.code() == ErrorCode::kUnsupported) {
+    mesh->positions.clear();
+    mesh->indices.clear();
+    InputStream in;
+    in.open_memory(data, size, "<memory>");
     PsqDecoder d;
     MeshArraySink sink(mesh);
-    s = d.open(&one);
+    s = d.open(&in);
     if (s.ok()) s = d.pump(sink);
   }
   if (!s.ok()) {

@@ -288,7 +288,7 @@ const char* parse_state(const uint8_t* p, size_t n, uint32_t limit, int dims, in
   for (int i = 0; i < 3; ++i) s->last[i] = unzigzag(get.varint());
   if (!ok()) return kShort;
   if (s->vertices > 0xffffffffu) return "vertex count beyond 2^32 - 1";
-  if (ctx >= kFastAContexts || choice > 255) return "context or prediction choice out of range";
+  if (ctx >= kFastAContexts || choice >= kChoices) return "context or prediction choice out of range";
   s->context = static_cast<uint32_t>(ctx);
   s->choice = static_cast<uint32_t>(choice);
   auto coordinate_ok = [&](const int64_t* v) { return v[0] >= lo && v[0] <= hi && v[1] >= lo && v[1] <= hi && v[2] >= lo && v[2] <= hi; };

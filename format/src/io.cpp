@@ -403,6 +403,37 @@ Status OutputFile::write(const void* data, size_t n) {
   return Status();
 }
 
+Status OutputFile::resize(uint64_t n) {
+  if (!seekable()) return Status(ErrorCode::kIo, "output cannot be written at offsets");
+  PSQ_RETURN_IF_ERROR(flush());
+  if (::ftruncate(fd_, static_cast<off_t>(n)) != 0) return io_error("cannot resize", path_);
+  if (::lseek(fd_, static_cast<off_t>(n), SEEK_SET) < 0) return io_error("cannot seek", path_);
+  written_ = n;
+  return Status();
+}
+
+Status OutputFile::write_at(uint64_t offset, const void* data, size_t n) {
+  if (!seekable() || offset > written_ || n > written_ - offset)
+    return Status(ErrorCode::kIo, "write beyond the output's size");
+  const auto* p = static_cast<const uint8_t*>(data);
+  while (n > 0) {
+    const ssize_t w = ::pwrite(fd_, p, n, static_cast<off_t>(offset));
+    if (w < 0) {
+      if (errno == EINTR) continue;
+      return io_error("cannot write", path_);
+    }
+    p += w;
+    n -= static_cast<size_t>(w);
+    offset += static_cast<uint64_t>(w);
+  }
+  return Status();
+}
+
+Status OutputFile::restart() {
+  PSQ_RETURN_IF_ERROR(resize(0));
+  return Status();
+}
+
 Status OutputFile::commit() {
   if (fd_ < 0) return Status(ErrorCode::kIo, "output is not open");
   PSQ_RETURN_IF_ERROR(flush());

@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 // psq convert: stream a mesh from one format to another.
+#include <charconv>
 #include <unistd.h>
 
 #include <cstdio>
@@ -11,6 +12,7 @@
 #include "cli_util.h"
 #include "progress.h"
 #include "commands.h"
+#include "psq/ply.h"
 #include "pipeline.h"
 #include "psq/draco.h"
 #include "psq/mesh_formats.h"
@@ -79,9 +81,11 @@ const char kHelp[] =
     "                 another vertex's position (a triangle soup)\n"
     "  --ascii        write ascii PLY instead of binary little-endian\n"
     "  --tmpdir DIR   directory for temporary spool files (default $TMPDIR)\n"
-    "  --threads N    .psq: 1 runs on one thread; 2 (the default on two or\n"
-    "                 more cores) encodes on a second thread while the first\n"
-    "                 reads and converts (the output is the same)\n"
+    "  --threads N    1 runs on one thread. More (the default: one per core):\n"
+    "                 to .psq, the encoder runs on a second thread while the\n"
+    "                 first reads and converts; from a .psq file to binary\n"
+    "                 PLY, N of its segments decode at once and are written\n"
+    "                 in place (the output is the same)\n"
     "  -f, --force    overwrite OUT if it exists\n"
     "  -q, --quiet    print no notes, no progress line and no summary\n"
     "  --json         print a JSON summary on standard output (not with OUT '-')\n"
@@ -188,7 +192,7 @@ int cmd_convert(int argc, char** argv) {
   std::string chunk = args.option("--chunk", "1M");
   std::string segment = args.option("--segment", "auto");
   std::string profile = args.option("--profile", "auto");
-  std::string threads_text = args.option("--threads", std::thread::hardware_concurrency() >= 2 ? "2" : "1");
+  std::string threads_text = args.option("--threads", std::to_string(std::max(1u, std::thread::hardware_concurrency())));
   std::vector<std::string> files = args.positionals();
   if (!args.error().empty()) return usage_error("convert", args.error());
   // OUT is the second positional, or -o's value (as in zstd and draco_encoder).
@@ -227,9 +231,14 @@ int cmd_convert(int argc, char** argv) {
   encode_options.measure_costs = json;
   if (profile != "compact" && profile != "fast" && profile != "auto")
     return usage_error("convert", "bad --profile '" + profile + "' (compact, fast or auto)");
-  if (threads_text != "1" && threads_text != "2")
-    return usage_error("convert", "bad --threads '" + threads_text + "' (1 or 2)");
-  const int threads = threads_text == "2" ? 2 : 1;
+  int threads = 0;
+  {
+    const char* b = threads_text.data();
+    const char* e = b + threads_text.size();
+    auto r = std::from_chars(b, e, threads);
+    if (r.ec != std::errc() || r.ptr != e || threads < 1 || threads > 1024)
+      return usage_error("convert", "bad --threads '" + threads_text + "' (1 to 1024)");
+  }
   BuildOptions build_options;
   build_options.tmpdir = tmpdir;
   if (!parse_size(memory, &build_options.memory_budget))
@@ -285,6 +294,31 @@ int cmd_convert(int argc, char** argv) {
   write_options.draco_bits = encode_options.bits;
   write_options.lossless = lossless;
   write_options.memory_budget = build_options.memory_budget;
+  // A .psq file to binary PLY: the segments decode at once and each
+  // writes its part of the file in place (spec 4.6).
+  if (mesh.decoder && out_format == MeshFormat::kPly && !ascii && mesh.stream->can_rewind() &&
+      output.seekable()) {
+    uint64_t nv = 0, nt = 0;
+    s = write_ply_by_segments(in, &output, threads, &nv, &nt);
+    if (s.ok()) {
+      s = output.commit();
+      if (!s.ok()) return report_error(out, s);
+      if (!quiet)
+        std::fprintf(stderr, "%s -> %s: %llu triangles, %llu -> %llu bytes\n", in.c_str(), out.c_str(),
+                     static_cast<unsigned long long>(nt), static_cast<unsigned long long>(mesh.stream->size()),
+                     static_cast<unsigned long long>(output.size()));
+      if (json)
+        std::printf("{\"input\": \"%s\", \"output\": \"%s\", \"input_format\": \"psq\", \"output_format\": "
+                    "\"ply\", \"vertices\": %llu, \"triangles\": %llu, \"bytes_out\": %llu, \"notes\": []}\n",
+                    json_escape(in).c_str(), json_escape(out).c_str(), static_cast<unsigned long long>(nv),
+                    static_cast<unsigned long long>(nt), static_cast<unsigned long long>(output.size()));
+      return kExitOk;
+    }
+    if (s.code() != ErrorCode::kUnsupported) {
+      output.discard();
+      return report_pipeline_error(in, out, s);
+    }
+  }
   std::unique_ptr<MeshSink> writer = make_mesh_writer(out_format, &output, write_options);
 
   // One thread: a writer's work per element is too small to pay for

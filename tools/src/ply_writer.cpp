@@ -2,7 +2,12 @@
 // Streaming PLY writer (psq/ply.h). PLY puts element counts in its header,
 // so when the source cannot promise them up front the elements are spooled to
 // unlinked temporary files and copied after the header at finish().
+#include <sys/mman.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <mutex>
+#include <vector>
 #include <charconv>
 #include <cmath>
 #include <limits>
@@ -134,9 +139,13 @@ PlyWriter::PlyWriter(OutputFile* out, PlyWriteOptions options) : impl_(std::make
 
 PlyWriter::~PlyWriter() = default;
 
-Status PlyWriter::Impl::write_header(uint64_t nv, uint64_t nt) {
+namespace {
+
+// The header of a PLY file of `schema` with nv vertices and nt faces.
+std::string ply_header(const MeshSchema& schema, PlyEncoding encoding, ScalarType index_type, uint64_t nv,
+                       uint64_t nt) {
   std::string h = "ply\nformat ";
-  switch (options.encoding) {
+  switch (encoding) {
     case PlyEncoding::kAscii: h += "ascii"; break;
     case PlyEncoding::kBinaryLittleEndian: h += "binary_little_endian"; break;
     case PlyEncoding::kBinaryBigEndian: h += "binary_big_endian"; break;
@@ -166,7 +175,13 @@ Status PlyWriter::Impl::write_header(uint64_t nv, uint64_t nt) {
   h += std::string("property list uchar ") + scalar_name(index_type) + " vertex_indices\n";
   for (const Property& p : schema.face_properties) h += prop_line(p);
   h += "end_header\n";
-  return out->write(h);
+  return h;
+}
+
+}  // namespace
+
+Status PlyWriter::Impl::write_header(uint64_t nv, uint64_t nt) {
+  return out->write(ply_header(schema, options.encoding, index_type, nv, nt));
 }
 
 Status PlyWriter::begin(const MeshSchema& schema) {
@@ -284,6 +299,95 @@ Status PlyWriter::finish() {
     PSQ_RETURN_IF_ERROR(copy_spool(m.vertex_spool, m.out));
   }
   if (m.face_spooled) PSQ_RETURN_IF_ERROR(copy_spool(m.face_spool, m.out));
+  return Status();
+}
+
+}  // namespace psq
+
+namespace psq {
+
+namespace {
+
+// Gives the whole pages inside [p, p + n) back to the system: memory that
+// was written out and will not be read again.
+void release_pages(const void* p, size_t n) {
+  static const uintptr_t page = static_cast<uintptr_t>(::sysconf(_SC_PAGESIZE));
+  const uintptr_t begin = (reinterpret_cast<uintptr_t>(p) + page - 1) & ~(page - 1);
+  const uintptr_t end = (reinterpret_cast<uintptr_t>(p) + n) & ~(page - 1);
+  if (end > begin) ::madvise(reinterpret_cast<void*>(begin), end - begin, MADV_DONTNEED);
+}
+
+}  // namespace
+
+Status write_ply_by_segments(const std::string& path, OutputFile* out, int threads, uint64_t* vertices,
+                             uint64_t* triangles) {
+  auto cannot = [](const char* why) { return Status(ErrorCode::kUnsupported, why); };
+  if (!out->seekable()) return cannot("the output cannot be written at offsets");
+  uint32_t probe = 1;
+  uint8_t first_byte;
+  std::memcpy(&first_byte, &probe, 1);
+  if (first_byte != 1) return cannot("a big-endian machine");
+  MeshSchema schema;
+  {
+    InputStream in;
+    PSQ_RETURN_IF_ERROR(in.open(path));
+    PsqDecoder d;
+    PSQ_RETURN_IF_ERROR(d.open(&in));
+    schema = d.schema();
+  }
+  // The records of the arrays are the file's: float positions, and faces
+  // of three indices with nothing else.
+  if (schema.position_type != ScalarType::kFloat32 || !schema.vertex_properties.empty() ||
+      !schema.face_properties.empty())
+    return cannot("positions that are not float, or properties");
+  auto open = [&](InputStream* in) { return in->open(path); };
+  // The header once the counts are known: at the first flush, every
+  // thread waits for it (the flushes of other segments come after).
+  std::mutex mu;
+  uint64_t header = 0, nv = 0;
+  bool sized = false;
+  MeshBuffers mesh;
+  auto size_output = [&]() -> Status {
+    std::lock_guard<std::mutex> lock(mu);
+    if (sized) return Status();
+    nv = mesh.positions.size() / 3;
+    const uint64_t nt = mesh.indices.size() / 3;
+    // The index type of PlyWriter when the counts come after the
+    // elements (uint), so that the bytes are those of one thread.
+    const std::string h = ply_header(schema, PlyEncoding::kBinaryLittleEndian, ScalarType::kUInt32, nv, nt);
+    PSQ_RETURN_IF_ERROR(out->write(h));
+    header = h.size();
+    PSQ_RETURN_IF_ERROR(out->resize(header + 12 * nv + 13 * nt));
+    sized = true;
+    return Status();
+  };
+  auto flush = [&](size_t p0, size_t p1, size_t i0, size_t i1) -> Status {
+    PSQ_RETURN_IF_ERROR(size_output());
+    if (p1 > p0) PSQ_RETURN_IF_ERROR(out->write_at(header + 4 * p0, mesh.positions.data() + p0, 4 * (p1 - p0)));
+    std::vector<char> faces;
+    faces.reserve(13 * ((i1 - i0) / 3));
+    for (size_t i = i0; i < i1; i += 3) {
+      char b[13];
+      b[0] = 3;
+      std::memcpy(b + 1, mesh.indices.data() + i, 12);
+      faces.insert(faces.end(), b, b + 13);
+    }
+    if (!faces.empty())
+      PSQ_RETURN_IF_ERROR(out->write_at(header + 12 * nv + 13 * (i0 / 3), faces.data(), faces.size()));
+    // What is written leaves memory: the arrays hold only what the
+    // segments decode between two flushes.
+    release_pages(mesh.positions.data() + p0, 4 * (p1 - p0));
+    release_pages(mesh.indices.data() + i0, 4 * (i1 - i0));
+    return Status();
+  };
+  Status s = decode_mesh_segments(open, threads, &mesh, flush);
+  if (s.ok()) s = size_output();  // an empty mesh flushes nothing
+  if (!s.ok()) {
+    if (s.code() == ErrorCode::kUnsupported) PSQ_RETURN_IF_ERROR(out->restart());
+    return s;
+  }
+  *vertices = mesh.positions.size() / 3;
+  *triangles = mesh.indices.size() / 3;
   return Status();
 }
 

@@ -31,6 +31,7 @@
 #include <vector>
 
 #include "psq/io.h"
+#include "psq/mesh_arrays.h"
 #include "psq/sequence.h"
 #include "psq/status.h"
 
@@ -269,8 +270,9 @@ class PsqDecoder : public SequenceSource {
   // an input that can seek (a file or memory): the stream's segments from
   // its index, in order; the first starts after the header. A stream
   // without segment records is one segment. Errors: kIo (a pipe), the
-  // index's errors (kBadHeader, kChecksum, kTruncated).
-  Status segments(std::vector<PsqSegment>* out);
+  // index's errors (kBadHeader, kChecksum, kTruncated). `end` (optional):
+  // where the end record begins and the totals it declares.
+  Status segments(std::vector<PsqSegment>* out, PsqSegment* end = nullptr);
   // After open() and before any event: decode only `segment` (one of
   // segments()). next() and pump() then give its events, with the
   // stream's vertex indices (its first vertex event has index
@@ -308,6 +310,19 @@ class PsqDecoder : public SequenceSource {
 // seek.
 Status decode_segments(const std::function<Status(InputStream*)>& open, int threads,
                        const std::function<Status(PsqDecoder&, size_t)>& work, PsqStats* stats);
+
+// The mesh of a stream of several segments decoded with decode_segments()
+// straight into `mesh`'s arrays, which it sizes for the whole mesh from
+// the index and the end record (their pages are touched only as the
+// segments write them). `flush` (optional) is called by the thread that
+// decodes a segment, between chunks, with the ranges of the arrays it
+// wrote since its last call: positions [p0, p1) and indices [i0, i1) (in
+// floats and indices), so that a writer can take them and drop their
+// pages. Errors: kUnsupported when the stream cannot be decoded this way
+// (no readable index, a vertex that re-appears: decode it with one
+// decoder instead); decode_segments()'s and `flush`'s errors.
+Status decode_mesh_segments(const std::function<Status(InputStream*)>& open, int threads, MeshBuffers* mesh,
+                            const std::function<Status(size_t, size_t, size_t, size_t)>& flush);
 
 // True when `data` (at least 8 bytes) starts with the .psq magic.
 bool is_psq(const uint8_t* data, size_t size);

@@ -130,6 +130,18 @@ class OutputFile {
   Status write(const void* data, size_t n);
   Status write(std::string_view s) { return write(s.data(), s.size()); }
 
+  // Positional writes, for a writer that fills a regular file from
+  // several threads. Whether the output allows them: a regular file (not
+  // "-", a pipe or a device).
+  bool seekable() const { return fd_ >= 0 && !is_stdout_ && !in_place_; }
+  // Flushes, then sets the file's size and size() to n. Errors: kIo.
+  Status resize(uint64_t n);
+  // Writes n bytes at `offset` within size() (resize() first), unbuffered;
+  // safe from several threads at once. Errors: kIo.
+  Status write_at(uint64_t offset, const void* data, size_t n);
+  // Empties the file and starts over at offset 0. Errors: kIo.
+  Status restart();
+
   // Flushes, closes and renames the temporary file to the destination (a
   // pipe or device is only flushed and closed). Errors: kIo.
   Status commit();

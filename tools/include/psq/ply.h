@@ -26,6 +26,7 @@
 
 #include "psq/indexed_mesh.h"
 #include "psq/io.h"
+#include "psq/psq_codec.h"
 
 namespace psq {
 
@@ -91,6 +92,20 @@ class PlyWriter : public MeshSink {
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
+
+// Writes the mesh of the .psq file `path` as binary little-endian PLY to
+// `out`, the bytes PlyWriter would write, decoding `threads` of its
+// segments at once (0: one per core; psq/psq_codec.h,
+// decode_mesh_segments()) and writing each range of vertices and faces in
+// place as it comes, so that memory holds only what the segments decode
+// between two chunks (no spool file, as PlyWriter needs when the counts
+// come after the elements). Sets the counts written. Errors:
+// kUnsupported, with `out` emptied, when the stream or the output does
+// not allow it (positions that are not float, properties, a vertex that
+// re-appears, an output that is not a regular file): write it through
+// PlyWriter instead; the decoder's and the output's errors.
+Status write_ply_by_segments(const std::string& path, OutputFile* out, int threads, uint64_t* vertices,
+                             uint64_t* triangles);
 
 }  // namespace psq
 
