@@ -192,11 +192,107 @@ TEST(Conformance, AttributeVectorsCoverEveryKind) {
 // are identical.
 TEST(Conformance, FastVectorsDecodeLikeTheirCompactTwins) {
   for (const char* name : {"spider_16bit", "spider_lossless", "grid_borders", "nonmanifold_wrap", "max_export_chunks",
-                           "properties_lossless", "attributes_8bit", "attributes_lossless", "spider_attributes"}) {
+                           "properties_lossless", "attributes_8bit", "attributes_lossless", "spider_attributes",
+                           "segments_spider", "segments_spider_lossless", "segments_spider_attributes",
+                           "segments_nonmanifold_wrap"}) {
     EXPECT_EQ(test::read_file(kDir + "fast_" + name + ".dump"), test::read_file(kDir + name + ".dump")) << name;
     PsqDecoder dec;
     decode_vector(std::string("fast_") + name + ".psq", &dec, [](const SequenceEvent&) {});
     EXPECT_TRUE(dec.header().fast) << name;
+  }
+}
+
+// The segment vectors (spec 4.6, 4.7) have the segment records their
+// options ask for, and decode to the same sequences as the streams of one
+// segment made from the same input: the restarts change how the records
+// are coded, never what they decode to.
+TEST(Conformance, SegmentVectorsDecodeLikeOneSegment) {
+  struct Case {
+    const char* vector;
+    const char* twin;
+    uint64_t records;
+  } cases[] = {
+      {"segments_spider", "spider_16bit", 4},
+      {"segments_spider_lossless", "spider_lossless", 4},
+      {"segments_spider_attributes", "spider_attributes", 4},
+      {"segments_nonmanifold_wrap", "nonmanifold_wrap", 2},
+  };
+  for (const Case& c : cases) {
+    for (const std::string prefix : {"", "fast_"}) {
+      const std::string name = prefix + c.vector;
+      EXPECT_EQ(test::read_file(kDir + name + ".dump"), test::read_file(kDir + c.twin + ".dump")) << name;
+      const PsqStats st = stats_of(name + ".psq");
+      EXPECT_EQ(st.segments, c.records) << name;
+      EXPECT_EQ(stats_of(prefix + c.twin + ".psq").segments, 0u) << c.twin;
+    }
+  }
+}
+
+// Every event of a decoder as a line of text (a sink of one segment).
+class EventText : public SequenceSink {
+ public:
+  explicit EventText(std::string* out) : out_(out) {}
+  Status begin(const MeshSchema&) override { return Status(); }
+  Status vertex(const SequenceVertex& v) override {
+    std::ostringstream s;
+    s.precision(17);
+    s << "v " << v.index << " " << v.reappears << " " << v.position[0] << " " << v.position[1] << " "
+      << v.position[2];
+    for (double x : v.values) s << " " << x;
+    *out_ += s.str() + "\n";
+    return Status();
+  }
+  Status triangle(const SequenceTriangle& t) override {
+    std::ostringstream s;
+    s << "t " << t.v[0] << " " << t.v[1] << " " << t.v[2] << " " << int(t.border_mask);
+    for (double x : t.values) s << " " << x;
+    *out_ += s.str() + "\n";
+    return Status();
+  }
+  Status finalize(uint32_t index) override {
+    *out_ += "x " + std::to_string(index) + "\n";
+    return Status();
+  }
+  Status finish() override { return Status(); }
+
+ private:
+  std::string* out_;
+};
+
+// Spec 4.8: decoding the segments apart, two at a time, accepts every
+// valid vector with the events and totals of one decoder reading from the
+// start, and rejects every invalid vector.
+TEST(Conformance, VectorsDecodeAlikeBySegments) {
+  for (const Line& l : manifest()) {
+    const std::string path = kDir + l.file;
+    auto open = [&](InputStream* in) { return in->open(path); };
+    std::vector<std::string> parts(64);
+    auto work = [&](PsqDecoder& d, size_t k) {
+      if (k >= parts.size()) return Status(ErrorCode::kLimit, "too many segments for the test");
+      EventText sink(&parts[k]);
+      return d.pump(sink);
+    };
+    PsqStats st;
+    const Status s = decode_segments(open, 2, work, &st);
+    if (l.kind == "invalid") {
+      EXPECT_FALSE(s.ok()) << l.file << " decoded by segments";
+      continue;
+    }
+    ASSERT_TRUE(s.ok()) << l.file << ": " << s.to_string();
+    std::string whole;
+    PsqDecoder dec;
+    InputStream in;
+    ASSERT_TRUE(in.open(path).ok());
+    ASSERT_TRUE(dec.open(&in).ok());
+    EventText sink(&whole);
+    ASSERT_TRUE(dec.pump(sink).ok()) << l.file;
+    std::string joined;
+    for (const std::string& p : parts) joined += p;
+    EXPECT_EQ(joined, whole) << l.file;
+    EXPECT_EQ(st.vertices, dec.stats().vertices) << l.file;
+    EXPECT_EQ(st.triangles, dec.stats().triangles) << l.file;
+    EXPECT_EQ(st.chunks, dec.stats().chunks) << l.file;
+    EXPECT_EQ(st.segments, dec.stats().segments) << l.file;
   }
 }
 
@@ -223,6 +319,15 @@ TEST(Conformance, EncoderReproducesTheVectors) {
       {"fast_attributes_lossless.psq", "attributes.ply", "--lossless --profile fast"},
       {"spider_attributes.psq", "spider_attributes.ply", "--bits 14 --normal-bits 10 --uv-bits 12"},
       {"fast_spider_attributes.psq", "spider_attributes.ply", "--bits 14 --normal-bits 10 --uv-bits 12 --profile fast"},
+      {"segments_spider.psq", "spider.ply", "--segment 300"},
+      {"segments_spider_lossless.psq", "spider.ply", "--lossless --segment 300"},
+      {"segments_spider_attributes.psq", "spider_attributes.ply", "--bits 14 --normal-bits 10 --uv-bits 12 --segment 300"},
+      {"segments_nonmanifold_wrap.psq", "nonmanifold_wrap.ply", "--bits 12 --segment 4"},
+      {"fast_segments_spider.psq", "spider.ply", "--segment 300 --profile fast"},
+      {"fast_segments_spider_lossless.psq", "spider.ply", "--lossless --segment 300 --profile fast"},
+      {"fast_segments_spider_attributes.psq", "spider_attributes.ply",
+       "--bits 14 --normal-bits 10 --uv-bits 12 --segment 300 --profile fast"},
+      {"fast_segments_nonmanifold_wrap.psq", "nonmanifold_wrap.ply", "--bits 12 --segment 4 --profile fast"},
   };
   for (const Case& c : cases) {
     std::string out, err;

@@ -153,6 +153,18 @@ valid fast_attributes_8bit "$data/attributes.ply" --bits 12 --normal-bits 8 --uv
 valid fast_attributes_lossless "$data/attributes.ply" --lossless --profile fast
 valid spider_attributes "$data/spider_attributes.ply" --bits 14 --normal-bits 10 --uv-bits 12
 valid fast_spider_attributes "$data/spider_attributes.ply" --bits 14 --normal-bits 10 --uv-bits 12 --profile fast
+# Segments (spec 4.6, 4.7): a segment record every 300 triangles of the
+# spider's 1368 (four records), quantized, lossless and with attributes;
+# every 4 triangles of nonmanifold_wrap's 12 (two records, whose states
+# hold vertices that re-appear later), in both profiles.
+valid segments_spider "$data/spider.ply" --segment 300
+valid segments_spider_lossless "$data/spider.ply" --lossless --segment 300
+valid segments_spider_attributes "$data/spider_attributes.ply" --bits 14 --normal-bits 10 --uv-bits 12 --segment 300
+valid segments_nonmanifold_wrap "$data/nonmanifold_wrap.ply" --bits 12 --segment 4
+valid fast_segments_spider "$data/spider.ply" --segment 300 --profile fast
+valid fast_segments_spider_lossless "$data/spider.ply" --lossless --segment 300 --profile fast
+valid fast_segments_spider_attributes "$data/spider_attributes.ply" --bits 14 --normal-bits 10 --uv-bits 12 --segment 300 --profile fast
+valid fast_segments_nonmanifold_wrap "$data/nonmanifold_wrap.ply" --bits 12 --segment 4 --profile fast
 # Written to a pipe: the same bytes as to a file (the encoder never seeks).
 "$psq" convert - - --to psq --bits 10 < "$data/spider.ply" > spider_pipe.psq
 "$psq" dump spider_pipe.psq -o spider_pipe.dump
@@ -224,4 +236,146 @@ invalid bad_chunk_checksum checksum $crc_at
 invalid bad_chunk_tag bad_header $chunk
 # Trailing bytes after the end record.
 { cat "$src"; printf '\x00'; } > trailing_data.psq; invalid trailing_data bad_header $size
+
+# Segments (spec 4.6, 4.7), from segments_spider.psq. The script below
+# walks a stream's blocks, and makes the checksums that a change breaks
+# right again, so that each vector breaks one rule only.
+cat > "$tmp/segments.py" <<'PY'
+import os, subprocess, sys, tempfile
+
+def crc32c(data, crc=0):
+    # Spec 3.3: CRC-32C (Castagnoli), reflected, polynomial 0x82F63B78.
+    crc ^= 0xFFFFFFFF
+    for byte in data:
+        crc ^= byte
+        for _ in range(8):
+            crc = (crc >> 1) ^ (0x82F63B78 & -(crc & 1))
+    return crc ^ 0xFFFFFFFF
+
+def varint(b, at):  # spec 3.1: (value, length)
+    v = n = 0
+    while True:
+        v |= (b[at + n] & 0x7F) << (7 * n)
+        n += 1
+        if not b[at + n - 1] & 0x80:
+            return v, n
+
+def put_varint(v):
+    out = bytearray()
+    while True:
+        out.append((v & 0x7F) | (0x80 if v > 0x7F else 0))
+        v >>= 7
+        if not out[-1] & 0x80:
+            return bytes(out)
+
+def blocks(b):
+    # The header's checksum field, then every block (spec 4.3 to 4.7) as
+    # (tag, start, end).
+    hlen, hv = varint(b, 12)
+    at = 12 + hv + hlen + 4
+    out = [('H', at - 4, at)]
+    while True:
+        tag, start = chr(b[at]), at
+        at += 1
+        if tag == 'C':
+            f = []
+            for _ in range(7):
+                v, n = varint(b, at)
+                f.append(v)
+                at += n
+            at += f[3] + f[4] + f[6] + 4
+        elif tag == 'S':
+            z, n = varint(b, at)
+            at += n
+            at += varint(b, at)[1] + z + 4
+        elif tag == 'I':
+            c, n = varint(b, at)
+            at += n
+            for _ in range(3 * c):
+                at += varint(b, at)[1]
+            at += 4
+        elif tag == 'E':
+            out.append((tag, start, len(b)))
+            return out
+        else:
+            raise SystemExit('unexpected tag at byte %d' % start)
+        out.append((tag, start, at))
+
+def fix_stream_checksum(b):
+    # Spec 4.5: the header's and every block's checksum fields, then the
+    # end record before its checksum.
+    bl = blocks(b)
+    chain = b''.join(bytes(b[e - 4:e]) for t, s, e in bl if t != 'E')
+    chain += bytes(b[bl[-1][1]:len(b) - 4])
+    b[-4:] = crc32c(chain).to_bytes(4, 'little')
+
+def zstd(args, data):
+    with tempfile.TemporaryDirectory() as d:  # a file, so that the frame declares its size
+        path = os.path.join(d, 'in')
+        open(path, 'wb').write(data)
+        return subprocess.run(['zstd', '-q', '-c'] + args + [path], check=True, capture_output=True).stdout
+
+cmd, src, dst = sys.argv[1:4]
+b = bytearray(open(src, 'rb').read())
+bl = blocks(b)
+segs = [(s, e) for t, s, e in bl if t == 'S']
+index = [(s, e) for t, s, e in bl if t == 'I'][0]
+def state_at(s):  # (packed size, raw size, offset of the state block)
+    z, n1 = varint(b, s + 1)
+    u, n2 = varint(b, s + 1 + n1)
+    return z, u, s + 1 + n1 + n2
+if cmd == 'remove':
+    # The first segment record cut out: the chunk after it stands where
+    # the record must.
+    s, e = segs[0]
+    b[s:e] = b''
+    print(s)
+elif cmd == 'flip':
+    # A bit flipped in the first state block: the record's checksum.
+    z, u, at = state_at(segs[0][0])
+    b[at + z // 2] ^= 0x01
+    print(at + z)
+elif cmd == 'state':
+    # The last segment record's state with its records count one higher
+    # (it still parses), compressed again, with the record's checksum,
+    # the index offset and the stream checksum made right: the block is
+    # not the decoder's state.
+    s, e = segs[-1]
+    z, u, at = state_at(s)
+    raw = bytearray(zstd(['-d'], bytes(b[at:at + z])))
+    assert len(raw) == u
+    records, n = varint(raw, 0)
+    assert len(put_varint(records + 1)) == n
+    raw[:n] = put_varint(records + 1)
+    packed = zstd(['-19', '--no-check'], bytes(raw))
+    rec = b'S' + put_varint(len(packed)) + put_varint(len(raw)) + packed
+    b[s:e] = rec + crc32c(rec).to_bytes(4, 'little')
+    b[-12:-4] = [x for t, x, y in blocks(b) if t == 'I'][0].to_bytes(8, 'little')
+    fix_stream_checksum(b)
+    print(s + len(rec) - len(packed))
+elif cmd == 'index':
+    # The vertex count of the index's first entry one higher, with the
+    # index's checksum and the stream checksum made right.
+    s, e = index
+    at = s + 1 + varint(b, s + 1)[1]
+    at += varint(b, at)[1]
+    v, n = varint(b, at)
+    assert len(put_varint(v + 1)) == n
+    b[at:at + n] = put_varint(v + 1)
+    b[e - 4:e] = crc32c(bytes(b[s:e - 4])).to_bytes(4, 'little')
+    fix_stream_checksum(b)
+    print(s)
+else:
+    raise SystemExit('unknown command ' + cmd)
+open(dst, 'wb').write(b)
+PY
+seg=segments_spider.psq
+# A segment record cut out: the chunk after it is refused (spec 4.3).
+invalid segment_removed bad_header "$(python3 "$tmp/segments.py" remove $seg segment_removed.psq)"
+# A flipped bit in a state block: the segment record's checksum (spec 4.6).
+invalid bad_segment_checksum checksum "$(python3 "$tmp/segments.py" flip $seg bad_segment_checksum.psq)"
+# A state block that parses but is not the decoder's state (spec 4.6).
+invalid segment_state_differs bad_value "$(python3 "$tmp/segments.py" state $seg segment_state_differs.psq)"
+# An index entry that is not its segment record's (spec 4.7).
+invalid index_entry_differs bad_header "$(python3 "$tmp/segments.py" index $seg index_entry_differs.psq)"
 echo "wrote $(grep -c . MANIFEST) vectors to $here"
