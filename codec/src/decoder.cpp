@@ -229,6 +229,18 @@ Status PsqDecoder::Impl::read_segment(bool load) {
       return Status(ErrorCode::kBadValue, std::string("segment record: ") + why, block_at);
     if (st.triangles == 0 || header.segment_triangles == 0 || st.triangles % header.segment_triangles != 0)
       return Status(ErrorCode::kBadValue, "segment record: its triangle count is no segment start", block_at);
+    // The slot arrays reach the highest slot of the state. A valid state
+    // can leave slots unused below it (the boundary was larger before),
+    // but a few bytes must not make a decoder allocate up to the boundary
+    // limit at once: a state much sparser than this is decoded from the
+    // start instead (kUnsupported: decode_segments()' callers fall back to
+    // one decoder, which compares the block and allocates nothing for it).
+    uint32_t top_vertex = 0, top_edge = 0;
+    for (const SegmentState::Vertex& v : st.vertex) top_vertex = std::max(top_vertex, v.slot);
+    for (const SegmentState::Edge& e : st.edge) top_edge = std::max(top_edge, e.slot);
+    if (top_vertex >= kSparseStateSlots + 8 * st.vertex.size() || top_edge >= kSparseStateSlots + 8 * st.edge.size())
+      return Status(ErrorCode::kUnsupported, "segment record: a state too sparse to load alone (decode from the start)",
+                    block_at);
     base_records = record_no = st.records;
     base_triangles = st.triangles;
     next_out = st.vertices;

@@ -37,6 +37,9 @@ class FastRing;
 // Edges further back than this many entered edges have no recency rank
 // (spec 13.6.2), so the state does not keep their age.
 constexpr uint32_t kStateRecency = 128;
+// A decoder loads a state alone only when its highest slot of each kind
+// is below this plus 8 per live element (PsqDecoder::Impl::read_segment()).
+constexpr uint64_t kSparseStateSlots = uint64_t{1} << 20;
 
 struct SegmentState {
   // What came before: records, vertex events (the next dense index) and

@@ -78,10 +78,12 @@ int cmd_verify(int argc, char** argv) {
     auto open = [&](InputStream* in) { return in->open(file); };
     auto work = [&](PsqDecoder& d, size_t) { return d.pump(discard); };
     s = decode_segments(open, threads, work, &parallel_stats);
-    if (!s.ok()) return report_error(file, s);
-    parallel = true;
-    if (!quiet && !json) std::fprintf(stderr, "%s: verified %zu segments\n", file.c_str(), segments.size());
-  } else {
+    // A state that cannot be loaded alone (kUnsupported): from the start.
+    if (!s.ok() && s.code() != ErrorCode::kUnsupported) return report_error(file, s);
+    parallel = s.ok();
+    if (parallel && !quiet && !json) std::fprintf(stderr, "%s: verified %zu segments\n", file.c_str(), segments.size());
+  }
+  if (!parallel) {
     Progress progress(mesh.stream.get(), !quiet);
     ProgressSequenceSink sink(&discard, &progress);
     s = mesh.decoder->pump(sink);
