@@ -299,14 +299,14 @@ int cmd_convert(int argc, char** argv) {
   if (mesh.decoder && out_format == MeshFormat::kPly && !ascii && mesh.stream->can_rewind() &&
       output.seekable()) {
     uint64_t nv = 0, nt = 0;
+    Progress progress(mesh.stream.get(), !quiet);
     s = write_ply_by_segments(in, &output, threads, &nv, &nt);
     if (s.ok()) {
       s = output.commit();
       if (!s.ok()) return report_error(out, s);
-      if (!quiet)
-        std::fprintf(stderr, "%s -> %s: %llu triangles, %llu -> %llu bytes\n", in.c_str(), out.c_str(),
-                     static_cast<unsigned long long>(nt), static_cast<unsigned long long>(mesh.stream->size()),
-                     static_cast<unsigned long long>(output.size()));
+      progress.finish(in, out,
+                      std::to_string(nt) + " triangles, " + std::to_string(mesh.stream->size()) + " -> " +
+                          std::to_string(output.size()) + " bytes");
       if (json)
         std::printf("{\"input\": \"%s\", \"output\": \"%s\", \"input_format\": \"psq\", \"output_format\": "
                     "\"ply\", \"vertices\": %llu, \"triangles\": %llu, \"bytes_out\": %llu, \"notes\": []}\n",
