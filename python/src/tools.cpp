@@ -92,8 +92,7 @@ std::string convert(const std::string& in, const std::string& out, const Convert
                                                      : detail::auto_fast_profile(mesh.source->schema()));
     e.measure_costs = p.measure_costs;
     // As psq convert: the input's counts size the segments (spec 4.6).
-    e.segment_triangles = EncodeOptions::auto_segment_triangles(mesh.decoder ? mesh.decoder->schema()
-                                                                             : mesh.source->schema());
+    e.segment_triangles = auto_segment_triangles(mesh);
     FileWriter writer(&output);
     PsqEncoder encoder(&writer, e);
     std::unique_ptr<ThreadedSequenceSink> threaded;

@@ -283,10 +283,9 @@ int cmd_convert(int argc, char** argv) {
     encode_options.fast = mesh.decoder ? mesh.decoder->header().fast || auto_fast(mesh.decoder->schema())
                                        : auto_fast(mesh.source->schema());
   // Spec 4.6: the input's counts size the segments (the sequence builder
-  // does not pass them on).
+  // does not pass them on; a .psq file has them in its end record).
   if (encode_options.segment_triangles == EncodeOptions::kAutoSegments)
-    encode_options.segment_triangles =
-        EncodeOptions::auto_segment_triangles(mesh.decoder ? mesh.decoder->schema() : mesh.source->schema());
+    encode_options.segment_triangles = auto_segment_triangles(mesh);
   if (out_format == MeshFormat::kPsq) return to_psq(in, out, mesh, output, encode_options, build_options, threads, quiet, json);
   WriteOptions write_options;
   write_options.ascii = ascii;

@@ -58,6 +58,15 @@ MeshFormat detect_format(const uint8_t* data, size_t size, int64_t total_size) {
   return MeshFormat::kUnknown;
 }
 
+uint64_t auto_segment_triangles(OpenedMesh& mesh) {
+  MeshSchema counts = mesh.decoder ? mesh.decoder->schema() : mesh.source->schema();
+  std::vector<PsqSegment> segments;
+  PsqSegment end;
+  if (mesh.decoder && mesh.stream->can_rewind() && mesh.decoder->segments(&segments, &end).ok())
+    counts.triangle_count = static_cast<int64_t>(end.triangles);
+  return EncodeOptions::auto_segment_triangles(counts);
+}
+
 Status open_mesh(const std::string& path, const OpenOptions& options, OpenedMesh* out) {
   auto stream = std::make_unique<InputStream>();
   PSQ_RETURN_IF_ERROR(stream->open(path));

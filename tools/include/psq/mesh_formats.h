@@ -56,6 +56,11 @@ Status open_mesh(const std::string& path, const OpenOptions& options, OpenedMesh
 // is detected from its first bytes); `out` takes it over.
 Status open_mesh(std::unique_ptr<InputStream> stream, const OpenOptions& options, OpenedMesh* out);
 
+// The .psq encoder's segment size for the opened input
+// (EncodeOptions::auto_segment_triangles()): from the counts of its
+// header, or for a .psq file from the totals of its end record.
+uint64_t auto_segment_triangles(OpenedMesh& mesh);
+
 struct WriteOptions {
   bool ascii = false;     // PLY: ascii instead of binary little-endian
   std::string spool_dir;  // PLY: where to spool when counts are unknown
