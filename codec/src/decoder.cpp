@@ -186,6 +186,65 @@ void PsqDecoder::Impl::capture_state(SegmentState* st, std::vector<uint8_t>* out
   serialize_state(*st, attrs->dims(), out);
 }
 
+void PsqDecoder::Impl::keep_reported_slots(const SegmentState& st) {
+  // Spec 4.6: the elements keep the slots they were reported with; the
+  // free reported slots are the others below the highest one ever used,
+  // the lowest taken first. (decode_into() reports no slots.)
+  if (direct != nullptr) return;
+  if (!report_slots) {
+    report_vertex_top = fboundary.vertex_capacity();
+    report_edge_top = fboundary.edge_capacity();
+  }
+  auto remap = [&](std::vector<uint32_t>* to, uint32_t top, SlotStack* free, auto slot_of, size_t n) {
+    std::vector<uint32_t> next(n);
+    std::vector<uint8_t> used(top, 0);
+    for (size_t i = 0; i < n; ++i) {
+      const uint32_t old = slot_of(i);
+      next[i] = !report_slots ? old : old < to->size() ? (*to)[old] : kNoSlot;
+      if (next[i] < top) used[next[i]] = 1;
+    }
+    *to = std::move(next);
+    free->clear();
+    for (uint32_t k = top; k-- > 0;)
+      if (!used[k]) free->push(k);
+  };
+  remap(&report_vertex, report_vertex_top, &report_vertex_free, [&](size_t i) { return st.vertex[i].slot; },
+        st.vertex.size());
+  remap(&report_edge, report_edge_top, &report_edge_free, [&](size_t j) { return st.edge[j].slot; }, st.edge.size());
+  report_slots = true;
+}
+
+void PsqDecoder::Impl::report(SequenceEvent& e) {
+  auto slot = [](std::vector<uint32_t>& map, uint32_t s) -> uint32_t& {
+    if (s >= map.size()) map.resize(size_t{s} + 1, kNoSlot);
+    return map[s];
+  };
+  auto take = [](SlotStack& free, uint32_t& top) { return free.empty() ? top++ : free.pop(); };
+  if (e.kind == SequenceEvent::Kind::kVertex) {
+    if (e.vertex.slot != kNoSlot) e.vertex.slot = slot(report_vertex, e.vertex.slot) = take(report_vertex_free, report_vertex_top);
+  } else if (e.kind == SequenceEvent::Kind::kTriangle) {
+    SequenceTriangle& t = e.triangle;
+    // The leaving edges' slots first (an entering edge of the same
+    // triangle may have taken a leaving one's boundary slot), then the
+    // entering edges take theirs, then the leaving ones give theirs back
+    // (free again after the triangle), and the finalized vertices theirs.
+    uint32_t leaving[3] = {kNoSlot, kNoSlot, kNoSlot};
+    for (int k = 0; k < 3; ++k)
+      if (t.leaving_mask >> k & 1) leaving[k] = slot(report_edge, t.eslot[k]);
+    for (int k = 0; k < 3; ++k)
+      if (t.entering_mask >> k & 1) t.eslot[k] = slot(report_edge, t.eslot[k]) = take(report_edge_free, report_edge_top);
+    for (int k = 0; k < 3; ++k)
+      if (t.leaving_mask >> k & 1) {
+        t.eslot[k] = leaving[k];
+        report_edge_free.push(leaving[k]);
+      }
+    for (int k = 0; k < 3; ++k) {
+      t.vslot[k] = slot(report_vertex, t.vslot[k]);
+      if (t.final_mask >> k & 1) report_vertex_free.push(t.vslot[k]);
+    }
+  }
+}
+
 void PsqDecoder::Impl::restart(const SegmentState& st) {
   fboundary = FastBoundary(header.boundary_limit);
   fneighbors = Neighbors();
@@ -229,18 +288,6 @@ Status PsqDecoder::Impl::read_segment(bool load) {
       return Status(ErrorCode::kBadValue, std::string("segment record: ") + why, block_at);
     if (st.triangles == 0 || header.segment_triangles == 0 || st.triangles % header.segment_triangles != 0)
       return Status(ErrorCode::kBadValue, "segment record: its triangle count is no segment start", block_at);
-    // The slot arrays reach the highest slot of the state. A valid state
-    // can leave slots unused below it (the boundary was larger before),
-    // but a few bytes must not make a decoder allocate up to the boundary
-    // limit at once: a state much sparser than this is decoded from the
-    // start instead (kUnsupported: decode_segments()' callers fall back to
-    // one decoder, which compares the block and allocates nothing for it).
-    uint32_t top_vertex = 0, top_edge = 0;
-    for (const SegmentState::Vertex& v : st.vertex) top_vertex = std::max(top_vertex, v.slot);
-    for (const SegmentState::Edge& e : st.edge) top_edge = std::max(top_edge, e.slot);
-    if (top_vertex >= kSparseStateSlots + 8 * st.vertex.size() || top_edge >= kSparseStateSlots + 8 * st.edge.size())
-      return Status(ErrorCode::kUnsupported, "segment record: a state too sparse to load alone (decode from the start)",
-                    block_at);
     base_records = record_no = st.records;
     base_triangles = st.triangles;
     next_out = st.vertices;
@@ -253,6 +300,7 @@ Status PsqDecoder::Impl::read_segment(bool load) {
     capture_state(&st, &state_mine);
     if (state_mine != state_raw)
       return Status(ErrorCode::kBadValue, "segment record: its state block is not the decoder's state", block_at);
+    keep_reported_slots(st);
   }
   // Spec 4.6: the state restarts in its canonical form.
   restart(st);
@@ -746,7 +794,8 @@ Status PsqDecoder::next(SequenceEvent* event) {
     if (!s.ok()) return m.fail(s);
   }
   // Copy only what the event kind uses (the vectors keep their capacity).
-  const SequenceEvent& e = m.queue[m.qhead++];
+  SequenceEvent& e = m.queue[m.qhead++];
+  if (m.report_slots) m.report(e);
   event->kind = e.kind;
   switch (e.kind) {
     case SequenceEvent::Kind::kVertex: event->vertex = e.vertex; break;
@@ -772,7 +821,8 @@ Status PsqDecoder::pump(SequenceSink& sink) {
   for (;;) {
     // Events already queued by next() go first.
     for (; m.qhead < m.qcount; ++m.qhead) {
-      const SequenceEvent& e = m.queue[m.qhead];
+      SequenceEvent& e = m.queue[m.qhead];
+      if (m.report_slots) m.report(e);
       switch (e.kind) {
         case SequenceEvent::Kind::kVertex: PSQ_RETURN_IF_ERROR(sink.vertex(e.vertex)); break;
         case SequenceEvent::Kind::kTriangle: PSQ_RETURN_IF_ERROR(sink.triangle(e.triangle)); break;

@@ -166,6 +166,22 @@ struct PsqDecoder::Impl {
   // Restarts from a state (spec 4.6): a fresh boundary, neighbour lists,
   // ring and attribute models.
   void restart(const SegmentState& st);
+  // The slots the events report (spec 4.6): a decoder that reads the
+  // stream from its start restarts its boundary in the state's slots at a
+  // segment record, but keeps reporting each element in the slot it was
+  // reported with, and gives new elements free reported slots (the lowest
+  // first after a segment record, then as they come free, last freed
+  // first). Off until the first segment record (the slots are the
+  // boundary's own) and for a decoder that starts at a segment (it
+  // reports the state's slots). The maps are by the boundary's slots.
+  bool report_slots = false;
+  std::vector<uint32_t> report_vertex, report_edge;
+  SlotStack report_vertex_free, report_edge_free;
+  uint32_t report_vertex_top = 0, report_edge_top = 0;  // reported slots ever used
+  // At a segment record, before restart(): the maps of the state's order.
+  void keep_reported_slots(const SegmentState& st);
+  // An event's slots as reported, as next() and pump() hand it out.
+  void report(SequenceEvent& e);
   // A segment record (its tag read): decompressed into state_raw, and
   // checked against the decoder's state, or loaded by a decoder that
   // starts here (`load`).

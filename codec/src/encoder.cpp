@@ -477,8 +477,15 @@ Status PsqEncoder::Impl::write_segment() {
   ++stats.segments;
   stats.segment_bytes += rec.size();
   // Spec 4.6: the state restarts from its canonical form, as a decoder's
-  // does: the same slots, the free ones taken lowest first, the ring
-  // rebuilt, the attribute models fresh.
+  // does: the slots renumbered in the state's order, the ring rebuilt,
+  // the attribute models fresh. The maps from the input's slots follow.
+  std::vector<uint32_t> vmap(boundary.vertex_capacity(), kNone), emap(boundary.edge_capacity(), kNone);
+  for (uint32_t i = 0; i < st.vertex.size(); ++i) vmap[st.vertex[i].slot] = i;
+  for (uint32_t j = 0; j < st.edge.size(); ++j) emap[st.edge[j].slot] = j;
+  auto remap = [](const std::vector<uint32_t>& map, uint32_t s) { return s < map.size() ? map[s] : kNone; };
+  for (uint32_t& s : by_inslot) s = remap(vmap, s);
+  for (auto& kv : slot_of) kv.second = remap(vmap, kv.second);
+  for (uint32_t& s : by_ineslot) s = remap(emap, s);
   boundary = Boundary(opt.boundary_limit);
   load_state(st, &boundary, nullptr, &ring, attrs.get());
   attrs->restart_models();

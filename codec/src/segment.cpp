@@ -209,11 +209,9 @@ void serialize_state(const SegmentState& s, int dims, std::vector<uint8_t>* out)
   // A new vertex's fields: its slot, index and position from the previous
   // new vertex's, its degree.
   uint32_t numbered = 0;
-  int64_t prev_index = static_cast<int64_t>(s.vertices), prev_pos[3] = {0, 0, 0}, prev_slot = 0;
+  int64_t prev_index = static_cast<int64_t>(s.vertices), prev_pos[3] = {0, 0, 0};
   auto vertex = [&](uint32_t v) {
     const SegmentState::Vertex& x = s.vertex[v];
-    put.varint(zigzag(static_cast<int64_t>(x.slot) - prev_slot));
-    prev_slot = x.slot;
     put.varint(zigzag(static_cast<int64_t>(x.index) - prev_index));
     put.varint(x.degree);
     for (int i = 0; i < 3; ++i) put.varint(zigzag(minus(x.pos[i], prev_pos[i])));
@@ -223,7 +221,6 @@ void serialize_state(const SegmentState& s, int dims, std::vector<uint8_t>* out)
   };
   put.varint(s.loop.size());
   uint32_t e = 0;
-  int64_t prev_edge_slot = 0;
   for (const auto& l : s.loop) {
     put.varint(uint64_t{l.first} << 1 | (l.second ? 1 : 0));
     const uint32_t first = e;
@@ -241,8 +238,6 @@ void serialize_state(const SegmentState& s, int dims, std::vector<uint8_t>* out)
       } else {
         put.varint(x.dst == s.edge[first].org ? kSameVertex : kSlotBase + x.dst);
       }
-      put.varint(zigzag(static_cast<int64_t>(x.slot) - prev_edge_slot));
-      prev_edge_slot = x.slot;
       put.varint(x.recency);
     }
   }
@@ -293,25 +288,22 @@ const char* parse_state(const uint8_t* p, size_t n, uint32_t limit, int dims, in
   s->choice = static_cast<uint32_t>(choice);
   auto coordinate_ok = [&](const int64_t* v) { return v[0] >= lo && v[0] <= hi && v[1] >= lo && v[1] <= hi && v[2] >= lo && v[2] <= hi; };
   if (!coordinate_ok(s->last)) return "prediction state outside the coordinates";
-  int64_t prev_index = static_cast<int64_t>(s->vertices), prev_pos[3] = {0, 0, 0}, prev_slot = 0;
+  int64_t prev_index = static_cast<int64_t>(s->vertices), prev_pos[3] = {0, 0, 0};
   // Every element takes at least one byte, so no count below allocates
   // beyond the bytes of the block.
   auto vertex = [&]() -> const char* {
     if (s->vertex.size() >= limit) return "more active vertices than the boundary limit";
     SegmentState::Vertex v;
-    const int64_t slot = plus(prev_slot, unzigzag(get.varint()));
     const int64_t index = plus(prev_index, unzigzag(get.varint()));
     const uint64_t degree = get.varint();
     for (int i = 0; i < 3; ++i) v.pos[i] = plus(prev_pos[i], unzigzag(get.varint()));
     if (!ok()) return kShort;
-    if (slot < 0 || slot >= static_cast<int64_t>(limit)) return "vertex slot beyond the boundary limit";
     if (index < 0 || static_cast<uint64_t>(index) >= s->vertices) return "active vertex index beyond the vertices so far";
     if (degree > 0xffffffffu) return "vertex degree out of range";
     if (!coordinate_ok(v.pos)) return "active vertex position outside the coordinates";
-    v.slot = static_cast<uint32_t>(slot);
+    v.slot = static_cast<uint32_t>(s->vertex.size());
     v.index = v.key = static_cast<uint32_t>(index);
     v.degree = static_cast<uint32_t>(degree);
-    prev_slot = slot;
     prev_index = index;
     std::copy(v.pos, v.pos + 3, prev_pos);
     s->vertex.push_back(v);
@@ -319,7 +311,6 @@ const char* parse_state(const uint8_t* p, size_t n, uint32_t limit, int dims, in
   };
   const uint64_t loops = get.varint();
   if (!ok() || loops > get.left()) return "bad loop count";
-  int64_t prev_edge_slot = 0;
   for (uint64_t l = 0; l < loops; ++l) {
     const uint64_t head = get.varint();
     if (!ok()) return kShort;
@@ -346,12 +337,9 @@ const char* parse_state(const uint8_t* p, size_t n, uint32_t limit, int dims, in
         (end == 0 ? x.org : x.dst) = v;
       }
       if (x.org == x.dst) return "open edge from a vertex to itself";
-      const int64_t slot = plus(prev_edge_slot, unzigzag(get.varint()));
       const uint64_t r = get.varint();
       if (!ok()) return kShort;
-      if (slot < 0 || slot >= static_cast<int64_t>(limit)) return "edge slot beyond the boundary limit";
-      x.slot = static_cast<uint32_t>(slot);
-      prev_edge_slot = slot;
+      x.slot = static_cast<uint32_t>(s->edge.size());
       if (r > kStateRecency || r > s->entered) return "edge recency out of range";
       x.recency = static_cast<uint32_t>(r);
       x.next = i + 1 < len ? static_cast<uint32_t>(s->edge.size() + 1) : (head & 1) ? first : kNone;
@@ -363,17 +351,6 @@ const char* parse_state(const uint8_t* p, size_t n, uint32_t limit, int dims, in
   if (!ok() || extra > get.left()) return "bad count of vertices off the loops";
   for (uint64_t i = 0; i < extra; ++i)
     if (const char* why = vertex()) return why;
-  // Slots distinct within each kind.
-  {
-    std::vector<uint32_t> slots;
-    for (const SegmentState::Vertex& v : s->vertex) slots.push_back(v.slot);
-    std::sort(slots.begin(), slots.end());
-    if (std::adjacent_find(slots.begin(), slots.end()) != slots.end()) return "two active vertices in one slot";
-    slots.clear();
-    for (const SegmentState::Edge& x : s->edge) slots.push_back(x.slot);
-    std::sort(slots.begin(), slots.end());
-    if (std::adjacent_find(slots.begin(), slots.end()) != slots.end()) return "two open edges in one slot";
-  }
   const LoopLinks links(*s);
   for (uint32_t k = 0; k < s->edge.size(); ++k) {
     SegmentState::Edge& x = s->edge[k];
@@ -426,30 +403,35 @@ const char* parse_state(const uint8_t* p, size_t n, uint32_t limit, int dims, in
 
 template <bool L>
 void load_state(const SegmentState& s, BasicBoundary<L>* b, Neighbors* n, FastRing* ring, AttributeCoder* a) {
-  for (const SegmentState::Vertex& v : s.vertex) b->load_vertex(v.slot, v.index, v.key, v.degree, v.pos);
+  // Spec 4.6: vertex i of the state takes slot i, edge j slot j.
+  b->reserve(static_cast<uint32_t>(std::max(s.vertex.size(), s.edge.size())));
+  for (uint32_t i = 0; i < s.vertex.size(); ++i) {
+    const SegmentState::Vertex& v = s.vertex[i];
+    b->load_vertex(i, v.index, v.key, v.degree, v.pos);
+  }
   std::vector<uint32_t> next;
   next.reserve(s.edge.size());
-  for (const SegmentState::Edge& e : s.edge) {
-    // Spec 4.6: an edge beyond the recency window gets age 0, which no
-    // rank reaches.
-    b->load_edge(e.slot, s.vertex[e.org].slot, s.vertex[e.dst].slot, e.recency ? s.entered - e.recency : 0, e.opp);
+  for (uint32_t j = 0; j < s.edge.size(); ++j) {
+    const SegmentState::Edge& e = s.edge[j];
+    // An edge beyond the recency window gets age 0, which no rank reaches.
+    b->load_edge(j, e.org, e.dst, e.recency ? s.entered - e.recency : 0, e.opp);
     next.push_back(e.next);
   }
   b->load_end(next.data(), s.entered, s.reference);
-  for (const auto& d : s.dead) b->load_dead(s.vertex[d.first].slot, s.vertex[d.second].slot);
+  for (const auto& d : s.dead) b->load_dead(d.first, d.second);
   if (n) {
-    for (const SegmentState::Vertex& v : s.vertex) n->vertex_begins(v.slot);
-    for (const SegmentState::Edge& e : s.edge) n->insert(s.vertex[e.org].slot, s.vertex[e.dst].slot);
-    for (const auto& d : s.dead) n->insert(s.vertex[d.first].slot, s.vertex[d.second].slot);
+    for (uint32_t i = 0; i < s.vertex.size(); ++i) n->vertex_begins(i);
+    for (const SegmentState::Edge& e : s.edge) n->insert(e.org, e.dst);
+    for (const auto& d : s.dead) n->insert(d.first, d.second);
   }
   ring->rebuild(*b);
   const size_t d = a ? static_cast<size_t>(a->dims()) : 0;
   if (d > 0) {
     a->set_last(s.attr_last.data());
     for (size_t i = 0; i < s.vertex.size(); ++i)
-      std::copy_n(s.attr_vertex.data() + i * d, d, a->vertex_state(s.vertex[i].slot));
+      std::copy_n(s.attr_vertex.data() + i * d, d, a->vertex_state(static_cast<uint32_t>(i)));
     for (size_t i = 0; i < s.edge.size(); ++i)
-      std::copy_n(s.attr_edge.data() + i * d, d, a->edge_state(s.edge[i].slot));
+      std::copy_n(s.attr_edge.data() + i * d, d, a->edge_state(static_cast<uint32_t>(i)));
   }
 }
 template void load_state(const SegmentState&, BasicBoundary<true>*, Neighbors*, FastRing*, AttributeCoder*);

@@ -6,18 +6,19 @@
 // The processing sequence at a segment start has an open boundary: a
 // restart with an empty one would cut the mesh along every segment start.
 // So the block holds the boundary as it is, in a canonical form: its open
-// edges loop by loop, the vertices in the order the loops reach them, each
-// with its slot (slots are part of the decoded sequence, psq/sequence.h,
-// so they do not change), and only what the records can still see (an
-// edge's age only among the last 128 edges that entered, 13.6.2). At a
-// segment start, the encoder and every decoder load this form back: the
-// free slots taken lowest first, fresh neighbour lists, the ring rebuilt,
-// fresh attribute models. One serialization: the encoder writes the block
-// from its own state, a decoder that reads the stream from the start
-// checks that its state serializes to the same bytes, and a decoder that
-// starts at the segment loads the block, then checks at its end that its
-// state serializes to the next segment's block. Every decoder therefore
-// accepts exactly the same streams and yields the same events.
+// edges loop by loop, the vertices in the order the loops reach them, and
+// only what the records can still see (an edge's age only among the last
+// 128 edges that entered, 13.6.2). At a segment start, the encoder and
+// every decoder load this form back: vertex i of the state in slot i, edge
+// j in slot j, fresh neighbour lists, the ring rebuilt, fresh attribute
+// models. The slots a decoder reports stay those its elements had
+// (PsqDecoder::Impl's report maps, spec 4.6): slots are part of the
+// decoded sequence (psq/sequence.h). One serialization: the encoder
+// writes the block from its own state, a decoder that reads the stream
+// from the start checks that its state serializes to the same bytes, and
+// a decoder that starts at the segment loads the block, then checks at
+// its end that its state serializes to the next segment's block. Every
+// decoder therefore accepts exactly the same streams.
 #ifndef PSQ_CODEC_SEGMENT_H_
 #define PSQ_CODEC_SEGMENT_H_
 
@@ -37,10 +38,6 @@ class FastRing;
 // Edges further back than this many entered edges have no recency rank
 // (spec 13.6.2), so the state does not keep their age.
 constexpr uint32_t kStateRecency = 128;
-// A decoder loads a state alone only when its highest slot of each kind
-// is below this plus 8 per live element (PsqDecoder::Impl::read_segment()).
-constexpr uint64_t kSparseStateSlots = uint64_t{1} << 20;
-
 struct SegmentState {
   // What came before: records, vertex events (the next dense index) and
   // triangle events; edges that ever entered (spec 6.1.2 step 2).
@@ -50,13 +47,13 @@ struct SegmentState {
   uint32_t choice = 0;         // the previous prediction choice (13.8.2)
   int64_t last[3] = {0, 0, 0};  // the prediction state (7.3)
   struct Vertex {
-    uint32_t slot = 0;
+    uint32_t slot = 0;  // the slot it had (capture_boundary()), not serialized
     uint32_t index = 0, degree = 0;
     uint32_t key = 0;  // BVertex::key: carried over, not serialized
     int64_t pos[3] = {0, 0, 0};
   };
   struct Edge {
-    uint32_t slot = 0;
+    uint32_t slot = 0;  // likewise
     uint32_t org = 0, dst = 0;  // vertices: positions in `vertex`
     uint32_t next = kNone;      // a position in `edge`, or kNone
     uint32_t recency = 0;       // entered - age when at most kStateRecency, else 0
@@ -91,8 +88,8 @@ void capture_attributes(AttributeCoder& a, SegmentState* s);
 // The bytes of a state (before compression), with `attr_dims` attribute
 // values per vertex (AttributeCoder::dims()).
 void serialize_state(const SegmentState& s, int attr_dims, std::vector<uint8_t>* out);
-// Parses and checks the bytes of a state: slots below `limit` and distinct
-// per kind, endpoints distinct, indices below the vertex count, coordinates
+// Parses and checks the bytes of a state: at most `limit` vertices and
+// edges, endpoints distinct, indices below the vertex count, coordinates
 // within [lo, hi], attribute values within their components' ranges
 // (`attrs`, when attr_dims > 0). Returns nullptr, or what is wrong.
 const char* parse_state(const uint8_t* p, size_t n, uint32_t limit, int attr_dims, int64_t lo, int64_t hi,
