@@ -229,8 +229,9 @@ class BasicBoundary {
   }
   // A boundary loaded from the state of a segment record (segment.h), on
   // a fresh one: its vertices and edges in their slots, then (kLookups)
-  // the dead edges, then load_end(), which makes every other slot below
-  // the highest one of each kind free, the lowest taken first (spec 4.6).
+  // the dead edges, then load_end(), which makes any other slot below the
+  // highest one of each kind free, the lowest taken first (segment states
+  // load dense slots, 0 to n - 1, which leaves none: spec 4.6).
   void load_vertex(uint32_t slot, uint32_t index, uint32_t key, uint32_t degree, const int64_t pos[3]);
   void load_edge(uint32_t slot, uint32_t org, uint32_t dst, uint64_t age, const int64_t opp[3]);
   void load_dead(uint32_t a, uint32_t b) {

@@ -224,10 +224,10 @@ void PsqDecoder::Impl::report(SequenceEvent& e) {
     if (e.vertex.slot != kNoSlot) e.vertex.slot = slot(report_vertex, e.vertex.slot) = take(report_vertex_free, report_vertex_top);
   } else if (e.kind == SequenceEvent::Kind::kTriangle) {
     SequenceTriangle& t = e.triangle;
-    // The leaving edges' slots first (an entering edge of the same
-    // triangle may have taken a leaving one's boundary slot), then the
+    // The leaving edges' reported slots are looked up first, then the
     // entering edges take theirs, then the leaving ones give theirs back
-    // (free again after the triangle), and the finalized vertices theirs.
+    // (free again after the triangle: an entering edge never takes one),
+    // and the finalized vertices theirs.
     uint32_t leaving[3] = {kNoSlot, kNoSlot, kNoSlot};
     for (int k = 0; k < 3; ++k)
       if (t.leaving_mask >> k & 1) leaving[k] = slot(report_edge, t.eslot[k]);

@@ -206,8 +206,8 @@ void serialize_state(const SegmentState& s, int dims, std::vector<uint8_t>* out)
   put.varint(s.context);
   put.varint(s.choice);
   for (int i = 0; i < 3; ++i) put.varint(zigzag(s.last[i]));
-  // A new vertex's fields: its slot, index and position from the previous
-  // new vertex's, its degree.
+  // A new vertex's fields: its index and position from the previous new
+  // vertex's, its degree.
   uint32_t numbered = 0;
   int64_t prev_index = static_cast<int64_t>(s.vertices), prev_pos[3] = {0, 0, 0};
   auto vertex = [&](uint32_t v) {

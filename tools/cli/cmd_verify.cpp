@@ -78,9 +78,8 @@ int cmd_verify(int argc, char** argv) {
     auto open = [&](InputStream* in) { return in->open(file); };
     auto work = [&](PsqDecoder& d, size_t) { return d.pump(discard); };
     s = decode_segments(open, threads, work, &parallel_stats);
-    // A state that cannot be loaded alone (kUnsupported): from the start.
-    if (!s.ok() && s.code() != ErrorCode::kUnsupported) return report_error(file, s);
-    parallel = s.ok();
+    if (!s.ok()) return report_error(file, s);
+    parallel = true;
     if (parallel && !quiet && !json) std::fprintf(stderr, "%s: verified %zu segments\n", file.c_str(), segments.size());
   }
   if (!parallel) {

@@ -120,7 +120,7 @@ struct EncodeOptions {
   // kAutoSegments (the default): a quarter of the schema's triangle count
   // rounded up to a multiple of 2^16 (four segments, two per core on two
   // cores), at least 2^21; 2^21 when the count is unknown. A segment
-  // record costs about 8 bytes per vertex of the boundary where it is
+  // record costs about 5 bytes per vertex of the boundary where it is
   // (bench/RESULTS.md).
   static constexpr uint64_t kAutoSegments = ~uint64_t{0};
   uint64_t segment_triangles = kAutoSegments;
@@ -282,11 +282,10 @@ class PsqDecoder : public SequenceSource {
   // vertex), and end (Kind::kEnd) at its end. The checks that need the
   // other segments (the stream checksum, the totals of the end record,
   // and that each segment ends in the state the next one starts from) are
-  // decode_segments()'s. Errors: next()'s; kBadValue for a state block
-  // that is not one; kUnsupported for a state whose slots reach far above
-  // the elements it holds (2^20 plus 8 per element or more), which is
-  // decoded from the start instead (it would size the slot arrays at
-  // once).
+  // decode_segments()'s. The slots it reports are its boundary's, numbered
+  // from the segment record (spec 4.6): the other events are those of a
+  // decoder that reads the stream from its start. Errors: next()'s, and
+  // kBadValue for a state block that is not one.
   Status start_segment(const PsqSegment& segment);
   // Enables the connectivity/geometry cost split in stats() (slower).
   void measure_costs(bool on);
@@ -311,8 +310,7 @@ class PsqDecoder : public SequenceSource {
 // sums over the segments. A stream of one segment is decoded by one
 // thread. Errors: the first segment's error in stream order, else the
 // decoder's errors for the checks above; kIo for an input that cannot
-// seek; kUnsupported for a segment that cannot start alone
-// (start_segment()): decode such a stream with one decoder.
+// seek.
 Status decode_segments(const std::function<Status(InputStream*)>& open, int threads,
                        const std::function<Status(PsqDecoder&, size_t)>& work, PsqStats* stats);
 
