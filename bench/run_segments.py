@@ -36,28 +36,11 @@ import statistics
 import subprocess
 import sys
 import tempfile
-import time
+
+from run_convert_compare import Failure, replace_region, run
 
 MARKERS = ("<!-- segments:begin -->", "<!-- segments:end -->")
 AFTER = "<!-- convert:end -->"
-
-
-class Failure(Exception):
-    pass
-
-
-def run(argv):
-    """Runs argv; returns (wall seconds, peak RSS in KiB). Raises on failure."""
-    start = time.perf_counter()
-    proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    err = proc.stderr.read()
-    # wait4: this child's own rusage.
-    _, status, usage = os.wait4(proc.pid, 0)
-    wall = time.perf_counter() - start
-    code = os.waitstatus_to_exitcode(status)
-    if code != 0:
-        raise Failure(f"{' '.join(argv)}: exit {code}: {err.decode(errors='replace').strip()}")
-    return wall, usage.ru_maxrss
 
 
 def output_of(argv):
@@ -113,7 +96,7 @@ def main():
             for r in range(args.rounds):
                 order = (1, args.threads) if r % 2 == 0 else (args.threads, 1)
                 for t in order:
-                    wall, peak = run(argv(t))
+                    wall, _, peak = run(argv(t))
                     times[t].append(wall)
                     rss[t].append(peak)
             a, b = statistics.median(times[1]), statistics.median(times[args.threads])
@@ -152,15 +135,7 @@ def main():
     if args.write_results:
         with open(args.results) as f:
             res = f.read()
-        begin, end = MARKERS
-        region = f"{begin}\n{text}{end}"
-        if begin in res and end in res:
-            res = res[:res.index(begin)] + region + res[res.index(end) + len(end):]
-        elif AFTER in res:
-            at = res.index(AFTER) + len(AFTER)
-            res = res[:at] + "\n\n" + region + res[at:]
-        else:
-            res = res.rstrip("\n") + "\n\n" + region + "\n"
+        res = replace_region(res, MARKERS, text, AFTER)
         with open(args.results, "w") as f:
             f.write(res)
     return 0

@@ -448,6 +448,20 @@ Status PsqDecoder::Impl::read_end() {
   return Status();
 }
 
+Status PsqDecoder::Impl::check_float_range(const PsqHeader& header, const MeshBuffers& mesh) {
+  // The arrays hold floats: a double stream's position beyond float range
+  // (finite, by 7.1 and 7.2) became an infinity, which is refused rather
+  // than returned.
+  if (header.schema.position_type == ScalarType::kFloat64) {
+    for (size_t i = 0; i < mesh.positions.size(); ++i)
+      if (!std::isfinite(mesh.positions[i]))
+        return Status(ErrorCode::kLimit, "vertex " + std::to_string(i / 3) +
+                                             ": position beyond float range (decode_mesh returns floats; "
+                                             "PsqDecoder gives doubles)");
+  }
+  return Status();
+}
+
 Status PsqDecoder::Impl::decode_loop() {
   while (!ended) {
     if (records_left == 0) PSQ_RETURN_IF_ERROR(flush_direct());
@@ -768,17 +782,7 @@ Status PsqDecoder::Impl::decode_into(MeshBuffers* mesh) {
   PSQ_RETURN_IF_ERROR(decode_loop());
   mesh->positions.resize(direct_np);
   mesh->indices.resize(direct_ni);
-  // The arrays hold floats: a double stream's position beyond float range
-  // (finite, by 7.1 and 7.2) became an infinity, which is refused rather
-  // than returned.
-  if (header.schema.position_type == ScalarType::kFloat64) {
-    for (size_t i = 0; i < direct_np; ++i)
-      if (!std::isfinite(mesh->positions[i]))
-        return Status(ErrorCode::kLimit, "vertex " + std::to_string(i / 3) +
-                                             ": position beyond float range (decode_mesh returns floats; "
-                                             "PsqDecoder gives doubles)");
-  }
-  return Status();
+  return check_float_range(header, *mesh);
 }
 
 Status PsqDecoder::next(SequenceEvent* event) {

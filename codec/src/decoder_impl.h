@@ -356,6 +356,9 @@ struct PsqDecoder::Impl {
   Status decode_range(MeshBuffers* mesh, size_t np_begin, size_t np_end, size_t ni_begin, size_t ni_end);
   // decode_into()'s and decode_range()'s loop.
   Status decode_loop();
+  // kLimit when a position of a double stream became an infinity in the
+  // arrays (decode_into(), decode_mesh_segments()).
+  static Status check_float_range(const PsqHeader& header, const MeshBuffers& mesh);
 
   // The records (record_decoder.cpp, spec section 13).
   bool fast_choices = false;  // gate records code a prediction choice (fast_codes_choices())

@@ -16,6 +16,9 @@ namespace psq {
 class SegmentRun {
  public:
   static PsqDecoder::Impl& of(PsqDecoder& d) { return *d.impl_; }
+  static Status check_float_range(const PsqHeader& h, const MeshBuffers& m) {
+    return PsqDecoder::Impl::check_float_range(h, m);
+  }
 };
 
 namespace {
@@ -159,14 +162,14 @@ Status decode_mesh_segments(const std::function<Status(InputStream*)>& open, int
   auto cannot = [](const char* why) { return Status(ErrorCode::kUnsupported, why); };
   std::vector<PsqSegment> segs;
   PsqSegment end;
-  bool is_double = false;
+  PsqHeader header;
   {
     InputStream in;
     PSQ_RETURN_IF_ERROR(open(&in));
     PsqDecoder d;
     PSQ_RETURN_IF_ERROR(d.open(&in));
     if (!d.segments(&segs, &end).ok()) return cannot("the stream's index cannot be read");
-    is_double = d.header().schema.position_type == ScalarType::kFloat64;
+    header = d.header();
   }
   // Each segment writes its part of the arrays, between its index entry's
   // counts and the next one's (the end record's totals for the last).
@@ -189,14 +192,7 @@ Status decode_mesh_segments(const std::function<Status(InputStream*)>& open, int
                           3 * static_cast<size_t>(bounds[k].triangles), 3 * static_cast<size_t>(bounds[k + 1].triangles));
   };
   PSQ_RETURN_IF_ERROR(decode_segments(open, threads, work, nullptr));
-  if (is_double) {
-    for (size_t i = 0; i < mesh->positions.size(); ++i)
-      if (!std::isfinite(mesh->positions[i]))
-        return Status(ErrorCode::kLimit, "vertex " + std::to_string(i / 3) +
-                                             ": position beyond float range (decode_mesh returns floats; "
-                                             "PsqDecoder gives doubles)");
-  }
-  return Status();
+  return SegmentRun::check_float_range(header, *mesh);
 }
 
 Status decode_mesh(const uint8_t* data, size_t size, MeshBuffers* mesh, int threads) {

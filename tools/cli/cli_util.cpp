@@ -106,6 +106,16 @@ std::vector<std::string> Args::positionals() {
   return out;
 }
 
+bool parse_threads(const std::string& text, int least, int* threads) {
+  const char* b = text.data();
+  const char* e = b + text.size();
+  int n = 0;
+  auto r = std::from_chars(b, e, n);
+  if (r.ec != std::errc() || r.ptr != e || n < least || n > 1024) return false;
+  *threads = n;
+  return true;
+}
+
 bool parse_size(const std::string& text, uint64_t* bytes) {
   uint64_t n = 0;
   const char* b = text.data();

@@ -71,6 +71,8 @@ bool parse_size(const std::string& text, uint64_t* bytes);
 // Parses a fraction of the input to keep: "0.1" or "10%", in (0, 1]. False
 // when malformed or out of range.
 bool parse_ratio(const std::string& text, double* ratio);
+// A --threads value: a whole number from `least` to 1024.
+bool parse_threads(const std::string& text, int least, int* threads);
 
 // Whether two paths name the same existing file (tools/src/ops/pipeline.h).
 using detail::same_file;

@@ -1,6 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
 // psq convert: stream a mesh from one format to another.
-#include <charconv>
 #include <unistd.h>
 
 #include <cstdio>
@@ -232,13 +231,8 @@ int cmd_convert(int argc, char** argv) {
   if (profile != "compact" && profile != "fast" && profile != "auto")
     return usage_error("convert", "bad --profile '" + profile + "' (compact, fast or auto)");
   int threads = 0;
-  {
-    const char* b = threads_text.data();
-    const char* e = b + threads_text.size();
-    auto r = std::from_chars(b, e, threads);
-    if (r.ec != std::errc() || r.ptr != e || threads < 1 || threads > 1024)
-      return usage_error("convert", "bad --threads '" + threads_text + "' (1 to 1024)");
-  }
+  if (!parse_threads(threads_text, 1, &threads))
+    return usage_error("convert", "bad --threads '" + threads_text + "' (1 to 1024)");
   BuildOptions build_options;
   build_options.tmpdir = tmpdir;
   if (!parse_size(memory, &build_options.memory_budget))

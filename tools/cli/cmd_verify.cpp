@@ -1,6 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
 // psq verify: decode a .psq completely and check it.
-#include <charconv>
 #include <cstdio>
 #include <string>
 
@@ -44,13 +43,8 @@ int cmd_verify(int argc, char** argv) {
   bool json = args.flag("--json");
   const std::string threads_text = args.option("--threads", "0");
   int threads = 0;
-  {
-    const char* b = threads_text.data();
-    const char* e = b + threads_text.size();
-    auto r = std::from_chars(b, e, threads);
-    if (r.ec != std::errc() || r.ptr != e || threads < 0 || threads > 1024)
-      return usage_error("verify", "bad --threads '" + threads_text + "' (0 for one per core)");
-  }
+  if (!parse_threads(threads_text, 0, &threads))
+    return usage_error("verify", "bad --threads '" + threads_text + "' (0 for one per core)");
   std::vector<std::string> files = args.positionals();
   if (!args.error().empty()) return usage_error("verify", args.error());
   if (files.size() != 1) return usage_error("verify", files.empty() ? "missing FILE" : "verify takes one FILE");
