@@ -288,7 +288,7 @@ Status PsqDecoder::Impl::read_segment(bool load) {
       return Status(ErrorCode::kBadValue, std::string("segment record: ") + why, block_at);
     if (st.triangles == 0 || header.segment_triangles == 0 || st.triangles % header.segment_triangles != 0)
       return Status(ErrorCode::kBadValue, "segment record: its triangle count is no segment start", block_at);
-    base_records = record_no = st.records;
+    record_no = st.records;
     base_triangles = st.triangles;
     next_out = st.vertices;
     fast_context = static_cast<int>(st.context);

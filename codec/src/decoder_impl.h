@@ -138,9 +138,10 @@ struct PsqDecoder::Impl {
   }
 
   // Segments (spec 4.6, 4.7). A decoder that starts at a segment record
-  // (start_segment()) takes its counts from the state block: the records,
-  // vertex and triangle events before it (base_*); its stats count its own.
-  uint64_t base_records = 0, base_triangles = 0;
+  // (start_segment()) takes its counts from the state block: the records
+  // (record_no), vertex events (next_out) and triangle events before it
+  // (base_triangles); its stats count its own.
+  uint64_t base_triangles = 0;
   uint64_t segment_next = 0;  // the triangle count where the next segment begins; 0: none
   // The segment records seen: offsets and counts before each, for the index.
   std::vector<uint64_t> seen_segment_at, seen_segment_vertices, seen_segment_triangles;
