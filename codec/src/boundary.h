@@ -147,6 +147,22 @@ class BasicBoundary {
     vlive_.reserve(n);
     edges_.reserve(n);
   }
+  // Empty, as a new one with the same limit, but keeping the arrays' room
+  // (a segment restart, spec 4.6, loads about as many slots again).
+  void reset() {
+    vertices_.clear();
+    links_.clear();
+    vlive_.clear();
+    free_vertices_.clear();
+    edges_.clear();
+    free_edges_.clear();
+    borders_.clear();
+    free_borders_.clear();
+    active_vertices_ = open_edges_ = 0;
+    reference_ = kNone;
+    entered_ = 0;
+    loaded_.clear();
+  }
   // A new vertex slot, or kNone when `limit` vertices are active.
   uint32_t new_vertex(uint32_t index, uint32_t key, const int64_t pos[3]);
   // Releases a vertex slot (after its finalization) and forgets the dead

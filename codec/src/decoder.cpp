@@ -246,8 +246,8 @@ void PsqDecoder::Impl::report(SequenceEvent& e) {
 }
 
 void PsqDecoder::Impl::restart(const SegmentState& st) {
-  fboundary = FastBoundary(header.boundary_limit);
-  fneighbors = Neighbors();
+  fboundary.reset();
+  fneighbors.reset();
   load_state(st, &fboundary, &fneighbors, &ring, attrs.get());
   attrs->restart_models();
 }
@@ -265,6 +265,9 @@ Status PsqDecoder::Impl::read_segment(bool load) {
   const uint8_t tag = kSegmentTag;
   uint32_t crc = crc32c_update(crc32c_update(0, &tag, 1), f.data(), f.size());
   const uint64_t block_at = in->offset();
+  // Locals, not members: a state is up to a few MB on a long boundary, and
+  // segment records are few; kept, they would stay in the peak memory.
+  std::vector<uint8_t> state_packed, state_raw;
   PSQ_RETURN_IF_ERROR(read_block(packed_size, &state_packed));
   crc = crc32c_update(crc, state_packed.data(), state_packed.size());
   uint8_t c[4];
@@ -275,6 +278,7 @@ Status PsqDecoder::Impl::read_segment(bool load) {
   if (alone) chain_fields.insert(chain_fields.end(), c, c + 4);
   if (!zstd_decompress(state_packed.data(), state_packed.size(), raw_size, &state_raw))
     return Status(ErrorCode::kBadValue, "segment record: state block does not decompress to its declared size", block_at);
+  std::vector<uint8_t>().swap(state_packed);
   SegmentState st;
   if (load) {
     int64_t lo = 0, hi = grid_max;
@@ -295,11 +299,15 @@ Status PsqDecoder::Impl::read_segment(bool load) {
     fast_choice = static_cast<int>(st.choice);
     std::copy(st.last, st.last + 3, last_pos);
     segment_next = st.triangles;
-    start_state = state_raw;
+    start_state = std::move(state_raw);
   } else {
-    capture_state(&st, &state_mine);
-    if (state_mine != state_raw)
-      return Status(ErrorCode::kBadValue, "segment record: its state block is not the decoder's state", block_at);
+    {
+      std::vector<uint8_t> state_mine;
+      capture_state(&st, &state_mine);
+      if (state_mine != state_raw)
+        return Status(ErrorCode::kBadValue, "segment record: its state block is not the decoder's state", block_at);
+    }
+    std::vector<uint8_t>().swap(state_raw);
     keep_reported_slots(st);
   }
   // Spec 4.6: the state restarts in its canonical form.

@@ -146,7 +146,6 @@ struct PsqDecoder::Impl {
   // The segment records seen: offsets and counts before each, for the index.
   std::vector<uint64_t> seen_segment_at, seen_segment_vertices, seen_segment_triangles;
   uint64_t index_at = 0;  // the index record's offset, once read
-  std::vector<uint8_t> state_packed, state_raw, state_mine;
   // Decoding one segment alone (start_segment()): it ends at the next
   // segment record or at the end record, with what a caller that decodes
   // every segment needs to check them together (parallel.cpp): the state

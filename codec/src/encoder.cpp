@@ -486,7 +486,7 @@ Status PsqEncoder::Impl::write_segment() {
   for (uint32_t& s : by_inslot) s = remap(vmap, s);
   for (auto& kv : slot_of) kv.second = remap(vmap, kv.second);
   for (uint32_t& s : by_ineslot) s = remap(emap, s);
-  boundary = Boundary(opt.boundary_limit);
+  boundary.reset();
   load_state(st, &boundary, nullptr, &ring, attrs.get());
   attrs->restart_models();
   return emit(rec);

@@ -33,6 +33,13 @@ class Neighbors {
  public:
   // Room for `n` slots without moving the array (nothing is touched).
   void reserve(uint32_t n) { slots_.reserve(n); }
+  // Empty, as a new one, but keeping the array's room: a segment restart
+  // (spec 4.6) fills about as many slots again, and a fresh array would
+  // grow by doubling and copying, beside the old one until it is freed.
+  void reset() {
+    slots_.clear();
+    spill_.clear();
+  }
   // Vertex slot `s` now holds a new vertex, with no neighbours yet.
   void vertex_begins(uint32_t s) {
     if (s >= slots_.size()) grow(s);

@@ -2,8 +2,10 @@
 // codec/src/properties.cpp: see properties.h and spec/psq-format.md 8.
 #include "properties.h"
 
+#define ZSTD_STATIC_LINKING_ONLY  // ZSTD_getCParams
 #include <zstd.h>
 
+#include <algorithm>
 #include <cstring>
 
 namespace psq {
@@ -178,8 +180,21 @@ void PropertyUnpacker::next(std::vector<Column>& cols, uint64_t n, uint64_t* i, 
 
 void zstd_compress(const std::vector<uint8_t>& raw, int level, std::vector<uint8_t>* out) {
   out->resize(ZSTD_compressBound(raw.size()));
-  size_t n = ZSTD_compress(out->data(), out->size(), raw.data(), raw.size(), level);
-  out->resize(ZSTD_isError(n) ? 0 : n);
+  // The level's parameters for this size, with its match tables capped at
+  // 2^17 entries: level 9 on a block of 1 MiB would take a context of 12.5
+  // MiB and level 19 (segment states) 17 MiB, for a step in the peak
+  // memory of every pipeline that writes .psq; capped, at most 2.3 MiB.
+  // Blocks under 128 KiB get the level's own parameters (already smaller).
+  constexpr unsigned kMaxTableLog = 17;
+  const ZSTD_compressionParameters cp = ZSTD_getCParams(level, raw.size(), 0);
+  ZSTD_CCtx* cctx = ZSTD_createCCtx();
+  size_t n = 0;  // no frame: the caller's check of the size fails
+  if (cctx && !ZSTD_isError(ZSTD_CCtx_setParameter(cctx, ZSTD_c_compressionLevel, level)) &&
+      !ZSTD_isError(ZSTD_CCtx_setParameter(cctx, ZSTD_c_hashLog, static_cast<int>(std::min(cp.hashLog, kMaxTableLog)))) &&
+      !ZSTD_isError(ZSTD_CCtx_setParameter(cctx, ZSTD_c_chainLog, static_cast<int>(std::min(cp.chainLog, kMaxTableLog)))))
+    n = ZSTD_compress2(cctx, out->data(), out->size(), raw.data(), raw.size());
+  ZSTD_freeCCtx(cctx);
+  out->resize(n == 0 || ZSTD_isError(n) ? 0 : n);
 }
 
 bool zstd_decompress(const uint8_t* data, size_t size, size_t raw_size, std::vector<uint8_t>* out) {

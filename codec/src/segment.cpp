@@ -74,6 +74,7 @@ void capture_boundary(const BasicBoundary<L>& b, SegmentState* s) {
   // links to begins one), then the closed loops, each begun at its oldest
   // edge not yet taken; chains likewise by the age of their first edge.
   std::vector<std::pair<uint64_t, uint32_t>> by_age;
+  by_age.reserve(b.open_edges());
   for (uint32_t e = 0; e < b.edge_capacity(); ++e)
     if (b.edge_live(e)) by_age.emplace_back(b.edge(e).age, e);
   std::sort(by_age.begin(), by_age.end());
@@ -104,6 +105,8 @@ void capture_boundary(const BasicBoundary<L>& b, SegmentState* s) {
   }
   for (uint32_t v = 0; v < b.vertex_capacity(); ++v)
     if (b.vertex_live(v)) number(v);
+  s->vertex.reserve(vertices.size());
+  s->edge.reserve(edges.size());
   for (uint32_t v : vertices) {
     const BVertex& x = b.vertex(v);
     SegmentState::Vertex y;

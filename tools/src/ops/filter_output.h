@@ -29,8 +29,10 @@ namespace psq::detail {
 // a fast .psq or, for a mesh-stream filter (clustering), a large mesh
 // (auto_fast_profile()). False when `bits` was given for a sequence filter
 // over a lossless .psq (the caller words the usage error).
+// Its chunks close at kFilterChunkBytes coded bytes.
 bool filter_encoding(const OpenedMesh& input, int bits, bool lossless, const std::string& profile,
                      bool sequence_filter, EncodeOptions* encode);
+constexpr uint32_t kFilterChunkBytes = 256u << 10;
 
 // How psq simplify's --memory is split among the stages of a clustering
 // run (psq/memory_budget.h): half for the sequence builder (a mesh
