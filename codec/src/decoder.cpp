@@ -215,33 +215,42 @@ void PsqDecoder::Impl::keep_reported_slots(const SegmentState& st) {
 }
 
 void PsqDecoder::Impl::report(SequenceEvent& e) {
-  auto slot = [](std::vector<uint32_t>& map, uint32_t s) -> uint32_t& {
-    if (s >= map.size()) map.resize(size_t{s} + 1, kNoSlot);
-    return map[s];
-  };
   auto take = [](SlotStack& free, uint32_t& top) { return free.empty() ? top++ : free.pop(); };
-  if (e.kind == SequenceEvent::Kind::kVertex) {
-    if (e.vertex.slot != kNoSlot) e.vertex.slot = slot(report_vertex, e.vertex.slot) = take(report_vertex_free, report_vertex_top);
-  } else if (e.kind == SequenceEvent::Kind::kTriangle) {
+  if (e.kind == SequenceEvent::Kind::kTriangle) {
     SequenceTriangle& t = e.triangle;
-    // The leaving edges' reported slots are looked up first, then the
-    // entering edges take theirs, then the leaving ones give theirs back
-    // (free again after the triangle: an entering edge never takes one),
-    // and the finalized vertices theirs.
+    // Every slot a triangle names but its entering edges' was mapped when
+    // its element was reported or at the restart (keep_reported_slots()):
+    // within the maps. The leaving edges' reported slots are looked up
+    // first, then the entering edges take theirs, then the leaving ones
+    // give theirs back (free again after the triangle: an entering edge
+    // never takes one), and the finalized vertices theirs.
+    const uint32_t leaving_mask = t.leaving_mask, entering_mask = t.entering_mask;
     uint32_t leaving[3] = {kNoSlot, kNoSlot, kNoSlot};
-    for (int k = 0; k < 3; ++k)
-      if (t.leaving_mask >> k & 1) leaving[k] = slot(report_edge, t.eslot[k]);
-    for (int k = 0; k < 3; ++k)
-      if (t.entering_mask >> k & 1) t.eslot[k] = slot(report_edge, t.eslot[k]) = take(report_edge_free, report_edge_top);
-    for (int k = 0; k < 3; ++k)
-      if (t.leaving_mask >> k & 1) {
-        t.eslot[k] = leaving[k];
-        report_edge_free.push(leaving[k]);
-      }
-    for (int k = 0; k < 3; ++k) {
-      t.vslot[k] = slot(report_vertex, t.vslot[k]);
-      if (t.final_mask >> k & 1) report_vertex_free.push(t.vslot[k]);
-    }
+    if (leaving_mask)
+      for (int k = 0; k < 3; ++k)
+        if (leaving_mask >> k & 1) leaving[k] = report_edge[t.eslot[k]];
+    if (entering_mask)
+      for (int k = 0; k < 3; ++k)
+        if (entering_mask >> k & 1) {
+          const uint32_t s = t.eslot[k];
+          if (s >= report_edge.size()) report_edge.resize(size_t{s} + 1, kNoSlot);
+          t.eslot[k] = report_edge[s] = take(report_edge_free, report_edge_top);
+        }
+    if (leaving_mask)
+      for (int k = 0; k < 3; ++k)
+        if (leaving_mask >> k & 1) {
+          t.eslot[k] = leaving[k];
+          report_edge_free.push(leaving[k]);
+        }
+    const uint32_t* map = report_vertex.data();
+    for (int k = 0; k < 3; ++k) t.vslot[k] = map[t.vslot[k]];
+    if (t.final_mask)
+      for (int k = 0; k < 3; ++k)
+        if (t.final_mask >> k & 1) report_vertex_free.push(t.vslot[k]);
+  } else if (e.kind == SequenceEvent::Kind::kVertex && e.vertex.slot != kNoSlot) {
+    const uint32_t s = e.vertex.slot;
+    if (s >= report_vertex.size()) report_vertex.resize(size_t{s} + 1, kNoSlot);
+    e.vertex.slot = report_vertex[s] = take(report_vertex_free, report_vertex_top);
   }
 }
 
