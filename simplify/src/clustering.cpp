@@ -77,9 +77,9 @@ struct alignas(64) Node {
 static_assert(sizeof(Node) == 192, "a cluster takes three cache lines");
 
 // The clusters, in pages of 4096 (768 KiB): the array never moves, so it
-// never holds an old copy beside the new one while it grows (6 MiB at the
-// 48,049 clusters of a 200M-triangle foam at 10%), and holds no room
-// beyond a page. new_node() sets every field of a node it hands out.
+// never holds an old copy beside the new one while it grows (the clusters
+// are the filter's largest structure on a long boundary), and holds no
+// room beyond a page. new_node() sets every field of a node it hands out.
 class NodePool {
  public:
   Node& operator[](uint32_t n) { return pages_[n >> kPageBits][n & kPageMask]; }

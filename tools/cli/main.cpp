@@ -104,9 +104,8 @@ int main(int argc, char** argv) {
   // glibc's default raises this threshold to the largest block freed so
   // far, so that once a growing array (a simplifier's clusters, the
   // converter's records) has doubled, later large blocks come from the
-  // heap, whose freed middle stays resident: 87 MiB instead of 72 at the
-  // peak of a 200M-triangle simplification (bench/RESULTS.md, "Speed and
-  // memory at 50M and 200M triangles"), for no measurable time.
+  // heap, whose freed middle stays resident and counts against --memory
+  // (bench/RESULTS.md, "Speed and memory at 50M and 200M triangles").
   mallopt(M_MMAP_THRESHOLD, 128 << 10);
 #endif
   if (argc < 2) {

@@ -30,11 +30,11 @@ bool filter_encoding(const OpenedMesh& input, int bits, bool lossless, const std
   e->bits = bits ? bits : (h && !h->lossless) ? h->bits : 16;
   const bool large = !sequence_filter && auto_fast_profile(h ? input.decoder->schema() : input.source->schema());
   e->fast = profile == "fast" || (profile == "auto" && ((h && h->fast) || large));
-  // A filter's output encoder holds a chunk's symbols (about 4 bytes each,
-  // up to twice chunk_bytes of them: 8 MiB at the default 1 MiB), beside
-  // the filter: a quarter of that keeps psq simplify within 64 MB on a
-  // 200M-triangle input, for 0.13% more bytes (more chunks, more tables;
-  // bench/RESULTS.md, "Speed and memory at 50M and 200M triangles").
+  // A filter's output encoder holds a chunk's symbols (4 bytes each, up to
+  // twice chunk_bytes of them: 8 MiB at the default 1 MiB) beside the
+  // filter; smaller chunks keep psq simplify within 64 MB on the largest
+  // inputs, for a little more in tables (bench/RESULTS.md, "Speed and
+  // memory at 50M and 200M triangles").
   e->chunk_bytes = kFilterChunkBytes;
   return true;
 }
