@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // tools/src/ops: what the psq command and the Python module share (JSON,
-// pipeline plumbing, psq info's count, the clustering trial passes).
+// pipeline plumbing, psq info's count, the clustering trial passes, the
+// segments of a filter's output).
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -10,6 +11,7 @@
 #include <string>
 
 #include "clustering_run.h"
+#include "filter_output.h"
 #include "info.h"
 #include "json.h"
 #include "pipeline.h"
@@ -160,6 +162,32 @@ TEST(OpsPipeline, CountsTrianglesNotDeclared) {
   uint64_t count = 0;
   ASSERT_TRUE(detail::count_triangles(mesh, &count).ok());
   EXPECT_EQ(count, 50u);
+}
+
+TEST(OpsFilterOutput, SegmentsFollowTheExpectedOutput) {
+  // A filter's output takes a quarter of its expected triangles per
+  // segment, rounded up to 2^16 (EncodeOptions::auto_segment_triangles()).
+  test::Mesh grid = make_grid(5);
+  grid.schema.triangle_count = 100000000;  // as declared by a header
+  OpenedMesh mesh = opened(grid);
+  EncodeOptions e;
+  detail::filter_segments(mesh, 40000000, 0, &e);  // a target count
+  EXPECT_EQ(e.segment_triangles, 153u << 16);
+  e = EncodeOptions();
+  detail::filter_segments(mesh, 0, 0.5, &e);  // half of the declared count
+  EXPECT_EQ(e.segment_triangles, 191u << 16);
+  e = EncodeOptions();
+  detail::filter_segments(mesh, 0, 0, &e);  // nothing known: left to the encoder
+  EXPECT_EQ(e.segment_triangles, EncodeOptions::kAutoSegments);
+  e.segment_triangles = 0;  // one segment, asked for
+  detail::filter_segments(mesh, 40000000, 0, &e);
+  EXPECT_EQ(e.segment_triangles, 0u);
+  test::Mesh uncounted = make_grid(5);
+  uncounted.schema.triangle_count = uncounted.schema.vertex_count = MeshSchema::kUnknown;
+  OpenedMesh unknown = opened(uncounted);
+  e = EncodeOptions();
+  detail::filter_segments(unknown, 0, 1, &e);
+  EXPECT_EQ(e.segment_triangles, EncodeOptions::kAutoSegments);
 }
 
 TEST(OpsInfo, CountsAGridAndWritesItsJson) {

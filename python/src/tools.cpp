@@ -217,6 +217,7 @@ std::string simplify(const std::string& in, const std::string& out, const Simpli
     if (qo.ratio == 0 && qo.target_triangles == 0 && qo.max_error < 0)
       usage("give a target: ratio, triangles or max_error");
     if (qo.target_triangles > 0 && psq_in && in_schema.triangle_count < 0) qo.input_triangles = count_triangles(in, oo);
+    detail::filter_segments(mesh, p.triangles, p.ratio, &e);
     output.open(out, p, e, budget.writer);
     StreamQem qem(output.chain.sequence_sink(false), qo);
     // The builder reads the whole mesh before the first event: its count
@@ -294,6 +295,7 @@ std::string simplify(const std::string& in, const std::string& out, const Simpli
         pipeline_error(s, in, out);
       }
     }
+    detail::filter_segments(mesh, target, 0, &e);
     output.open(out, p, e, budget.writer);
     ClusteringFilter filter(output.chain.mesh_sink(budget.lookahead, false, false), co);
     ++passes;

@@ -115,6 +115,8 @@ int cmd_simplify_qem(int argc, char** argv) {
       return usage_error("simplify", "bad --seed '" + seed_text + "' (a non-negative integer)");
   }
 
+  fo.output_triangles = q.target_triangles;
+  fo.output_share = q.ratio;
   FilterRun run;
   int code = run.open("simplify", fo);
   if (code >= 0) return code;

@@ -384,6 +384,8 @@ int cmd_simplify(int argc, char** argv) {
   // The output.
   EncodeOptions encode_options;
   detail::filter_encoding(mesh, static_cast<int>(bits), lossless, profile, false, &encode_options);
+  // A target (--triangles, --ratio) tells the output's size; a grid alone does not.
+  detail::filter_segments(mesh, target, 0, &encode_options);
   if (out_format == MeshFormat::kDraco && !lossless && encode_options.bits > 30)
     return usage_error("simplify", "the input's " + std::to_string(encode_options.bits) +
                                        " bits are too many for Draco: give --bits (1..30)");

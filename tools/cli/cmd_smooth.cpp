@@ -59,6 +59,7 @@ int cmd_smooth(int argc, char** argv) {
   if (files.size() != 2) return usage_error("smooth", "smooth takes IN and OUT");
   fo.in = files[0];
   fo.out = files[1];
+  fo.output_share = 1;  // smoothing keeps every triangle
 
   SmoothOptions so;
   {

@@ -102,6 +102,7 @@ int FilterRun::open(const std::string& command, const FilterOptions& o) {
   if (!detail::filter_encoding(mesh_, bits, o.lossless, o.profile, true, &encode_))
     return usage_error(command, "--bits: the input is a lossless .psq, which gives no bounding box to quantize "
                                 "on; use --lossless");
+  detail::filter_segments(mesh_, o.output_triangles, o.output_share, &encode_);
   build_.tmpdir = o.tmpdir;
   build_.memory_budget = o.memory / 2;
   filter_budget_ = detail::sequence_filter_budget(o.memory, static_cast<bool>(mesh_.decoder));

@@ -34,6 +34,10 @@ struct FilterOptions {
   std::string tmpdir;
   int threads = 2;
   bool force = false, quiet = false, json = false;
+  // The output's expected size, for its segments (filter_segments()): a
+  // triangle count, or a share of the input's; 0: not known.
+  uint64_t output_triangles = 0;
+  double output_share = 0;
 };
 
 // The help lines of those options.

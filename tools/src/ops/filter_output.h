@@ -29,10 +29,21 @@ namespace psq::detail {
 // a fast .psq or, for a mesh-stream filter (clustering), a large mesh
 // (auto_fast_profile()). False when `bits` was given for a sequence filter
 // over a lossless .psq (the caller words the usage error).
-// Its chunks close at kFilterChunkBytes coded bytes.
+// Its chunks close at kFilterChunkBytes coded bytes. Its segments are
+// four of the output's triangles, as a conversion's of the same mesh
+// would be, once filter_segments() knows how many to expect.
 bool filter_encoding(const OpenedMesh& input, int bits, bool lossless, const std::string& profile,
                      bool sequence_filter, EncodeOptions* encode);
 constexpr uint32_t kFilterChunkBytes = 256u << 10;
+
+// Sets encode->segment_triangles (when left automatic) for an output of
+// about `triangles` triangles, or else of `share` times the input's
+// (EncodeOptions::auto_segment_triangles()): without it the encoder
+// takes 2^21-triangle segments, as for any stream of unknown length,
+// which on a filter's large output (smoothing keeps every triangle) is
+// many more than two cores use, each with its state block. Nothing is
+// set when neither is known (0), nor the input's count.
+void filter_segments(OpenedMesh& input, uint64_t triangles, double share, EncodeOptions* encode);
 
 // How psq simplify's --memory is split among the stages of a clustering
 // run (psq/memory_budget.h): half for the sequence builder (a mesh
