@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cmath>
 
 #include "psq/draco.h"
 #include "psq/obj.h"
@@ -58,12 +59,20 @@ MeshFormat detect_format(const uint8_t* data, size_t size, int64_t total_size) {
   return MeshFormat::kUnknown;
 }
 
-uint64_t auto_segment_triangles(OpenedMesh& mesh) {
+uint64_t auto_segment_triangles(OpenedMesh& mesh, double share) {
   MeshSchema counts = mesh.decoder ? mesh.decoder->schema() : mesh.source->schema();
   std::vector<PsqSegment> segments;
   PsqSegment end;
   if (mesh.decoder && mesh.stream->can_rewind() && mesh.decoder->segments(&segments, &end).ok())
     counts.triangle_count = static_cast<int64_t>(end.triangles);
+  if (share != 1) {
+    // As EncodeOptions::auto_segment_triangles() counts: the triangles,
+    // else twice the vertices.
+    const int64_t t = counts.triangle_count >= 0 ? counts.triangle_count
+                      : counts.vertex_count >= 0 ? 2 * counts.vertex_count
+                                                 : -1;
+    if (t >= 0) counts.triangle_count = std::llround(std::max(0.0, share) * static_cast<double>(t));
+  }
   return EncodeOptions::auto_segment_triangles(counts);
 }
 

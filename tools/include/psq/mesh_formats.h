@@ -58,8 +58,10 @@ Status open_mesh(std::unique_ptr<InputStream> stream, const OpenOptions& options
 
 // The .psq encoder's segment size for the opened input
 // (EncodeOptions::auto_segment_triangles()): from the counts of its
-// header, or for a .psq file from the totals of its end record.
-uint64_t auto_segment_triangles(OpenedMesh& mesh);
+// header, or for a .psq file from the totals of its end record. With
+// `share`, for an output of that share of the input's triangles (a
+// filter's: a simplification to 10% passes 0.1).
+uint64_t auto_segment_triangles(OpenedMesh& mesh, double share = 1);
 
 struct WriteOptions {
   bool ascii = false;     // PLY: ascii instead of binary little-endian

@@ -3,8 +3,6 @@
 #include "filter_output.h"
 
 #include <algorithm>
-#include <cmath>
-#include <vector>
 
 #include "pipeline.h"
 #include "psq/memory_budget.h"
@@ -43,24 +41,13 @@ bool filter_encoding(const OpenedMesh& input, int bits, bool lossless, const std
 
 void filter_segments(OpenedMesh& input, uint64_t triangles, double share, EncodeOptions* e) {
   if (e->segment_triangles != EncodeOptions::kAutoSegments) return;
-  MeshSchema counts = input.decoder ? input.decoder->schema() : input.source->schema();
-  if (triangles == 0) {
-    if (!(share > 0)) return;
-    // A .psq declares no counts in its header: its index and end record
-    // have them (auto_segment_triangles() reads them the same way).
-    if (input.decoder && counts.triangle_count < 0 && input.stream->can_rewind()) {
-      std::vector<PsqSegment> segments;
-      PsqSegment end;
-      if (input.decoder->segments(&segments, &end).ok()) counts.triangle_count = static_cast<int64_t>(end.triangles);
-    }
-    const int64_t t = counts.triangle_count >= 0 ? counts.triangle_count
-                      : counts.vertex_count >= 0 ? 2 * counts.vertex_count
-                                                 : -1;
-    if (t < 0) return;
-    triangles = static_cast<uint64_t>(std::llround(share * static_cast<double>(t)));
+  if (triangles > 0) {
+    MeshSchema counts;
+    counts.triangle_count = static_cast<int64_t>(std::min<uint64_t>(triangles, uint64_t{1} << 62));
+    e->segment_triangles = EncodeOptions::auto_segment_triangles(counts);
+  } else if (share > 0) {
+    e->segment_triangles = auto_segment_triangles(input, share);
   }
-  counts.triangle_count = static_cast<int64_t>(std::min<uint64_t>(triangles, uint64_t{1} << 62));
-  e->segment_triangles = EncodeOptions::auto_segment_triangles(counts);
 }
 
 ClusteringBudget split_clustering_budget(uint64_t memory) {

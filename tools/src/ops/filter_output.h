@@ -38,11 +38,11 @@ constexpr uint32_t kFilterChunkBytes = 256u << 10;
 
 // Sets encode->segment_triangles (when left automatic) for an output of
 // about `triangles` triangles, or else of `share` times the input's
-// (EncodeOptions::auto_segment_triangles()): without it the encoder
-// takes 2^21-triangle segments, as for any stream of unknown length,
-// which on a filter's large output (smoothing keeps every triangle) is
-// many more than two cores use, each with its state block. Nothing is
-// set when neither is known (0), nor the input's count.
+// (auto_segment_triangles()): without it the encoder takes 2^21-triangle
+// segments, as for any stream of unknown length, which on a filter's
+// large output (smoothing keeps every triangle) is many more than two
+// cores use, each with its state block. Nothing is set when neither is
+// known (0).
 void filter_segments(OpenedMesh& input, uint64_t triangles, double share, EncodeOptions* encode);
 
 // How psq simplify's --memory is split among the stages of a clustering
