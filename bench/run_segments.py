@@ -86,9 +86,9 @@ def main():
         target = os.path.join(work, "seg-fast.psq")
         out_ply = os.path.join(work, "out.ply")
         # (label, argv for a thread count, whether OUT is removed before each
-        # run): replacing an existing PLY of 190 MB frees its blocks as the
-        # new one is renamed over it, a serial step of about 0.06 s at 10M
-        # triangles that is no decoding; both cases are measured.
+        # run): replacing an existing PLY frees its blocks as the new one is
+        # renamed over it, a serial step that is no decoding; both cases are
+        # measured (RESULTS, "Independent segments").
         jobs = [
             ("psq verify", lambda t: [psq, "verify", "-q", "--threads", str(t), target], False),
             ("psq convert .psq → PLY (new file)",
