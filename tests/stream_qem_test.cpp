@@ -254,6 +254,46 @@ TEST(StreamQem, BubblesGoWholeOnlyWhenTheTargetNeedsIt) {
   }
 }
 
+// Parts that no collapse can reduce (tetrahedra), and no collapse to set an
+// error scale: when the count needs it they go all the same, the smallest
+// first, one at a time until the count is as near the target as whole
+// parts allow.
+TEST(StreamQem, PartsGoBeyondTheCollapseErrorWhenTheCountNeedsIt) {
+  std::vector<Pos> positions;
+  std::vector<std::array<uint32_t, 3>> triangles;
+  const int kParts = 10;
+  for (int i = 0; i < kParts; ++i) {
+    const double s = 1 + i;  // part i is the (i + 1)-th smallest
+    const double x = 30.0 * i;
+    const uint32_t b = static_cast<uint32_t>(positions.size());
+    positions.push_back({x, 0, 0});
+    positions.push_back({x + s, 0, 0});
+    positions.push_back({x, s, 0});
+    positions.push_back({x, 0, s});
+    for (const auto& t : std::vector<std::array<uint32_t, 3>>{{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}})
+      triangles.push_back({b + t[0], b + t[1], b + t[2]});
+  }
+  const Mesh m = test::make_mesh(positions, triangles);
+  for (uint64_t target : {20u, 22u, 40u}) {
+    QemOptions o;
+    o.target_triangles = target;
+    o.input_triangles = triangles.size();
+    Collected out;
+    QemReport r;
+    const Status s = simplify(m, o, &out, &r);
+    ASSERT_TRUE(s.ok()) << s.to_string();
+    // 22 is as near to 20 as to 24: the nearer, never past the target,
+    // unless that is nearer.
+    const uint64_t want = target == 22 ? 24 : target;
+    EXPECT_EQ(out.triangles.size(), want) << "target " << target;
+    EXPECT_EQ(r.components_dropped, (40 - want) / 4) << "target " << target;
+    // The largest parts stay.
+    double largest = 0;
+    for (const Pos& p : out.positions) largest = std::max(largest, p[0]);
+    EXPECT_EQ(largest, 30.0 * (kParts - 1) + kParts) << "target " << target;
+  }
+}
+
 // A torus keeps its handle while the target allows (at 10%); for a target
 // below what a torus can have (a closed surface of genus 1 needs 14
 // triangles) the tube is cut where three edges go round it, each side

@@ -339,8 +339,10 @@ struct StreamQem::Impl {
   void refuse(uint32_t v);
   bool collapse_one(double limit);
   void decimate(bool final, bool full = false);
-  bool drop_components(double excess, bool final, double limit);
-  bool cut_cycles(double excess, double limit);
+  // `beyond`: past the largest collapse error so far, one at a time (the
+  // last resort at the end).
+  bool drop_components(double excess, bool final, double limit, bool beyond);
+  bool cut_cycles(double excess, double limit, bool beyond);
   bool component(uint32_t v, std::vector<uint32_t>* triangles, double* cost);
   Status write_until(uint32_t target);
   Status finish();
@@ -792,7 +794,17 @@ void StreamQem::Impl::decimate(bool final, bool full) {
       // be met otherwise. Not before the last moment a component can go:
       // when the buffer is full, before triangles leave it, or at the end
       // (collapses elsewhere may have made up for it by then).
-      if (count_target && thorough && (drop_components(excess, final, limit) || cut_cycles(excess, limit))) {
+      if (count_target && thorough &&
+          (drop_components(excess, final, limit, false) || cut_cycles(excess, limit, false))) {
+        failed = 0;
+        continue;
+      }
+      // At the end, when nothing within that error is left, the count
+      // still wins over the shape ("kept unless the target cannot be met
+      // otherwise"): the cheapest component goes, or else the narrowest
+      // handle is cut, whatever it costs (still within max_error), one at
+      // a time, and collapses go on from there.
+      if (count_target && final && (drop_components(excess, final, limit, true) || cut_cycles(excess, limit, true))) {
         failed = 0;
         continue;
       }
@@ -860,7 +872,7 @@ bool StreamQem::Impl::component(uint32_t v, std::vector<uint32_t>* triangles, do
   return true;
 }
 
-bool StreamQem::Impl::drop_components(double excess, bool final, double limit) {
+bool StreamQem::Impl::drop_components(double excess, bool final, double limit, bool beyond) {
   if (visit_epoch > 0xf0000000u) {
     for (VertexData& d : data) d.visit = 0;
     visit_epoch = 0;
@@ -881,7 +893,7 @@ bool StreamQem::Impl::drop_components(double excess, bool final, double limit) {
     if (limit >= 0 && cost > limit) continue;
     // Nor farther than the collapses have moved the surface so far: a
     // small part goes, never one whose loss would dominate the error.
-    if (cost > max_cost) continue;
+    if (cost > max_cost && !beyond) continue;
     found.push_back({cost, static_cast<uint32_t>(all.size()), static_cast<uint32_t>(tris.size())});
     all.insert(all.end(), tris.begin(), tris.end());
   }
@@ -889,21 +901,38 @@ bool StreamQem::Impl::drop_components(double excess, bool final, double limit) {
   std::sort(found.begin(), found.end(), [](const Found& a, const Found& b) {
     return a.cost < b.cost || (a.cost == b.cost && a.begin < b.begin);
   });
+  // Mid-stream, a component goes when the excess is at least half of it.
+  // At the end, the cheapest that fit in the excess go. `beyond`: one
+  // component only, and if none fits, the smallest, when that leaves the
+  // count nearer the target (nothing at its floor can make up for an
+  // overshoot) and something of the mesh.
   bool dropped = false;
-  for (const Found& f : found) {
-    // Mid-stream, a component goes when the excess is at least half of it;
-    // at the end, when dropping it leaves the count nearer the target.
-    const double n = f.size;
-    if (final ? !(excess - n > -excess) : !(excess >= 0.5 * n)) continue;
+  auto drop = [&](Found& f) {
     // (Components are disjoint and were checked whole; can_discard()
     // guards the buffer all the same.)
     for (uint32_t i = 0; i < f.size; ++i)
       if (buffer.can_discard(all[f.begin + i])) buffer.discard(all[f.begin + i]);
-    excess -= n;
+    excess -= f.size;
     max_cost = std::max(max_cost, f.cost);
     ++report.components_dropped;
+    f.size = 0;
     dropped = true;
-    if (excess <= 0) break;
+  };
+  for (Found& f : found) {
+    const double n = f.size;
+    if (final ? !(n <= excess) : !(excess >= 0.5 * n)) continue;
+    drop(f);
+    if (excess <= 0 || beyond) return true;
+  }
+  if (beyond && !dropped) {
+    Found* smallest = nullptr;
+    for (Found& f : found)
+      if (smallest == nullptr || f.size < smallest->size) smallest = &f;
+    // Never the last part: an empty output is no nearer in any useful
+    // sense.
+    const TriangleBufferStats& st = buffer.stats();
+    const double total = static_cast<double>(st.triangles_written + buffer.triangle_count());
+    if (excess - smallest->size > -excess && total > smallest->size) drop(*smallest);
   }
   return dropped;
 }
@@ -916,7 +945,7 @@ bool StreamQem::Impl::drop_components(double excess, bool final, double limit) {
 // collapse error so far and max_error, and collapses go on: a handle goes
 // ("genus kept unless the target cannot be met otherwise"), or a neck
 // splits its component. At most one cut per 8 triangles of excess a round.
-bool StreamQem::Impl::cut_cycles(double excess, double limit) {
+bool StreamQem::Impl::cut_cycles(double excess, double limit, bool beyond) {
   struct Found {
     double cost;
     uint32_t h, c;
@@ -941,7 +970,7 @@ bool StreamQem::Impl::cut_cycles(double excess, double limit) {
       sub(pc, pa, e);
       longest = std::max(longest, dot(e, e));
       const double cost = longest / 3;  // squared circumradius of an equilateral one
-      if (cost > max_cost || (limit >= 0 && cost > limit)) continue;
+      if ((cost > max_cost && !beyond) || (limit >= 0 && cost > limit)) continue;
       found.push_back({cost, h, c});
     }
   }
@@ -949,7 +978,7 @@ bool StreamQem::Impl::cut_cycles(double excess, double limit) {
   std::sort(found.begin(), found.end(), [](const Found& x, const Found& y) {
     return x.cost < y.cost || (x.cost == y.cost && x.h < y.h);
   });
-  const size_t most = 1 + static_cast<size_t>(std::max(0.0, excess) / 8);
+  const size_t most = beyond ? 1 : 1 + static_cast<size_t>(std::max(0.0, excess) / 8);
   size_t done = 0;
   for (const Found& f : found) {
     if (done == most) break;

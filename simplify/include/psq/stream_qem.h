@@ -57,8 +57,12 @@
 // the narrowest first, and collapses go on. Either only within the largest
 // error of a collapse so far and max_error (a dropped component's error is
 // its half box diagonal, a cut's the circumradius of the cycle's longest
-// edge). Borders are kept, and where the target needs them gone it is not
-// met (the report says what was achieved). The output is the same for the
+// edge); at the end, when nothing within that error is left, the count
+// wins: one at a time, a component goes whatever it costs (the cheapest
+// that fits in the excess, else the smallest when that leaves the count
+// nearer the target), or else a handle is cut, still within max_error.
+// Borders are kept, and where the target needs them gone it is not met
+// (the report says what was achieved). The output is the same for the
 // same input events and options (seeded choices).
 //
 // Vertex properties: a merged vertex keeps the values of the end it kept
