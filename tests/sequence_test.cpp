@@ -621,17 +621,19 @@ TEST(Converter, ManyTrianglesOnOneEdge) {
 
 // Feeds an n x n grid like feed_grid, with vertex `id` at x = id and
 // property values on some elements only (every 7th vertex, every 5th
-// triangle), the first of them after the waiting area holds many.
-Status feed_grid_with_values(SequenceConverter& conv, uint32_t n) {
+// triangle), the first of them after the waiting area holds many. The
+// converter sees vertex `id` as id_of(id).
+Status feed_grid_with_values(SequenceConverter& conv, uint32_t n, uint32_t (*id_of)(uint32_t) = nullptr) {
+  auto ext = [&](uint32_t id) { return id_of ? id_of(id) : id; };
   const uint32_t w = n + 1;
   PropertyValues none;
   uint32_t t_count = 0;
   auto vertex = [&](uint32_t id) {
     const double p[3] = {static_cast<double>(id), 0, 0};
-    return conv.vertex(id, p, id % 7 == 3 ? PropertyValues{id + 0.5, -1.0 * id} : none);
+    return conv.vertex(ext(id), p, id % 7 == 3 ? PropertyValues{id + 0.5, -1.0 * id} : none);
   };
   auto triangle = [&](uint32_t a, uint32_t b, uint32_t c) {
-    const uint32_t t[3] = {a, b, c};
+    const uint32_t t[3] = {ext(a), ext(b), ext(c)};
     const uint32_t k = t_count++;
     return conv.triangle(t, k % 5 == 4 ? PropertyValues{static_cast<double>(k)} : none);
   };
@@ -644,9 +646,9 @@ Status feed_grid_with_values(SequenceConverter& conv, uint32_t n) {
       PSQ_RETURN_IF_ERROR(triangle(a, b, c));
       PSQ_RETURN_IF_ERROR(triangle(a, c, d));
     }
-    for (uint32_t i = 0; i < w; ++i) PSQ_RETURN_IF_ERROR(conv.finalize(j * w + i));
+    for (uint32_t i = 0; i < w; ++i) PSQ_RETURN_IF_ERROR(conv.finalize(ext(j * w + i)));
   }
-  for (uint32_t i = 0; i < w; ++i) PSQ_RETURN_IF_ERROR(conv.finalize(n * w + i));
+  for (uint32_t i = 0; i < w; ++i) PSQ_RETURN_IF_ERROR(conv.finalize(ext(n * w + i)));
   return conv.finish();
 }
 
@@ -686,6 +688,27 @@ TEST(Converter, ReserveChangesNothingAndValuesArrive) {
       EXPECT_EQ(triangle_values, fed);
     } else {
       EXPECT_EQ(log.text(), first) << "reserve " << r;
+    }
+  }
+}
+
+TEST(Converter, AnyIdsGiveTheSameSequence) {
+  // The converter finds waiting vertices by their ids' low bits first:
+  // ids that all share their low 16 bits, or scattered over 32 bits, give
+  // the events that dense ids give.
+  const uint32_t n = 200;
+  std::string dense;
+  for (uint32_t (*id_of)(uint32_t) : {static_cast<uint32_t (*)(uint32_t)>(nullptr),
+                                      +[](uint32_t id) { return (id << 16) | (id >> 16); },
+                                      +[](uint32_t id) { return id * 2654435761u; }}) {
+    test::EventLog log;
+    SequenceConverter conv(&log);
+    Status s = feed_grid_with_values(conv, n, id_of);
+    ASSERT_TRUE(s.ok()) << s.to_string();
+    if (dense.empty()) {
+      dense = log.text();
+    } else {
+      EXPECT_EQ(log.text(), dense);
     }
   }
 }

@@ -288,27 +288,54 @@ struct SequenceConverter::Impl {
   SequenceSink* out = nullptr;
   Status error;              // the first error; every later call returns it
   ConverterStats stats;
-  IdMap ids;                 // input id -> slot in vpool
-  // In front of `ids`: a direct-mapped cache of input id -> slot, indexed by
-  // the id's low bits. The triangles of a coherent input use ids that are
-  // dense and close together in time, which the map's hash scatters over a
-  // table as large as the waiting area's vertices (beyond the L2 cache);
-  // here they share cache lines. An entry may be stale (its vertex left):
-  // it counts only while the slot still holds that id, which the callers
-  // read next anyway, so that releasing a vertex need not touch the cache.
-  struct IdCacheEntry {
-    uint32_t id = kNone;
-    uint32_t slot = kNone;
-  };
-  static constexpr uint32_t kIdCacheSize = 1u << 16;
-  std::vector<IdCacheEntry> id_cache = std::vector<IdCacheEntry>(kIdCacheSize);
+  // Input id -> slot in vpool: a table indexed by the id's low bits, kept
+  // at least twice as large as the pool, with the ids whose cell another
+  // waiting id holds in a hash map beside it. The ids of a coherent input
+  // are dense and waiting ids span a window not much wider than the
+  // waiting area, so they rarely meet in a cell, and ids given or
+  // finalized one after the other share cache lines, where a hash
+  // scatters them over a table beyond the L2 cache (its lookups and
+  // erasures were most of release_vertex's time). Any ids work, in any
+  // order: the overflow map takes what the table cannot.
+  std::vector<uint32_t> id_table = std::vector<uint32_t>(kIdTableMin, kNone);
+  IdMap id_overflow;
+  uint64_t live_ids = 0;
+  static constexpr size_t kIdTableMin = size_t{1} << 16;
   // The slot of waiting vertex `id`, or kNone.
-  uint32_t find_slot(uint32_t id) {
-    IdCacheEntry& c = id_cache[id & (kIdCacheSize - 1)];
-    if (c.id == id && c.slot != kNone && vpool[c.slot].id == id) return c.slot;
-    const uint32_t slot = ids.find(id);
-    if (slot != kNone) c = IdCacheEntry{id, slot};
-    return slot;
+  uint32_t find_slot(uint32_t id) const {
+    const uint32_t slot = id_table[id & (id_table.size() - 1)];
+    if (slot != kNone && vpool[slot].id == id) return slot;
+    return id_overflow.size() == 0 ? kNone : id_overflow.find(id);
+  }
+  void insert_id(uint32_t id, uint32_t slot) {
+    uint32_t& cell = id_table[id & (id_table.size() - 1)];
+    if (cell == kNone) {
+      cell = slot;
+    } else {
+      id_overflow.insert(id, slot);
+    }
+    ++live_ids;
+  }
+  void erase_id(uint32_t id, uint32_t slot) {
+    uint32_t& cell = id_table[id & (id_table.size() - 1)];
+    if (cell == slot) {
+      cell = kNone;
+    } else {
+      id_overflow.erase(id);
+    }
+    --live_ids;
+  }
+  // Doubles the table until it has twice the pool's slots, and fills it
+  // again from the pool.
+  void grow_id_table(size_t pool) {
+    size_t n = id_table.size();
+    while (n < 2 * pool) n *= 2;
+    if (n == id_table.size()) return;
+    id_table.assign(n, kNone);
+    id_overflow = IdMap();
+    live_ids = 0;
+    for (uint32_t slot = 0; slot < vpool.size(); ++slot)
+      if (vpool[slot].id != kNone) insert_id(vpool[slot].id, slot);
   }
   FinalizedIds finalized_ids;
   std::vector<Vert> vpool;
@@ -452,20 +479,20 @@ uint32_t SequenceConverter::Impl::vertex_slot(uint32_t id) {
     free_verts.pop_back();
   } else {
     slot = static_cast<uint32_t>(vpool.size());
+    grow_id_table(vpool.size() + 1);
     vpool.emplace_back();
     vert_pos.emplace_back();
     vert_spill.emplace_back();
   }
   vpool[slot].id = id;
-  ids.insert(id, slot);
-  id_cache[id & (kIdCacheSize - 1)] = IdCacheEntry{id, slot};
-  stats.max_waiting_vertices = std::max<uint64_t>(stats.max_waiting_vertices, ids.size());
+  insert_id(id, slot);
+  stats.max_waiting_vertices = std::max<uint64_t>(stats.max_waiting_vertices, live_ids);
   return slot;
 }
 
 void SequenceConverter::Impl::release_vertex(uint32_t slot) {
   Vert& v = vpool[slot];
-  ids.erase(v.id);
+  erase_id(v.id, slot);
   v.id = kNone;
   v.has_data = v.finalized = v.settled = false;
   if (v.has_values) {
@@ -1157,15 +1184,14 @@ bool SequenceConverter::Impl::finish() {
   // Finalize what the caller left open (a source that finalizes nothing
   // leaves the whole mesh to this point).
   std::vector<uint32_t> open;
-  ids.for_each([&](uint32_t id, uint32_t slot) {
-    if (!vpool[slot].finalized) open.push_back(id);
-  });
+  for (const Vert& v : vpool)
+    if (v.id != kNone && !v.finalized) open.push_back(v.id);
   std::sort(open.begin(), open.end());
   for (uint32_t id : open) {
     if (!finalize(id)) return false;
   }
   if (!drain()) return false;
-  if (waiting != 0 || ids.size() != 0) {
+  if (waiting != 0 || live_ids != 0) {
     return fail(Status(ErrorCode::kInternal, std::to_string(waiting) + " triangles left in the waiting area"));
   }
   Status s = out->finish();
