@@ -477,6 +477,10 @@ uint32_t SequenceConverter::Impl::vertex_slot(uint32_t id) {
   if (!free_verts.empty()) {
     slot = free_verts.back();
     free_verts.pop_back();
+    if (!free_verts.empty()) {
+      __builtin_prefetch(&vpool[free_verts.back()], 1);
+      __builtin_prefetch(&vert_pos[free_verts.back()], 1);
+    }
   } else {
     slot = static_cast<uint32_t>(vpool.size());
     grow_id_table(vpool.size() + 1);
@@ -533,6 +537,17 @@ void SequenceConverter::set_lookahead_minimum(uint64_t triangles) {
   impl_->lookahead_min = std::max<uint64_t>(1, triangles);
 }
 const ConverterStats& SequenceConverter::stats() const { return impl_->stats; }
+
+// triangle() reads each corner's record (the id check, the corner list,
+// the counters): a cache miss per corner on a large waiting area, unless
+// requested ahead.
+void SequenceConverter::prefetch(const uint32_t id[3]) const {
+  const Impl& m = *impl_;
+  for (int k = 0; k < 3; ++k) {
+    const uint32_t slot = m.id_table[id[k] & (m.id_table.size() - 1)];
+    if (slot != kNone) __builtin_prefetch(&m.vpool[slot], 1);
+  }
+}
 
 // Every public call returns the first error again once there was one.
 Status SequenceConverter::begin(const MeshSchema& schema) {
@@ -606,6 +621,9 @@ bool SequenceConverter::Impl::triangle(const uint32_t id[3], const PropertyValue
   if (!free_tris.empty()) {
     slot = free_tris.back();
     free_tris.pop_back();
+    // The next triangle takes the next free slot: a line last touched
+    // long ago.
+    if (!free_tris.empty()) __builtin_prefetch(&tris[free_tris.back()], 1);
   } else {
     if (tris.size() >= kMaxTriangles) return fail(Status(ErrorCode::kLimit, "more than 2^30 triangles waiting"));
     slot = static_cast<uint32_t>(tris.size());
@@ -1088,6 +1106,9 @@ bool SequenceConverter::Impl::emit(uint32_t slot, int cls) {
     const uint32_t off = pt.vs[kPrev[p & 3]];
     __builtin_prefetch(&vpool[off], 1);
     __builtin_prefetch(&vert_pos[off]);
+    // ... and its own partners, whose lines its emission writes first.
+    for (uint32_t j = 0; j < 3; ++j)
+      if (j != (p & 3) && pt.partner[j] != kNone) __builtin_prefetch(&tris[pt.partner[j] >> 2], 1);
     if (pt.ready()) {
       int c = classify(pt);
       if (c >= 0 && c < 4) buckets[c].push(p >> 2);

@@ -160,7 +160,7 @@ Status feed_coherent(Spooled& s, SequenceConverter& conv) {
   InputStream& tin = s.triangles->stream();
   uint64_t fed = 0, finalized = 0;
   double pos[3];
-  PropertyValues values, vertex_values;  // apart: feeding vertices must not clobber a triangle's
+  PropertyValues vertex_values;
   auto feed_until = [&](uint64_t end) -> Status {
     while (fed < end) {
       PSQ_RETURN_IF_ERROR(get_record(vin, pos, 24, &vertex_values));
@@ -174,12 +174,25 @@ Status feed_coherent(Spooled& s, SequenceConverter& conv) {
     while (finalized < end) PSQ_RETURN_IF_ERROR(conv.finalize(static_cast<uint32_t>(finalized++)));
     return Status();
   };
-  for (uint64_t t = 0; t < s.nt; ++t) {
+  // Triangles are read kAhead records before they go in, so that the
+  // converter loads their corners' records ahead (prefetch()).
+  constexpr uint64_t kAhead = 8;
+  struct Record {
     uint32_t idx[3];
-    PSQ_RETURN_IF_ERROR(get_record(tin, idx, 12, &values));
-    PSQ_RETURN_IF_ERROR(feed_until(uint64_t{std::max({idx[0], idx[1], idx[2]})} + 1));
-    PSQ_RETURN_IF_ERROR(conv.triangle(idx, values));
+    PropertyValues values;
+  };
+  Record ring[kAhead];
+  for (uint64_t t = 0; t < std::min(kAhead, s.nt); ++t)
+    PSQ_RETURN_IF_ERROR(get_record(tin, ring[t].idx, 12, &ring[t].values));
+  for (uint64_t t = 0; t < s.nt; ++t) {
+    Record& r = ring[t % kAhead];
+    PSQ_RETURN_IF_ERROR(feed_until(uint64_t{std::max({r.idx[0], r.idx[1], r.idx[2]})} + 1));
+    PSQ_RETURN_IF_ERROR(conv.triangle(r.idx, r.values));
     if ((t + 1) % kBlock == 0 || t + 1 == s.nt) PSQ_RETURN_IF_ERROR(finalize_below(s.later_min[t / kBlock]));
+    if (t + kAhead < s.nt) {
+      PSQ_RETURN_IF_ERROR(get_record(tin, r.idx, 12, &r.values));
+      conv.prefetch(r.idx);
+    }
   }
   return finalize_below(s.nv);
 }

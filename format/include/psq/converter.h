@@ -100,6 +100,9 @@ class SequenceConverter final : public StreamingMeshSink {
   // at most the lookahead's budget's worth; the output does not depend on
   // it. Call after set_lookahead_budget(), before the first vertex.
   void reserve(uint64_t vertices, uint64_t triangles);
+  // A hint: a triangle over these ids comes a few calls from now, so that
+  // the records of those already given start loading. Changes nothing.
+  void prefetch(const uint32_t id[3]) const;
   // Passes the schema on to the sink. Errors: the sink's.
   Status begin(const MeshSchema& schema) override;
   // The data of input vertex `id` (any 32-bit number but 4294967295, given
