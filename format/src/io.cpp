@@ -148,8 +148,11 @@ Status InputStream::open_fd(int fd, bool take_ownership, std::string name) {
     if (S_ISDIR(st.st_mode)) return Status(ErrorCode::kIo, "is a directory");
     if (S_ISREG(st.st_mode)) size_ = static_cast<int64_t>(st.st_size);
   }
-  buffer_.resize(kBufferSize);
-  data_ = buffer_.data();
+  if (capacity_ < kBufferSize) {
+    buffer_.reset(new uint8_t[kBufferSize]);
+    capacity_ = kBufferSize;
+  }
+  data_ = buffer_.get();
   return Status();
 }
 
@@ -187,13 +190,13 @@ Status InputStream::refill() {
   if (eof_) return Status();
   // Move the unread tail to the front, then read as much as fits.
   if (pos_ > 0) {
-    std::memmove(buffer_.data(), buffer_.data() + pos_, end_ - pos_);
+    std::memmove(buffer_.get(), buffer_.get() + pos_, end_ - pos_);
     base_ += pos_;
     end_ -= pos_;
     pos_ = 0;
   }
-  while (end_ < buffer_.size()) {
-    ssize_t r = ::read(fd_, buffer_.data() + end_, buffer_.size() - end_);
+  while (end_ < capacity_) {
+    ssize_t r = ::read(fd_, buffer_.get() + end_, capacity_ - end_);
     if (r < 0) {
       if (errno == EINTR) continue;
       return Status(ErrorCode::kIo, std::string("read failed: ") + std::strerror(errno), offset());
@@ -210,20 +213,20 @@ Status InputStream::refill() {
 
 Status InputStream::fill(size_t n, size_t* available) {
   // Callers bound n (read_line by kMaxLine + 2); grow the buffer to fit.
-  if (fd_ >= 0 && n > buffer_.size()) {
-    if (pos_ > 0) {
-      std::memmove(buffer_.data(), buffer_.data() + pos_, end_ - pos_);
-      base_ += pos_;
-      end_ -= pos_;
-      pos_ = 0;
-    }
-    buffer_.resize(n);
-    data_ = buffer_.data();
+  if (fd_ >= 0 && n > capacity_) {
+    std::unique_ptr<uint8_t[]> grown(new uint8_t[n]);
+    std::memcpy(grown.get(), buffer_.get() + pos_, end_ - pos_);
+    base_ += pos_;
+    end_ -= pos_;
+    pos_ = 0;
+    buffer_ = std::move(grown);
+    capacity_ = n;
+    data_ = buffer_.get();
   }
   while (end_ - pos_ < n && !eof_) {
     size_t before = end_ - pos_;
     PSQ_RETURN_IF_ERROR(refill());
-    if (end_ - pos_ == before && !eof_ && end_ == buffer_.size()) break;  // n > capacity
+    if (end_ - pos_ == before && !eof_ && end_ == capacity_) break;  // n > capacity
   }
   *available = end_ - pos_;
   return Status();

@@ -87,8 +87,10 @@ class InputStream {
   int fd_ = -1;
   bool own_fd_ = false;
   bool eof_ = false;
-  std::vector<uint8_t> buffer_;
-  const uint8_t* data_ = nullptr;  // buffer_.data() or the memory input
+  // Not zeroed: a page of it is touched only when input is read into it.
+  std::unique_ptr<uint8_t[]> buffer_;
+  size_t capacity_ = 0;            // of buffer_
+  const uint8_t* data_ = nullptr;  // buffer_ or the memory input
   size_t pos_ = 0;                 // cursor within data_
   size_t end_ = 0;                 // valid bytes in data_
   uint64_t base_ = 0;              // input offset of data_[0]
