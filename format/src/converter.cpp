@@ -300,7 +300,7 @@ struct SequenceConverter::Impl {
   std::vector<uint32_t> id_table = std::vector<uint32_t>(kIdTableMin, kNone);
   IdMap id_overflow;
   uint64_t live_ids = 0;
-  static constexpr size_t kIdTableMin = size_t{1} << 16;
+  static constexpr size_t kIdTableMin = size_t{1} << 12;
   // The slot of waiting vertex `id`, or kNone.
   uint32_t find_slot(uint32_t id) const {
     const uint32_t slot = id_table[id & (id_table.size() - 1)];

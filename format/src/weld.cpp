@@ -71,7 +71,13 @@ void DuplicateSampler::add(const double position[3]) {
   if (full_) return;
   const uint64_t h = position_hash(position);
   if ((h >> 60) != 0) return;  // outside the sampled sixteenth
-  if (table_.empty()) table_.assign(kSlots, 0);
+  if (!table_) {
+    table_.reset(static_cast<uint64_t*>(std::calloc(kSlots, sizeof(uint64_t))));
+    if (!table_) {  // no room for an estimate: none is made
+      full_ = true;
+      return;
+    }
+  }
   ++sampled_;
   const uint64_t key = h | 1;
   for (size_t i = static_cast<size_t>(h >> 8) & (kSlots - 1);; i = (i + 1) & (kSlots - 1)) {

@@ -5,7 +5,9 @@
 #define PSQ_SRC_WELD_H_
 
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -38,7 +40,12 @@ class DuplicateSampler {
   double duplicate_share() const;
 
  private:
-  std::vector<uint64_t> table_;  // hash | 1; 0 is an empty slot
+  // hash | 1; 0 is an empty slot. From calloc: pages of zeros that cost
+  // nothing until a sample lands in them (a small mesh touches few).
+  struct Free {
+    void operator()(uint64_t* p) const { std::free(p); }
+  };
+  std::unique_ptr<uint64_t[], Free> table_;
   size_t used_ = 0;
   uint64_t sampled_ = 0, duplicates_ = 0;
   bool full_ = false;
