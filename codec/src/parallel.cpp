@@ -195,14 +195,33 @@ Status decode_mesh_segments(const std::function<Status(InputStream*)>& open, int
   return SegmentRun::check_float_range(header, *mesh);
 }
 
+namespace {
+
+// The segments of a stream in memory, by its index; 0 when it has none or
+// it cannot be read (the one-thread path then reports why).
+size_t segment_count(const uint8_t* data, size_t size) {
+  InputStream in;
+  in.open_memory(data, size, "<memory>");
+  PsqDecoder d;
+  std::vector<PsqSegment> segs;
+  return d.open(&in).ok() && d.segments(&segs).ok() ? segs.size() : 0;
+}
+
+}  // namespace
+
 Status decode_mesh(const uint8_t* data, size_t size, MeshBuffers* mesh, int threads) {
   mesh->positions.clear();
   mesh->indices.clear();
   Status s(ErrorCode::kUnsupported, "one thread");
   // A stream of several segments on every core; one that cannot be
   // decoded so (kUnsupported) by one thread, which also reports what is
-  // wrong with a damaged stream in stream order.
-  if (threads != 1) {
+  // wrong with a damaged stream in stream order. A stream of one segment
+  // takes the one-thread path at once: decode_mesh_segments() would
+  // decode it on this thread too, into arrays sized before the decoder's
+  // tables, which in a process that decodes again and again left the
+  // arrays' pages to be faulted in anew each time (bench/RESULTS.md,
+  // "Speed ratios to Draco within one invocation").
+  if (threads != 1 && segment_count(data, size) > 1) {
     auto open = [&](InputStream* in) {
       in->open_memory(data, size, "<memory>");
       return Status();
