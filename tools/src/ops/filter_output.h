@@ -29,9 +29,9 @@ namespace psq::detail {
 // a fast .psq or, for a mesh-stream filter (clustering), a large mesh
 // (auto_fast_profile()). False when `bits` was given for a sequence filter
 // over a lossless .psq (the caller words the usage error).
-// Its chunks close at kFilterChunkBytes coded bytes. Its segments are
-// four of the output's triangles, as a conversion's of the same mesh
-// would be, once filter_segments() knows how many to expect.
+// Its chunks close at kFilterChunkBytes coded bytes. Its segments split
+// the output in four, as a conversion of a mesh of that size would, once
+// filter_segments() knows how many triangles to expect.
 bool filter_encoding(const OpenedMesh& input, int bits, bool lossless, const std::string& profile,
                      bool sequence_filter, EncodeOptions* encode);
 constexpr uint32_t kFilterChunkBytes = 256u << 10;
