@@ -6,12 +6,15 @@
 // damaged attribute sections are refused.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <random>
 #include <string>
 #include <vector>
 
+#include "psq/mesh_arrays.h"
 #include "psq/psq_codec.h"
+#include "psq/psq_memory.h"
 #include "psq/sequence_builder.h"
 #include "test_util.h"
 
@@ -39,6 +42,32 @@ double as_float(double v) {
 // texture coordinate pair (`uv` names; u runs 0..1 around the torus with a
 // seam where the torus closes, v offset by `uv_offset`), red green blue
 // alpha (uint8), and a float "confidence" (a column).
+// Area-weighted vertex normals, not yet of unit length.
+std::vector<std::array<double, 3>> ring_normals(const Mesh& m) {
+  std::vector<std::array<double, 3>> n(m.positions.size(), {0, 0, 0});
+  for (const auto& t : m.triangles) {
+    const auto &a = m.positions[t[0]], &b = m.positions[t[1]], &c = m.positions[t[2]];
+    const double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, w[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    const double f[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
+    for (uint32_t i : t)
+      for (int k = 0; k < 3; ++k) n[i][k] += f[k];
+  }
+  return n;
+}
+
+// `m` with float normals nx ny nz: vertex i's is the unit area-weighted
+// normal of vertex (i + shift) % n.
+void add_normals(Mesh* m, size_t shift = 0) {
+  const std::vector<std::array<double, 3>> n = ring_normals(*m);
+  for (const char* name : {"nx", "ny", "nz"}) m->schema.vertex_properties.push_back(prop(name, ScalarType::kFloat32));
+  m->vertex_values.assign(m->positions.size(), PropertyValues());
+  for (size_t i = 0; i < m->positions.size(); ++i) {
+    const auto& v = n[(i + shift) % n.size()];
+    const double l = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    for (int k = 0; k < 3; ++k) m->vertex_values[i].push_back(as_float(v[k] / l));
+  }
+}
+
 struct Spec {
   bool normals = false, texcoords = false, colors = false, alpha = false, confidence = false, zero_normal = false;
   const char* u = "u";
@@ -62,15 +91,7 @@ Mesh attributed_torus(const Spec& s) {
     if (s.alpha) vp.push_back(prop(full ? "alpha" : "a", ScalarType::kUInt8));
   }
   if (s.confidence) vp.push_back(prop("confidence", ScalarType::kFloat32));
-  // Area-weighted vertex normals.
-  std::vector<std::array<double, 3>> n(m.positions.size(), {0, 0, 0});
-  for (const auto& t : m.triangles) {
-    const auto &a = m.positions[t[0]], &b = m.positions[t[1]], &c = m.positions[t[2]];
-    const double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, w[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-    const double f[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
-    for (uint32_t i : t)
-      for (int k = 0; k < 3; ++k) n[i][k] += f[k];
-  }
+  const std::vector<std::array<double, 3>> n = ring_normals(m);
   m.vertex_values.assign(m.positions.size(), PropertyValues());
   for (size_t i = 0; i < m.positions.size(); ++i) {
     const auto& p = m.positions[i];
@@ -229,6 +250,82 @@ TEST(Attributes, RoundTripPerKindAndProfile) {
       }
     }
   }
+}
+
+// Spec 8.4: a normal is predicted from its vertex's whole ring. Normals
+// that are their vertices' area-weighted normals cost far less than the
+// same normals moved one step along the torus (as smooth a field, but
+// not the rings' own).
+TEST(Attributes, NormalsArePredictedFromTheirRing) {
+  for (bool fast : {false, true}) {
+    uint64_t bytes[2];
+    for (size_t shift : {0, 1}) {
+      Mesh m = test::make_torus(48, 24);
+      add_normals(&m, shift * 24);
+      std::vector<uint8_t> out;
+      VectorWriter w(&out);
+      PsqEncoder enc(&w, options(fast, 10, 0));
+      const Events ev = sequence_of(m);
+      const Status st = enc.begin(ev.schema);
+      ASSERT_TRUE(st.ok()) << st.to_string();
+      for (const SequenceEvent& e : ev.events) {
+        if (e.kind == SequenceEvent::Kind::kVertex) ASSERT_TRUE(enc.vertex(e.vertex).ok());
+        else if (e.kind == SequenceEvent::Kind::kTriangle) ASSERT_TRUE(enc.triangle(e.triangle).ok());
+        else ASSERT_TRUE(enc.finalize(e.finalized).ok());
+      }
+      ASSERT_TRUE(enc.finish().ok());
+      bytes[shift] = enc.stats().attribute_bytes;
+      Events back;
+      ASSERT_TRUE(decode(out, &back).ok());
+      expect_within(ev, back, 10, 0);
+    }
+    EXPECT_LT(3 * bytes[0], bytes[1]) << "fast " << fast << ": " << bytes[0] << " and " << bytes[1] << " bytes";
+  }
+}
+
+// Spec 8.4: a normal waits for its vertex at most kMaxNormalWait records,
+// and none past its chunk. The centre of a fan of more triangles than
+// that is coded before its last triangle comes; the events, the arrays
+// and the segments decoded on two threads agree.
+TEST(Attributes, ANormalWaitsAtMostItsBound) {
+  const uint32_t n = 6000;
+  std::vector<std::array<double, 3>> p{{0, 0, 0}};
+  std::vector<std::array<uint32_t, 3>> t;
+  for (uint32_t i = 0; i < n; ++i) {
+    const double a = 2 * M_PI * i / n;
+    p.push_back({as_float(std::cos(a)), as_float(std::sin(a)), as_float(0.2 * std::sin(7 * a))});
+    t.push_back({0, 1 + i, 1 + (i + 1) % n});
+  }
+  Mesh m = test::make_mesh(p, t);
+  add_normals(&m);
+  const Events ev = sequence_of(m);
+  for (bool fast : {false, true})
+    for (uint64_t segment : {uint64_t{0}, uint64_t{1000}}) {
+      EncodeOptions o = options(fast, 12, 0);
+      o.segment_triangles = segment;
+      o.chunk_bytes = 4096;  // chunks end while normals wait
+      std::vector<uint8_t> bytes;
+      const Status st = encode(ev, o, &bytes);
+      ASSERT_TRUE(st.ok()) << st.to_string();
+      Events back;
+      const Status ds = decode(bytes, &back);
+      ASSERT_TRUE(ds.ok()) << "fast " << fast << " segments of " << segment << ": " << ds.to_string();
+      expect_within(ev, back, 12, 0);
+      MeshBuffers one, two, events;
+      ASSERT_TRUE(decode_mesh(bytes.data(), bytes.size(), &one, 1).ok());
+      ASSERT_TRUE(decode_mesh(bytes.data(), bytes.size(), &two, 2).ok());
+      MeshArraySink sink(&events);
+      ASSERT_TRUE(sink.begin(back.schema).ok());
+      for (const SequenceEvent& e : back.events)
+        ASSERT_TRUE(e.kind == SequenceEvent::Kind::kVertex ? sink.vertex(e.vertex).ok()
+                    : e.kind == SequenceEvent::Kind::kTriangle ? sink.triangle(e.triangle).ok()
+                                                                : true);
+      EXPECT_EQ(one.positions, events.positions);
+      EXPECT_EQ(one.indices, events.indices);
+      EXPECT_EQ(two.positions, events.positions);
+      EXPECT_EQ(two.indices, events.indices);
+      EXPECT_EQ(events.indices.size(), size_t{3} * n);
+    }
 }
 
 // Both profiles decode to the same values: the attribute coder is shared.

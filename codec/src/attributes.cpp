@@ -1,10 +1,12 @@
 // SPDX-License-Identifier: Apache-2.0
-// codec/src/attributes.cpp: see attributes.h and spec/psq-format.md 8.3.
-// Normals on the octahedron as in Meyer, Sherman and Strzodka, "On
-// floating-point normal vectors" (EGSR 2010) and Cigolle et al., "A survey
-// of efficient representations for independent unit vectors" (JCGT 2014),
-// predicted by the parallelogram rule of Touma and Gotsman, "Triangle mesh
-// compression" (GI 1998) on the normals as vectors; texture coordinates
+// codec/src/attributes.cpp: see attributes.h and spec/psq-format.md 8.3
+// and 8.4. Normals on the octahedron as in Meyer, Sherman and Strzodka,
+// "On floating-point normal vectors" (EGSR 2010) and Cigolle et al., "A
+// survey of efficient representations for independent unit vectors"
+// (JCGT 2014), predicted by the area-weighted normal of the vertex's
+// triangles (as Draco's decoder, which has all connectivity first,
+// predicts them), coded once the streaming decoder has those triangles;
+// texture coordinates
 // predicted by the new vertex's place beside the gate edge in space,
 // carried into the texture (as Draco's texture coordinate predictor does),
 // else by the parallelogram in texture space as in Isenburg and Snoeyink,
@@ -206,6 +208,8 @@ AttributeCoder::AttributeCoder(const std::vector<Property>& vertex, const std::v
         case CodedAttribute::Kind::kNormal: {
           const int64_t half = (int64_t{1} << (at.bits - 1)) - 1;
           c.bits = at.bits;
+          c.late = true;
+          late_d_ = dims_;
           c.mod = 2 * half + 1;
           c.lo = 0;
           c.hi = 2 * half;
@@ -235,6 +239,7 @@ AttributeCoder::AttributeCoder(const std::vector<Property>& vertex, const std::v
 
 void AttributeCoder::restart_models() {
   for (ResidualModel& m : models_) m = ResidualModel();
+  waiting_.clear();
   // Spec 8.3: the length trees start from a prior (init_length_prior()).
   for (int kind = 0; kind < 2; ++kind)
     for (int d = 0; d < dims_; ++d)
@@ -342,11 +347,15 @@ void AttributeCoder::merge(const PropertyValues& columns, const int32_t* q, Prop
 // Spec 8.3: each new vertex in order of introduction, predicted from the
 // gate (an add) or from the vertex before (a start's, an isolated one);
 // then the new corners' values kept by vertex slot and each entering
-// edge's opposite vertex's values by edge slot. `code(kind, pred, extent,
-// q)` codes the residuals of one vertex.
+// edge's opposite vertex's values by edge slot. Normals wait (8.4): the
+// record's triangle adds its area vector to its corners' rings, and the
+// normals of the vertices that settle are coded after the other values.
+// `code(kind, pred, extent, x, late)` codes one vertex's residuals, those
+// of its late components or of the others.
 template <class Code>
 bool AttributeCoder::walk(const AttributeRecord& r, int32_t* q, Code&& code) {
   const int D = dims_;
+  settled_.clear();
   int j = -1;  // an add's new corner
   if (r.triangle && r.nnew == 1)
     for (int k = 0; k < 3; ++k)
@@ -372,54 +381,118 @@ bool AttributeCoder::walk(const AttributeRecord& r, int32_t* q, Code&& code) {
         }
         extent[d] = bit_length64(spread);
       }
-      for (int d = 0; d < D; ++d) {
-        if (!comp_[d].first) continue;
-        if (comp_[d].bits != 0) predict_normal(d, a, b, o, pred);
-        if (comp_[d].parallelogram && r.pos[0] != nullptr) predict_texcoord(r, j, d, a, b, o, pred);
-      }
+      for (int d = 0; d < D; ++d)
+        if (comp_[d].first && comp_[d].parallelogram && r.pos[0] != nullptr) predict_texcoord(r, j, d, a, b, o, pred);
     } else {
       for (int d = 0; d < D; ++d) {
         pred[d] = last_[d];
         extent[d] = 0;
       }
     }
-    if (!code(kind, pred, extent, v)) return false;
-    std::copy(v, v + D, last_);
+    if (!code(kind, pred, extent, v, false)) return false;
+    for (int d = 0; d < D; ++d)
+      if (!comp_[d].late) last_[d] = v[d];
   }
-  if (r.triangle) {
+  if (!r.triangle) {
+    // An isolated vertex has no ring: its normal is coded at once.
+    for (int i = 0; i < r.nnew && late(); ++i)
+      if (!settle(1, nullptr, r.index[i], q + i * D, code)) return false;
+  } else {
     for (int k = 0; k < 3; ++k) {
       if (!(r.new_mask >> k & 1)) continue;
       for (int i = 0; i < r.nnew; ++i)
         if (r.index[i] == r.v[k]) std::copy(q + i * D, q + (i + 1) * D, vertex_values(r.c[k]));
     }
+    // An edge keeps no normal (8.4: it may still be to come).
     for (int k = 0; k < 3; ++k)
       if (r.entering_mask >> k & 1) {
         const int32_t* from = vertex_values(r.c[(k + 2) % 3]);
-        std::copy(from, from + D, edge_values(r.e[k]));
+        int32_t* to = edge_values(r.e[k]);
+        for (int d = 0; d < D; ++d)
+          if (!comp_[d].late) to[d] = from[d];
       }
+    if (late() && !ring_step(r, code)) return false;
+  }
+  if (late()) {
+    // Spec 8.4: a normal waits at most kMaxNormalWait records, and none
+    // past the end of its chunk.
+    while (!waiting_.empty() && (r.flush || waiting_.front().record + kMaxNormalWait <= records_)) {
+      const Waiting w = waiting_.front();
+      waiting_.pop_front();
+      Ring& g = rings_[w.slot];
+      if (g.waiting && g.index == w.index && !settle(1, &g, w.index, vertex_values(w.slot), code)) return false;
+    }
+  }
+  if (!r.flush) ++records_;
+  return true;
+}
+
+// Spec 8.4: the new corners start their rings, in order of introduction;
+// the triangle's area vector (exact in integers, so that every rotation
+// of the triangle gives the same) joins each waiting corner's ring; the
+// finalized corners' normals are coded in order of their dense indices.
+template <class Code>
+bool AttributeCoder::ring_step(const AttributeRecord& r, Code& code) {
+  for (int i = 0; i < r.nnew; ++i)
+    for (int k = 0; k < 3; ++k)
+      if ((r.new_mask >> k & 1) && r.v[k] == r.index[i]) {
+        if (r.c[k] >= (1u << 28)) continue;  // beyond any boundary limit (spec 6.1.1)
+        if (rings_.size() <= r.c[k]) rings_.resize(std::max<size_t>(size_t{r.c[k]} + 1, 2 * rings_.size()));
+        Ring& g = rings_[r.c[k]];
+        g = Ring();
+        g.index = r.index[i];
+        g.waiting = true;
+        waiting_.push_back(Waiting{r.c[k], r.index[i], records_});
+      }
+  double n[3] = {0, 0, 0};
+  if (r.pos[0] != nullptr) {
+    __int128 e[3], f[3];
+    for (int i = 0; i < 3; ++i) {
+      e[i] = static_cast<__int128>(r.pos[1][i]) - r.pos[0][i];
+      f[i] = static_cast<__int128>(r.pos[2][i]) - r.pos[0][i];
+    }
+    n[0] = static_cast<double>(e[1] * f[2] - e[2] * f[1]);
+    n[1] = static_cast<double>(e[2] * f[0] - e[0] * f[2]);
+    n[2] = static_cast<double>(e[0] * f[1] - e[1] * f[0]);
+  }
+  for (int k = 0; k < 3; ++k) {
+    if (r.c[k] >= rings_.size()) continue;
+    Ring& g = rings_[r.c[k]];
+    if (!g.waiting || g.index != r.v[k]) continue;
+    for (int i = 0; i < 3; ++i) g.n[i] = g.n[i] + n[i];
+  }
+  int order[3] = {0, 1, 2};
+  std::sort(order, order + 3, [&](int a, int b) { return r.v[a] < r.v[b]; });
+  for (int k : order) {
+    if (!(r.final_mask >> k & 1) || r.c[k] >= rings_.size()) continue;
+    Ring& g = rings_[r.c[k]];
+    if (g.waiting && g.index == r.v[k] && !settle(0, &g, r.v[k], vertex_values(r.c[k]), code)) return false;
   }
   return true;
 }
 
-// Spec 8.3: a normal predicted by the parallelogram of the gate's
-// normals as vectors (the ends' sum less the gate triangle's third
-// vertex's), taken back to the grid; the mean of the ends on the grid when
-// that vector is zero. Vectors, not grid points: the octahedral map folds
-// the lower half of the sphere, where neighbouring normals can lie on
-// opposite sides of the square.
-void AttributeCoder::predict_normal(int d, const int32_t* a, const int32_t* b, const int32_t* o,
-                                    int64_t* pred) const {
+// Spec 8.4: a normal predicted by the direction of its ring's area
+// vector, taken to the grid, else by the normal coded before.
+template <class Code>
+bool AttributeCoder::settle(int kind, Ring* ring, uint32_t index, int32_t* x, Code& code) {
+  const int d = late_d_;
   const int32_t c = (int32_t{1} << (comp_[d].bits - 1)) - 1;
-  double na[3], nb[3], no[3], sum[3];
-  octahedral_decode(a[d], a[d + 1], c, na);
-  octahedral_decode(b[d], b[d + 1], c, nb);
-  octahedral_decode(o[d], o[d + 1], c, no);
-  for (int i = 0; i < 3; ++i) sum[i] = (na[i] + nb[i]) - no[i];
-  int64_t s, t;
-  if (octahedral_round(sum, c, &s, &t)) {
-    pred[d] = s;
-    pred[d + 1] = t;
+  int64_t pred[kMaxAttributeComponents] = {};
+  int extent[kMaxAttributeComponents] = {};
+  pred[d] = last_[d];
+  pred[d + 1] = last_[d + 1];
+  if (ring != nullptr) {
+    octahedral_round(ring->n, c, &pred[d], &pred[d + 1]);  // a zero sum keeps the normal before
+    ring->waiting = false;
   }
+  if (!code(kind, pred, extent, x, true)) return false;
+  last_[d] = x[d];
+  last_[d + 1] = x[d + 1];
+  Settled s;
+  s.index = index;
+  std::copy(x, x + dims_, s.q);
+  settled_.push_back(s);
+  return true;
 }
 
 // Spec 8.3: a texture coordinate predicted by where the new vertex lies
@@ -470,10 +543,11 @@ static int attribute_context(int kind, bool first, int extent, int longest) {
 
 void AttributeCoder::encode(Encoder& enc, const AttributeRecord& r, const int32_t* q) {
   int32_t* v = const_cast<int32_t*>(q);  // walk() only reads the values it is given
-  walk(r, v, [&](int kind, const int64_t* pred, const int* extent, int32_t* x) {
+  walk(r, v, [&](int kind, const int64_t* pred, const int* extent, int32_t* x, bool late) {
     int longest = 0;
     for (int d = 0; d < dims_; ++d) {
       const Component& c = comp_[d];
+      if (c.late != late) continue;
       if (c.first) longest = 0;
       const int64_t res = component_residual(c, pred[d], x[d]);
       const int ctx = attribute_context(kind, c.first, extent[d], longest);
@@ -512,10 +586,11 @@ const char* AttributeCoder::component_value(const Component& c, int64_t pred, in
 
 const char* AttributeCoder::decode(BasicDecoder<false>& dec, const AttributeRecord& r, int32_t* q) {
   const char* why = nullptr;
-  walk(r, q, [&](int kind, const int64_t* pred, const int* extent, int32_t* x) {
+  walk(r, q, [&](int kind, const int64_t* pred, const int* extent, int32_t* x, bool late) {
     int longest = 0;
     for (int d = 0; d < dims_; ++d) {
       const Component& c = comp_[d];
+      if (c.late != late) continue;
       if (c.first) longest = 0;
       const int ctx = attribute_context(kind, c.first, extent[d], longest);
       int64_t res;
@@ -532,10 +607,11 @@ const char* AttributeCoder::decode(BasicDecoder<false>& dec, const AttributeReco
 void AttributeCoder::encode_fast(FastAttributeWriter& w, const AttributeRecord& r, const int32_t* q) {
   if (w.counts.empty()) w.counts.assign(static_cast<size_t>(fast_tables()) * kFastLengthSymbols, 0);
   int32_t* v = const_cast<int32_t*>(q);  // walk() only reads the values it is given
-  walk(r, v, [&](int kind, const int64_t* pred, const int* extent, int32_t* x) {
+  walk(r, v, [&](int kind, const int64_t* pred, const int* extent, int32_t* x, bool late) {
     int longest = 0;
     for (int d = 0; d < dims_; ++d) {
       const Component& c = comp_[d];
+      if (c.late != late) continue;
       if (c.first) longest = 0;
       const int64_t res = component_residual(c, pred[d], x[d]);
       const int table = fast_table(kind, d, attribute_context(kind, c.first, extent[d], longest));
@@ -615,10 +691,11 @@ const char* AttributeCoder::decode_fast(FastAttributeReader& rd, const Attribute
   const char* why = nullptr;
   RansDecoder& dec = *rd.rans;
   RawReader& raw = *rd.raw;
-  walk(r, q, [&](int kind, const int64_t* pred, const int* extent, int32_t* x) {
+  walk(r, q, [&](int kind, const int64_t* pred, const int* extent, int32_t* x, bool late) {
     int longest = 0;
     for (int d = 0; d < dims_; ++d) {
       const Component& c = comp_[d];
+      if (c.late != late) continue;
       if (c.first) longest = 0;
       const int table = fast_table(kind, d, attribute_context(kind, c.first, extent[d], longest));
       const int s = dec.decode(rd.tables[static_cast<size_t>(table)]);

@@ -1,16 +1,20 @@
 // SPDX-License-Identifier: Apache-2.0
 // codec/src/attributes.h: vertex attributes coded like positions
-// (spec/psq-format.md 8.3): normals (octahedral), texture coordinates (a
-// grid) and colours (exact bytes), predicted across the gate and coded in
-// a section of each chunk, by the range coder with the adaptive back-end
-// and by rANS with the rANS back-end (13.8.4). The coder sees a record as
-// its events: the new vertices in order of introduction and the triangle
-// with its vertex and edge slots, so that the record loops of the encoder
-// and the decoder share it.
+// (spec/psq-format.md 8.3, 8.4): texture coordinates (a grid) and
+// colours (exact bytes) predicted across the gate when their vertex comes;
+// normals (octahedral) when their vertex settles, predicted from the
+// triangles around it, since a streaming decoder knows one of them when
+// the vertex comes; coded in a section of each chunk, by the range coder
+// with the adaptive back-end and by rANS with the rANS back-end (13.8.4).
+// The coder sees a record as its events: the new vertices in order of
+// introduction and the triangle with its vertex and edge slots and the
+// corners it finalizes, so that the record loops of the encoder and the
+// decoder share it.
 #ifndef PSQ_CODEC_ATTRIBUTES_H_
 #define PSQ_CODEC_ATTRIBUTES_H_
 
 #include <cstdint>
+#include <deque>
 #include <memory>
 #include <string>
 #include <vector>
@@ -25,6 +29,9 @@ namespace codec {
 
 constexpr int kMaxAttributeComponents = 9;  // a normal, a texture coordinate and a colour with alpha
 constexpr uint32_t kMaxAttributeBytes = 1u << 26;  // the attribute section of one chunk (spec 4.4)
+// A normal waits for its vertex to be finalized at most this many records
+// (spec 8.4), which bounds what a decoder holds back.
+constexpr uint64_t kMaxNormalWait = 1u << 12;
 
 // The attributes the encoder codes for a schema: the first normal, texture
 // coordinate and colour found by their names (spec 8.3). Normals and
@@ -44,7 +51,9 @@ struct AttributeRecord {
   uint32_t index[3] = {0, 0, 0};
   bool triangle = false;
   uint32_t v[3] = {0, 0, 0}, c[3] = {0, 0, 0}, e[3] = {0, 0, 0};
-  uint8_t new_mask = 0, entering_mask = 0;
+  uint8_t new_mask = 0, entering_mask = 0, final_mask = 0;
+  // The end of a chunk: every normal still waiting is coded (spec 8.4).
+  bool flush = false;
   // The corners' coded coordinates in a quantized stream (spec 7.1: texture
   // coordinates are predicted from the new triangle's shape), else null.
   const int64_t* pos[3] = {nullptr, nullptr, nullptr};
@@ -106,6 +115,14 @@ class AttributeCoder {
   // Whether v is a value component d can hold.
   bool in_range(int d, int64_t v) const { return v >= comp_[d].lo && v <= comp_[d].hi; }
   void restart_models();
+  // Normals are coded when their vertex settles (spec 8.4): the vertices
+  // whose normals the last record coded, with their values.
+  bool late() const { return late_d_ >= 0; }
+  struct Settled {
+    uint32_t index;
+    int32_t q[kMaxAttributeComponents];
+  };
+  const std::vector<Settled>& settled() const { return settled_; }
   int fast_table(int kind, int d, int ctx) const { return (kind * dims_ + d) * 3 + (ctx < 4 ? 0 : ctx < 8 ? 1 : 2); }
   int fast_tables() const { return 6 * dims_; }
 
@@ -116,7 +133,23 @@ class AttributeCoder {
     int64_t lo = 0, hi = 0;  // valid values
     bool parallelogram = false;  // predicted across the gate, else the mean of its ends
     bool first = false;   // the first component of its attribute
+    bool late = false;    // coded when its vertex settles (a normal), else at introduction
   };
+  // A vertex slot's normal waiting to be coded (spec 8.4): the sum of its
+  // triangles' area vectors so far.
+  struct Ring {
+    double n[3] = {0, 0, 0};
+    uint32_t index = 0;
+    bool waiting = false;
+  };
+  struct Waiting {
+    uint32_t slot, index;
+    uint64_t record;
+  };
+  template <class Code>
+  bool ring_step(const AttributeRecord& r, Code& code);
+  template <class Code>
+  bool settle(int kind, Ring* ring, uint32_t index, int32_t* x, Code& code);
   template <class Code>
   bool walk(const AttributeRecord& r, int32_t* q, Code&& code);
   // Component `c`'s value from its prediction and decoded residual (spec
@@ -126,7 +159,6 @@ class AttributeCoder {
   // The residual that codes `value` against `pred`: for a wrapping
   // component, the one of least magnitude modulo its range (spec 8.3).
   static int64_t component_residual(const Component& c, int64_t pred, int64_t value);
-  void predict_normal(int d, const int32_t* a, const int32_t* b, const int32_t* o, int64_t* pred) const;
   void predict_texcoord(const AttributeRecord& r, int j, int d, const int32_t* a, const int32_t* b, const int32_t* o,
                         int64_t* pred) const;
   int32_t* vertex_values(uint32_t slot) { return grow(&vattr_, slot); }
@@ -145,6 +177,11 @@ class AttributeCoder {
   std::vector<ResidualModel> models_;  // [kind: gate, other][component][length context]
   std::vector<int32_t> vattr_, eattr_;  // by vertex slot, by edge slot (its opposite vertex's)
   int32_t last_[kMaxAttributeComponents] = {};
+  int late_d_ = -1;  // the normal's first coded value, or -1
+  std::vector<Ring> rings_;  // by vertex slot
+  std::deque<Waiting> waiting_;  // in order of introduction
+  uint64_t records_ = 0;
+  std::vector<Settled> settled_;
 };
 
 // Normals on the octahedron (spec 8.3): `c` = 2^(bits - 1) - 1.

@@ -67,6 +67,7 @@ Status PsqDecoder::Impl::open(InputStream* stream) {
   }
   attrs = std::make_unique<AttributeCoder>(header.schema.vertex_properties, header.attributes);
   attr_q.resize(3 * static_cast<size_t>(attrs->dims()));
+  late = attrs->late();
   props = std::make_unique<PropertyUnpacker>(attrs->column_properties(), header.schema.face_properties);
   segment_next = header.segment_triangles;
   if (!header.lossless) {
@@ -367,10 +368,11 @@ Status PsqDecoder::Impl::read_index() {
   return Status();
 }
 
-Status PsqDecoder::Impl::decode_attributes() {
+Status PsqDecoder::Impl::decode_attributes(bool flush) {
   AttributeRecord r;
+  r.flush = flush;
   SequenceVertex* fresh[3] = {nullptr, nullptr, nullptr};
-  for (int i = 0; i < qcount; ++i) {
+  for (size_t i = 0; i < qcount && !flush; ++i) {
     SequenceEvent& e = queue[i];
     if (e.kind == SequenceEvent::Kind::kVertex) {
       fresh[r.nnew] = &e.vertex;
@@ -386,6 +388,7 @@ Status PsqDecoder::Impl::decode_attributes() {
       }
       r.new_mask = t.new_mask;
       r.entering_mask = t.entering_mask;
+      r.final_mask = t.final_mask;
     }
   }
   const char* why;
@@ -401,11 +404,66 @@ Status PsqDecoder::Impl::decode_attributes() {
   if (rans ? attr_fast.rans->overran() || attr_fast.raw->overran() : attr_rc->overran())
     return Status(ErrorCode::kTruncated, "record " + std::to_string(record_no) + ": attribute data ends early",
                   attr_offset + attr_bytes.size());
-  for (int i = 0; i < r.nnew; ++i) {
-    attr_columns.swap(fresh[i]->values);
-    attrs->merge(attr_columns, attr_q.data() + i * attrs->dims(), &fresh[i]->values);
+  if (!late) {
+    for (int i = 0; i < r.nnew; ++i) {
+      attr_columns.swap(fresh[i]->values);
+      attrs->merge(attr_columns, attr_q.data() + i * attrs->dims(), &fresh[i]->values);
+    }
+    return Status();
   }
+  // Spec 8.4: the record's events join those held back; a vertex's
+  // values stay its property columns until its normal comes.
+  for (size_t i = 0; i < qcount && !flush; ++i) hold(queue[i]);
+  for (const AttributeCoder::Settled& st : attrs->settled()) {
+    const uint64_t k = uint64_t{st.index} - held_first_vertex;
+    if (st.index < held_first_vertex || k >= held_vertex.size()) return corrupt("a normal for a vertex that has one");
+    const uint64_t at = held_vertex[static_cast<size_t>(k)] & (held.size() - 1);
+    SequenceVertex& v = held[static_cast<size_t>(at)].vertex;
+    attr_columns.swap(v.values);
+    attrs->merge(attr_columns, st.q, &v.values);
+    held_waiting[static_cast<size_t>(at)] = 0;
+  }
+  const uint64_t mask = held.size() - 1;
+  while (held_ready < held_end && !held_waiting[held_ready & mask]) {
+    if (held[held_ready & mask].kind == SequenceEvent::Kind::kVertex) {
+      held_vertex.pop_front();
+      ++held_first_vertex;
+    }
+    ++held_ready;
+  }
+  qhead = 0;
+  qcount = static_cast<size_t>(held_ready - held_begin);
   return Status();
+}
+
+void PsqDecoder::Impl::hold(SequenceEvent& e) {
+  if (report_slots) report(e);
+  if (held_end - held_begin == held.size()) {
+    // A larger ring: each event moves to its position's new place.
+    std::vector<SequenceEvent> grown(std::max<size_t>(64, 2 * held.size()));
+    std::vector<uint8_t> waiting(grown.size());
+    for (uint64_t p = held_begin; p < held_end; ++p) {
+      std::swap(grown[p & (grown.size() - 1)], held[p & (held.size() - 1)]);
+      waiting[p & (grown.size() - 1)] = held_waiting[p & (held.size() - 1)];
+    }
+    held.swap(grown);
+    held_waiting.swap(waiting);
+  }
+  const size_t at = static_cast<size_t>(held_end++ & (held.size() - 1));
+  SequenceEvent& h = held[at];
+  // Only what the kind uses moves (the vectors keep their capacity).
+  h.kind = e.kind;
+  held_waiting[at] = e.kind == SequenceEvent::Kind::kVertex;
+  switch (e.kind) {
+    case SequenceEvent::Kind::kVertex:
+      std::swap(h.vertex, e.vertex);
+      if (held_vertex.empty()) held_first_vertex = h.vertex.index;
+      held_vertex.push_back(held_end - 1);
+      break;
+    case SequenceEvent::Kind::kTriangle: std::swap(h.triangle, e.triangle); break;
+    case SequenceEvent::Kind::kFinalize: h.finalized = e.finalized; break;
+    case SequenceEvent::Kind::kEnd: break;
+  }
 }
 
 Status PsqDecoder::Impl::read_end() {
@@ -488,8 +546,8 @@ Status PsqDecoder::Impl::decode_loop() {
     }
     qhead = qcount = 0;
     PSQ_RETURN_IF_ERROR(advance());
-    for (int i = 0; i < qcount; ++i) {
-      const SequenceEvent& e = queue[i];
+    for (size_t i = 0; i < qcount; ++i) {
+      const SequenceEvent& e = event(i);
       if (direct_fixed) PSQ_RETURN_IF_ERROR(direct_fixed_check(e));
       if (e.kind == SequenceEvent::Kind::kVertex) direct_vertex(e.vertex);
       else if (e.kind == SequenceEvent::Kind::kTriangle) direct_triangle(e.triangle.v);
@@ -717,6 +775,7 @@ void PsqDecoder::measure_costs(bool on) { impl_->measure = on; }
 const PsqStats& PsqDecoder::stats() const { return impl_->stats; }
 
 Status PsqDecoder::Impl::advance() {
+  held_begin = held_ready;  // every released event was taken
   qhead = qcount = 0;
   if (records_left == 0) return next_chunk();
   PSQ_RETURN_IF_ERROR(rans ? decode_record<RansSymbolDecoder>() : decode_record<AdaptiveSymbolDecoder>());
@@ -725,6 +784,7 @@ Status PsqDecoder::Impl::advance() {
   stats.max_active_vertices = std::max(stats.max_active_vertices, active_vertices());
   stats.max_open_edges = std::max(stats.max_open_edges, open_edges());
   if (--records_left == 0) {
+    if (late) PSQ_RETURN_IF_ERROR(decode_attributes(true));
     PSQ_RETURN_IF_ERROR(close_records());
     if (!attrs->empty() && rans) {
       // Spec 13.8.4: both blocks end where the chunk's attributes do.
@@ -815,8 +875,8 @@ Status PsqDecoder::next(SequenceEvent* event) {
     if (!s.ok()) return m.fail(s);
   }
   // Copy only what the event kind uses (the vectors keep their capacity).
-  SequenceEvent& e = m.queue[m.qhead++];
-  if (m.report_slots) m.report(e);
+  SequenceEvent& e = m.event(m.qhead++);
+  if (m.report_slots && !m.late) m.report(e);
   event->kind = e.kind;
   switch (e.kind) {
     case SequenceEvent::Kind::kVertex: event->vertex = e.vertex; break;
@@ -842,8 +902,8 @@ Status PsqDecoder::pump(SequenceSink& sink) {
   for (;;) {
     // Events already queued by next() go first.
     for (; m.qhead < m.qcount; ++m.qhead) {
-      SequenceEvent& e = m.queue[m.qhead];
-      if (m.report_slots) m.report(e);
+      SequenceEvent& e = m.event(m.qhead);
+      if (m.report_slots && !m.late) m.report(e);
       switch (e.kind) {
         case SequenceEvent::Kind::kVertex: PSQ_RETURN_IF_ERROR(sink.vertex(e.vertex)); break;
         case SequenceEvent::Kind::kTriangle: PSQ_RETURN_IF_ERROR(sink.triangle(e.triangle)); break;

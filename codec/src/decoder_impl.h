@@ -9,9 +9,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <deque>
 #include <functional>
 #include <memory>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "boundary.h"
@@ -87,9 +89,25 @@ struct PsqDecoder::Impl {
   int64_t last_pos[3] = {0, 0, 0};
   int64_t grid_max = 0;
 
-  // Decoded events waiting for next().
+  // Decoded events waiting for next(): event(qhead) to event(qcount - 1).
   SequenceEvent queue[7];
-  int qhead = 0, qcount = 0;
+  size_t qhead = 0, qcount = 0;
+  // Normals wait for their vertices to settle (spec 8.4): the events from
+  // the first vertex whose normal is still to come are held back, in a
+  // ring by their position among all held events, reported (report()) as
+  // they are decoded and released in order once that normal has come:
+  // [held_begin, held_ready) released, [held_ready, held_end) held.
+  bool late = false;
+  std::vector<SequenceEvent> held;
+  std::vector<uint8_t> held_waiting;  // a vertex event whose normal is still to come
+  uint64_t held_begin = 0, held_ready = 0, held_end = 0;
+  std::deque<uint64_t> held_vertex;  // the held vertex events' positions, by dense index
+  uint32_t held_first_vertex = 0;    // held_vertex.front()'s dense index
+  SequenceEvent& event(size_t i) {
+    return late ? held[(held_begin + i) & (held.size() - 1)] : queue[i];
+  }
+  // Appends a record's event to the ring.
+  void hold(SequenceEvent& e);
 
   Status fail(Status s) {
     if (error.ok()) error = s;
@@ -194,7 +212,8 @@ struct PsqDecoder::Impl {
   Status next_chunk();
   // The attributes of the record in the queue (spec 8.3), into its vertex
   // events' values.
-  Status decode_attributes();
+  // At the end of a chunk (`flush`), the normals still waiting.
+  Status decode_attributes(bool flush = false);
   Status read_end();
   // The events of one record, in order (at most 3 vertices, a triangle and
   // 3 finalizations); the queue is empty before each record is decoded.

@@ -314,8 +314,12 @@ Status PsqEncoder::Impl::close_triangle(const SequenceTriangle& t, BTriangle& bt
     uint8_t entering = 0;
     for (int k = 0; k < 3; ++k) entering |= static_cast<uint8_t>((bt.state[k] == EdgeState::kEnters) << k);
     uint8_t fresh = 0;
-    for (int k = 0; k < 3; ++k) fresh |= static_cast<uint8_t>(bt.is_new[k] << k);
-    code_attributes(bt.c, bt.eslot, fresh, entering);
+    uint8_t final = 0;
+    for (int k = 0; k < 3; ++k) {
+      fresh |= static_cast<uint8_t>(bt.is_new[k] << k);
+      final |= static_cast<uint8_t>(bt.final[k] << k);
+    }
+    code_attributes(bt.c, bt.eslot, fresh, entering, final);
   }
   pending.clear();
   // Spec 6.4: vertices left with no open edge are finalized, in canonical
@@ -345,10 +349,11 @@ Status PsqEncoder::Impl::isolated(size_t at) {
 }
 
 void PsqEncoder::Impl::code_attributes(const uint32_t* corner, const uint32_t* eslot, uint8_t fresh,
-                                       uint8_t entering) {
+                                       uint8_t entering, uint8_t final, bool flush) {
   if (attrs->empty()) return;
   AttributeRecord& r = attr_rec;
   r.triangle = corner != nullptr;
+  r.flush = flush;
   if (r.triangle) {
     for (int k = 0; k < 3; ++k) {
       r.c[k] = corner[k];
@@ -358,6 +363,7 @@ void PsqEncoder::Impl::code_attributes(const uint32_t* corner, const uint32_t* e
     }
     r.new_mask = fresh;
     r.entering_mask = entering;
+    r.final_mask = final;
   }
   if (rans) {
     attrs->encode_fast(attr_fast, r, attr_q.data());
@@ -412,6 +418,8 @@ Status PsqEncoder::Impl::close_chunk() {
     props->take(&raw);
     zstd_compress(raw, opt.zstd_level, &packed);
   }
+  // Spec 8.4: the normals still waiting end the chunk's attributes.
+  if (attrs->late()) code_attributes(nullptr, nullptr, 0, 0, 0, true);
   if (attr_rc) attr_rc->finish();
   if (rans && !attrs->empty()) attrs->finish_fast(attr_fast, &attr_bytes);
   std::vector<uint8_t> chunk;

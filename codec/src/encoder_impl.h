@@ -105,7 +105,8 @@ struct PsqEncoder::Impl {
   // Codes the record's attributes (spec 8.3): a triangle's corners (vertex
   // slots) and edge slots, which corners are new and which edges enter;
   // an isolated vertex without corners.
-  void code_attributes(const uint32_t* corner, const uint32_t* eslot, uint8_t fresh, uint8_t entering);
+  void code_attributes(const uint32_t* corner, const uint32_t* eslot, uint8_t fresh, uint8_t entering,
+                       uint8_t final = 0, bool flush = false);
   // The coded coordinates of vertex `index` at `p` (spec 7.1, 7.2). Errors:
   // kBadValue (not finite, not a float for a float position type, outside
   // the grid), kLimit (would not decode within half a step).

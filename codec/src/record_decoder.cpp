@@ -831,7 +831,7 @@ Status PsqDecoder::Impl::direct_records() {
     }
     if (!done) {
       direct_sync(out);
-      for (int i = 0; i < qcount; ++i) {
+      for (size_t i = 0; i < qcount; ++i) {
         const SequenceEvent& e = queue[i];
         if (direct_fixed) PSQ_RETURN_IF_ERROR(direct_fixed_check(e));
         if (e.kind == SequenceEvent::Kind::kVertex) {

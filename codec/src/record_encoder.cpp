@@ -551,7 +551,7 @@ bool PsqEncoder::Impl::fast_direct(const SequenceTriangle& t, Status* status) {
       const int enters = left ? 2 : 1;
       uint32_t eslot[3] = {gate, gate, gate};  // only the entering edge's slot is used
       eslot[enters] = f;
-      code_attributes(corner, eslot, 0, static_cast<uint8_t>(1 << enters));
+      code_attributes(corner, eslot, 0, static_cast<uint8_t>(1 << enters), static_cast<uint8_t>(final));
     }
     for (int k = 0; k < 3; ++k)
       if (final >> k & 1) {

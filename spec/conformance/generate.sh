@@ -152,6 +152,22 @@ valid attributes_lossless "$data/attributes.ply" --lossless
 valid fast_attributes_8bit "$data/attributes.ply" --bits 12 --normal-bits 8 --uv-bits 10 --profile fast
 valid fast_attributes_lossless "$data/attributes.ply" --lossless --profile fast
 valid spider_attributes "$data/spider_attributes.ply" --bits 14 --normal-bits 10 --uv-bits 12
+# Spec 8.4: a fan of 4200 triangles around vertex 0, whose normal settles
+# 4096 records after its introduction, before its last triangle comes.
+awk 'BEGIN {
+  n = 4200; pi = atan2(0, -1)
+  print "ply"; print "format ascii 1.0"; print "element vertex " n + 1
+  print "property float x"; print "property float y"; print "property float z"
+  print "property float nx"; print "property float ny"; print "property float nz"
+  print "element face " n; print "property list uchar int vertex_indices"; print "end_header"
+  print "0 0 0 0 0 1"
+  for (i = 0; i < n; ++i) {
+    a = 2 * pi * i / n; z = 0.1 * sin(7 * a)
+    printf "%.6f %.6f %.6f %.6f %.6f %.6f\n", cos(a), sin(a), z, 0.3 * cos(a), 0.3 * sin(a), 1
+  }
+  for (i = 0; i < n; ++i) printf "3 0 %d %d\n", 1 + i, 1 + (i + 1) % n
+}' > "$tmp/fan.ply"
+valid fan_normals "$tmp/fan.ply" --bits 12 --normal-bits 6
 valid fast_spider_attributes "$data/spider_attributes.ply" --bits 14 --normal-bits 10 --uv-bits 12 --profile fast
 # Segments (spec 4.6, 4.7): a segment record every 300 triangles of the
 # spider's 1368 (four records), quantized, lossless and with attributes;
