@@ -416,7 +416,7 @@ Status PsqDecoder::Impl::decode_attributes(bool flush) {
   for (size_t i = 0; i < qcount && !flush; ++i) hold(queue[i]);
   for (const AttributeCoder::Settled& st : attrs->settled()) {
     const uint64_t k = uint64_t{st.index} - held_first_vertex;
-    if (st.index < held_first_vertex || k >= held_vertex.size()) return corrupt("a normal for a vertex that has one");
+    if (st.index < held_first_vertex || k >= held_vertex.size()) return corrupt("a normal for a vertex that does not wait for one");
     const uint64_t at = held_vertex[static_cast<size_t>(k)] & (held.size() - 1);
     SequenceVertex& v = held[static_cast<size_t>(at)].vertex;
     attr_columns.swap(v.values);
@@ -784,7 +784,11 @@ Status PsqDecoder::Impl::advance() {
   stats.max_active_vertices = std::max(stats.max_active_vertices, active_vertices());
   stats.max_open_edges = std::max(stats.max_open_edges, open_edges());
   if (--records_left == 0) {
-    if (late) PSQ_RETURN_IF_ERROR(decode_attributes(true));
+    if (late) {
+      PSQ_RETURN_IF_ERROR(decode_attributes(true));
+      // Spec 8.4: no normal waits past its chunk, so no event either.
+      if (held_ready != held_end) return corrupt("events held back past the end of their chunk");
+    }
     PSQ_RETURN_IF_ERROR(close_records());
     if (!attrs->empty() && rans) {
       // Spec 13.8.4: both blocks end where the chunk's attributes do.

@@ -13,7 +13,6 @@
 #include <functional>
 #include <memory>
 #include <string>
-#include <unordered_map>
 #include <vector>
 
 #include "boundary.h"
@@ -211,8 +210,8 @@ struct PsqDecoder::Impl {
   Status open(InputStream* stream);
   Status next_chunk();
   // The attributes of the record in the queue (spec 8.3), into its vertex
-  // events' values.
-  // At the end of a chunk (`flush`), the normals still waiting.
+  // events' values, with the normals that settle (8.4), or at the end of a
+  // chunk (`flush`) the normals still waiting.
   Status decode_attributes(bool flush = false);
   Status read_end();
   // The events of one record, in order (at most 3 vertices, a triangle and
