@@ -775,7 +775,17 @@ void PsqDecoder::measure_costs(bool on) { impl_->measure = on; }
 const PsqStats& PsqDecoder::stats() const { return impl_->stats; }
 
 Status PsqDecoder::Impl::advance() {
-  held_begin = held_ready;  // every released event was taken
+  if (late) {
+    // Every released event was taken. Their entries give up large
+    // property values, so that the ring keeps no more than the events it
+    // holds (a stream may bring large lists now and then).
+    constexpr size_t kKeep = 16;
+    for (; held_begin < held_ready; ++held_begin) {
+      SequenceEvent& e = held[held_begin & (held.size() - 1)];
+      if (e.vertex.values.capacity() > kKeep) PropertyValues().swap(e.vertex.values);
+      if (e.triangle.values.capacity() > kKeep) PropertyValues().swap(e.triangle.values);
+    }
+  }
   qhead = qcount = 0;
   if (records_left == 0) return next_chunk();
   PSQ_RETURN_IF_ERROR(rans ? decode_record<RansSymbolDecoder>() : decode_record<AdaptiveSymbolDecoder>());
