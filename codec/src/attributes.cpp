@@ -446,10 +446,12 @@ bool AttributeCoder::ring_step(const AttributeRecord& r, Code& code) {
       }
   double n[3] = {0, 0, 0};
   if (r.pos[0] != nullptr) {
-    __int128 e[3], f[3];
+    // Coordinates on a grid of at most 31 bits (spec 4.2): the products
+    // stay below 2^62 and their differences below 2^63.
+    int64_t e[3], f[3];
     for (int i = 0; i < 3; ++i) {
-      e[i] = static_cast<__int128>(r.pos[1][i]) - r.pos[0][i];
-      f[i] = static_cast<__int128>(r.pos[2][i]) - r.pos[0][i];
+      e[i] = r.pos[1][i] - r.pos[0][i];
+      f[i] = r.pos[2][i] - r.pos[0][i];
     }
     n[0] = static_cast<double>(e[1] * f[2] - e[2] * f[1]);
     n[1] = static_cast<double>(e[2] * f[0] - e[0] * f[2]);
