@@ -194,7 +194,7 @@ TEST(Conformance, FastVectorsDecodeLikeTheirCompactTwins) {
   for (const char* name : {"spider_16bit", "spider_lossless", "grid_borders", "nonmanifold_wrap", "max_export_chunks",
                            "properties_lossless", "attributes_8bit", "attributes_lossless", "spider_attributes",
                            "segments_spider", "segments_spider_lossless", "segments_spider_attributes",
-                           "segments_nonmanifold_wrap"}) {
+                           "segments_nonmanifold_wrap", "segments_spider_corners"}) {
     EXPECT_EQ(test::read_file(kDir + "fast_" + name + ".dump"), test::read_file(kDir + name + ".dump")) << name;
     PsqDecoder dec;
     decode_vector(std::string("fast_") + name + ".psq", &dec, [](const SequenceEvent&) {});
@@ -328,6 +328,9 @@ TEST(Conformance, EncoderReproducesTheVectors) {
       {"fast_segments_spider_attributes.psq", "spider_attributes.ply",
        "--bits 14 --normal-bits 10 --uv-bits 12 --segment 300 --profile fast"},
       {"fast_segments_nonmanifold_wrap.psq", "nonmanifold_wrap.ply", "--bits 12 --segment 4 --profile fast"},
+      {"segments_spider_corners.psq", "spider.obj", "--bits 14 --normal-bits 10 --uv-bits 12 --segment 300 --chunk 1024"},
+      {"fast_segments_spider_corners.psq", "spider.obj",
+       "--bits 14 --normal-bits 10 --uv-bits 12 --segment 300 --chunk 1024 --profile fast"},
   };
   for (const Case& c : cases) {
     std::string out, err;

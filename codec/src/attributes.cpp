@@ -33,6 +33,9 @@ bool is_real(const Property& p) {
   return !p.is_list && (p.type == ScalarType::kFloat32 || p.type == ScalarType::kFloat64);
 }
 bool is_byte(const Property& p) { return !p.is_list && p.type == ScalarType::kUInt8; }
+bool is_real_list(const Property& p) {
+  return p.is_list && (p.type == ScalarType::kFloat32 || p.type == ScalarType::kFloat64);
+}
 
 int find(const std::vector<Property>& props, const char* name) {
   for (size_t i = 0; i < props.size(); ++i)
@@ -67,7 +70,8 @@ int components_of(CodedAttribute::Kind k) {
 
 }  // namespace
 
-std::vector<CodedAttribute> recognize_attributes(const std::vector<Property>& vertex, int normal_bits, int uv_bits) {
+std::vector<CodedAttribute> recognize_attributes(const MeshSchema& schema, int normal_bits, int uv_bits) {
+  const std::vector<Property>& vertex = schema.vertex_properties;
   std::vector<CodedAttribute> out;
   CodedAttribute a;
   if (normal_bits > 0 && find_all(vertex, {"nx", "ny", "nz"}, is_real, &a.properties)) {
@@ -94,18 +98,45 @@ std::vector<CodedAttribute> recognize_attributes(const std::vector<Property>& ve
       out.push_back(a);
       break;
     }
+  // Spec 8.5: per corner, as the OBJ reader names them.
+  const int cn = find(schema.face_properties, "corner_normals");
+  if (normal_bits > 0 && cn >= 0 && is_real_list(schema.face_properties[static_cast<size_t>(cn)]))
+    out.push_back(CodedAttribute{CodedAttribute::Kind::kCornerNormal, normal_bits, {static_cast<uint32_t>(cn)}});
+  const int cu = find(schema.face_properties, "corner_uv");
+  if (uv_bits > 0 && cu >= 0 && is_real_list(schema.face_properties[static_cast<size_t>(cu)]))
+    out.push_back(CodedAttribute{CodedAttribute::Kind::kCornerTexcoord, uv_bits, {static_cast<uint32_t>(cu)}});
   return out;
 }
 
-std::string attribute_table_error(const std::vector<Property>& vertex, const std::vector<CodedAttribute>& attrs) {
-  std::vector<bool> used(vertex.size(), false);
-  bool kind_seen[4] = {false, false, false, false};
+bool rotation_kept(const MeshSchema& schema, const std::vector<CodedAttribute>& attrs) {
+  size_t corner = 0;
+  for (const CodedAttribute& a : attrs) corner += a.per_corner();
+  return schema.face_properties.size() > corner;
+}
+
+std::string attribute_table_error(const MeshSchema& schema, const std::vector<CodedAttribute>& attrs) {
+  const std::vector<Property>& vertex = schema.vertex_properties;
+  const std::vector<Property>& face = schema.face_properties;
+  std::vector<bool> used(vertex.size(), false), face_used(face.size(), false);
+  bool kind_seen[6] = {false, false, false, false, false, false};
   for (const CodedAttribute& a : attrs) {
     const int k = static_cast<int>(a.kind);
-    if (k < 1 || k > 3) return "attribute kind " + std::to_string(k) + " is unknown";
+    if (k < 1 || k > 5) return "attribute kind " + std::to_string(k) + " is unknown";
     if (kind_seen[k]) return "attribute kind " + std::to_string(k) + " appears twice";
     kind_seen[k] = true;
     const size_t n = a.properties.size();
+    if (a.per_corner()) {
+      const int hi = a.kind == CodedAttribute::Kind::kCornerNormal ? 16 : 24;
+      if (n != 1) return "corner attribute of kind " + std::to_string(k) + " has " + std::to_string(n) + " components";
+      if (a.bits < (hi == 16 ? 2 : 1) || a.bits > hi)
+        return "attribute of kind " + std::to_string(k) + " has bits " + std::to_string(a.bits);
+      const uint32_t i = a.properties[0];
+      if (i >= face.size()) return "corner attribute component " + std::to_string(i) + " is not a face property";
+      if (face_used[i]) return "face property '" + face[i].name + "' is in two corner attributes";
+      face_used[i] = true;
+      if (!is_real_list(face[i])) return "face property '" + face[i].name + "' is no float or double list";
+      continue;
+    }
     const bool color = a.kind == CodedAttribute::Kind::kColor;
     if (color ? n != 3 && n != 4 : n != static_cast<size_t>(components_of(a.kind)))
       return "attribute of kind " + std::to_string(k) + " has " + std::to_string(n) + " components";
@@ -196,8 +227,39 @@ bool octahedral_encode(const double n[3], int32_t c, int32_t* s, int32_t* t) {
   return true;
 }
 
-AttributeCoder::AttributeCoder(const std::vector<Property>& vertex, const std::vector<CodedAttribute>& attrs)
-    : attrs_(attrs), vertex_(vertex), role_(vertex.size(), -1) {
+AttributeCoder::AttributeCoder(const MeshSchema& schema, const std::vector<CodedAttribute>& attrs)
+    : vertex_(schema.vertex_properties),
+      face_(schema.face_properties),
+      role_(vertex_.size(), -1),
+      face_role_(face_.size(), -1) {
+  for (const CodedAttribute& at : attrs) {
+    if (!at.per_corner()) {
+      attrs_.push_back(at);
+      continue;
+    }
+    face_role_[at.properties[0]] = static_cast<int>(corner_.size());
+    Corner c;
+    c.kind = at.kind;
+    c.bits = at.bits;
+    for (Component& x : c.comp) {
+      if (at.kind == CodedAttribute::Kind::kCornerNormal) {
+        x.bits = at.bits;
+        x.mod = 2 * ((int64_t{1} << (at.bits - 1)) - 1) + 1;
+        x.lo = 0;
+        x.hi = x.mod - 1;
+      } else {
+        x.lo = -int64_t{0x7fffffff};
+        x.hi = int64_t{0x7fffffff};
+      }
+    }
+    c.comp[0].first = true;
+    c.models.resize(static_cast<size_t>(5 * 2 * kLengthContexts));
+    late_corners_ = late_corners_ || at.kind == CodedAttribute::Kind::kCornerNormal;
+    corner_.push_back(std::move(c));
+  }
+  for (size_t i = 0; i < face_.size(); ++i)
+    if (face_role_[i] < 0) face_columns_.push_back(face_[i]);
+  const std::vector<Property>& vertex = vertex_;
   int k = 0;  // components (properties); a normal's three take two coded values
   for (const CodedAttribute& at : attrs_) {
     const int coded = at.kind == CodedAttribute::Kind::kNormal ? 2 : static_cast<int>(at.properties.size());
@@ -221,7 +283,7 @@ AttributeCoder::AttributeCoder(const std::vector<Property>& vertex, const std::v
           c.hi = int64_t{0x7fffffff};
           c.parallelogram = true;
           break;
-        case CodedAttribute::Kind::kColor:
+        default:  // kColor (corner attributes are apart)
           c.mod = 256;
           c.lo = 0;
           c.hi = 255;
@@ -244,6 +306,21 @@ void AttributeCoder::restart_models() {
   for (int kind = 0; kind < 2; ++kind)
     for (int d = 0; d < dims_; ++d)
       for (int c = 0; c < kLengthContexts; ++c) init_length_prior(model(kind, d, c), c);
+  // Spec 8.5: the corner attributes start afresh, their vertices with no
+  // values (a segment renumbers the slots).
+  for (Corner& a : corner_) {
+    for (size_t i = 0; i < a.models.size(); ++i) {
+      a.models[i] = ResidualModel();
+      init_length_prior(a.models[i], static_cast<int>(i % kLengthContexts));
+    }
+    for (SymbolModel& m : a.wedge) m = SymbolModel(4);
+    const int32_t half = a.kind == CodedAttribute::Kind::kCornerNormal ? (int32_t{1} << (a.bits - 1)) - 1 : 0;
+    a.last[0] = a.last[1] = half;
+    a.orientation = 1;
+  }
+  wedges_.clear();
+  corner_waiting_.clear();
+  serial_ = 0;
 }
 
 int32_t* AttributeCoder::grow(std::vector<int32_t>* a, uint32_t slot) {
@@ -298,7 +375,7 @@ Status AttributeCoder::split(const PropertyValues& in, uint64_t vertex, Property
           q[d + j] = static_cast<int32_t>(std::llround(g));
         }
         break;
-      case CodedAttribute::Kind::kColor:
+      default:  // kColor
         for (size_t j = 0; j < a.properties.size(); ++j) q[d + static_cast<int>(j)] = static_cast<int32_t>(v[j]);
         break;
     }
@@ -321,7 +398,7 @@ void AttributeCoder::merge(const PropertyValues& columns, const int32_t* q, Prop
         for (int j = 0; j < 2; ++j) v[j] = std::ldexp(static_cast<double>(q[d + j]), -a.bits);
         d += 2;
         break;
-      case CodedAttribute::Kind::kColor:
+      default:  // kColor
         for (size_t j = 0; j < a.properties.size(); ++j) v[j] = q[d++];
         break;
     }
@@ -395,7 +472,7 @@ bool AttributeCoder::walk(const AttributeRecord& r, int32_t* q, Code&& code) {
   }
   if (!r.triangle) {
     // An isolated vertex has no ring: its normal is coded at once.
-    for (int i = 0; i < r.nnew && late(); ++i)
+    for (int i = 0; i < r.nnew && late_d_ >= 0; ++i)
       if (!settle(1, nullptr, r.index[i], q + i * D, code)) return false;
   } else {
     for (int k = 0; k < 3; ++k) {
@@ -411,9 +488,9 @@ bool AttributeCoder::walk(const AttributeRecord& r, int32_t* q, Code&& code) {
         for (int d = 0; d < D; ++d)
           if (!comp_[d].late) to[d] = from[d];
       }
-    if (late() && !ring_step(r, code)) return false;
+    if (late_d_ >= 0 && !ring_step(r, code)) return false;
   }
-  if (late()) {
+  if (late_d_ >= 0) {
     // Spec 8.4: a normal waits at most kMaxNormalWait records, and none
     // past the end of its chunk.
     while (!waiting_.empty() && (r.flush || waiting_.front().record + kMaxNormalWait <= records_)) {
@@ -533,31 +610,6 @@ void AttributeCoder::predict_texcoord(const AttributeRecord& r, int j, int d, co
   pred[d + 1] = std::min(std::max(static_cast<int64_t>(std::floor(pv + 0.5)), c.lo), c.hi);
 }
 
-// The length context of component d (spec 8.3): the predicting values'
-// spread for an attribute's first component; for the others, the mean of
-// that spread and the longest residual of the attribute's earlier
-// components when predicted across the gate (kind 0), else that longest
-// residual alone.
-static int attribute_context(int kind, bool first, int extent, int longest) {
-  const int c = first ? extent : kind == 0 ? (extent + longest + 1) / 2 : longest;
-  return std::min(c, kLengthContexts - 1);
-}
-
-void AttributeCoder::encode(Encoder& enc, const AttributeRecord& r, const int32_t* q) {
-  int32_t* v = const_cast<int32_t*>(q);  // walk() only reads the values it is given
-  walk(r, v, [&](int kind, const int64_t* pred, const int* extent, int32_t* x, bool late) {
-    int longest = 0;
-    for (int d = 0; d < dims_; ++d) {
-      const Component& c = comp_[d];
-      if (c.late != late) continue;
-      if (c.first) longest = 0;
-      const int64_t res = component_residual(c, pred[d], x[d]);
-      const int ctx = attribute_context(kind, c.first, extent[d], longest);
-      longest = std::max(longest, enc.residual(model(kind, d, ctx), res, kCostGeometry));
-    }
-    return true;
-  });
-}
 
 int64_t AttributeCoder::component_residual(const Component& c, int64_t pred, int64_t value) {
   int64_t res = value - pred;
@@ -586,60 +638,161 @@ const char* AttributeCoder::component_value(const Component& c, int64_t pred, in
   return nullptr;
 }
 
-const char* AttributeCoder::decode(BasicDecoder<false>& dec, const AttributeRecord& r, int32_t* q) {
-  const char* why = nullptr;
-  walk(r, q, [&](int kind, const int64_t* pred, const int* extent, int32_t* x, bool late) {
+
+namespace {
+
+// Spec 13.8.3: a residual as its length symbol in `table`, then raw bits.
+int fast_put(FastAttributeWriter& w, int table, int64_t res) {
+  const uint64_t mag = res < 0 ? 0 - static_cast<uint64_t>(res) : static_cast<uint64_t>(res);
+  const int k = bit_length64(mag);
+  const int sym = fast_length_symbol(k, mag);
+  w.symbols.push_back(RansSymbol{static_cast<uint16_t>(table), static_cast<uint8_t>(sym)});
+  ++w.counts[static_cast<size_t>(table) * kFastLengthSymbols + static_cast<size_t>(sym)];
+  if (sym == kFastLengthEscape) {
+    w.raw.put(static_cast<uint32_t>(k - 33), 5);
+    w.raw.put(static_cast<uint32_t>((mag >> (k - 2)) & 1), 1);
+  }
+  const int nbits = fast_raw_bit_count(k);
+  const int low_bits = nbits - static_cast<int>(k != 0);
+  const uint64_t value = (static_cast<uint64_t>(res < 0) << low_bits) | (mag & ((uint64_t{1} << low_bits) - 1));
+  if (nbits > 32) {
+    w.raw.put(static_cast<uint32_t>(value), 32);
+    w.raw.put(static_cast<uint32_t>(value >> 32), nbits - 32);
+  } else {
+    w.raw.put(static_cast<uint32_t>(value), nbits);
+  }
+  return k;
+}
+
+// Spec 13.8.3: a length symbol's residual from the raw bits.
+const char* fast_get(FastAttributeReader& rd, int table, int64_t* res, int* length) {
+  RawReader& raw = *rd.raw;
+  const int s = rd.rans->decode(rd.tables[static_cast<size_t>(table)]);
+  uint64_t mag;
+  int len;
+  if (s < kFastLengthEscape) {
+    len = s < 2 ? s : (s + 2) >> 1;
+    const int low_bits = len >= 2 ? len - 2 : 0;
+    const uint64_t lead = len == 0 ? 0 : len == 1 ? 1 : (uint64_t{2} | static_cast<uint64_t>(s & 1)) << (len - 2);
+    mag = lead | (len == 0 ? 0 : raw.get(low_bits));
+  } else if (s == kFastLengthEscape) {
+    len = 33 + static_cast<int>(raw.get(5));
+    mag = uint64_t{1} << (len - 1) | static_cast<uint64_t>(raw.get(1)) << (len - 2);
+    const int low_bits = len - 2;
+    mag |= low_bits > 32 ? raw.get(32) | static_cast<uint64_t>(raw.get(low_bits - 32)) << 32 : raw.get(low_bits);
+  } else {
+    return "attribute symbol of an absent table";
+  }
+  const bool negative = len != 0 && raw.get(1) != 0;
+  if (!negative && mag >= (uint64_t{1} << 63)) return "attribute residual longer than 64 bits";
+  *res = negative ? static_cast<int64_t>(0 - mag) : static_cast<int64_t>(mag);
+  *length = len;
+  return nullptr;
+}
+
+}  // namespace
+
+// The four ways to code a record: the adaptive and the rANS back-end,
+// encoding and decoding. Each codes a residual of a model (adaptive) or a
+// table (rANS), and a corner's wedge symbol (8.5) likewise.
+struct AttributeCoder::AdaptiveOut final : Coding {
+  explicit AdaptiveOut(Encoder& x) : enc(x) {}
+  Encoder& enc;
+  bool residual(int, ResidualModel& m, const Component& c, int64_t pred, int32_t* x, int* length) override {
+    *length = enc.residual(m, component_residual(c, pred, *x), kCostGeometry);
+    return true;
+  }
+  bool symbol(int, SymbolModel& m, uint32_t* s) override {
+    enc.symbol<4>(m, *s, kCostGeometry);
+    return true;
+  }
+};
+struct AttributeCoder::AdaptiveIn final : Coding {
+  explicit AdaptiveIn(BasicDecoder<false>& x) : dec(x) {}
+  BasicDecoder<false>& dec;
+  bool residual(int, ResidualModel& m, const Component& c, int64_t pred, int32_t* x, int* length) override {
+    int64_t res;
+    if (!dec.residual(m, &res, length, kCostGeometry)) return why = "attribute residual longer than 64 bits", false;
+    return !(why = component_value(c, pred, res, x));
+  }
+  bool symbol(int, SymbolModel& m, uint32_t* s) override {
+    *s = dec.symbol<4>(m, kCostGeometry);
+    return true;
+  }
+};
+struct AttributeCoder::FastOut final : Coding {
+  explicit FastOut(FastAttributeWriter& x) : w(x) {}
+  FastAttributeWriter& w;
+  bool residual(int table, ResidualModel&, const Component& c, int64_t pred, int32_t* x, int* length) override {
+    *length = fast_put(w, table, component_residual(c, pred, *x));
+    return true;
+  }
+  bool symbol(int table, SymbolModel&, uint32_t* s) override {
+    w.symbols.push_back(RansSymbol{static_cast<uint16_t>(table), static_cast<uint8_t>(*s)});
+    ++w.counts[static_cast<size_t>(table) * kFastLengthSymbols + *s];
+    return true;
+  }
+};
+struct AttributeCoder::FastIn final : Coding {
+  explicit FastIn(FastAttributeReader& x) : rd(x) {}
+  FastAttributeReader& rd;
+  bool residual(int table, ResidualModel&, const Component& c, int64_t pred, int32_t* x, int* length) override {
+    int64_t res;
+    if ((why = fast_get(rd, table, &res, length))) return false;
+    return !(why = component_value(c, pred, res, x));
+  }
+  bool symbol(int table, SymbolModel&, uint32_t* s) override {
+    const int v = rd.rans->decode(rd.tables[static_cast<size_t>(table)]);
+    if (v < 0 || v >= kFastLengthSymbols) return why = "attribute symbol of an absent table", false;
+    *s = static_cast<uint32_t>(v);
+    return true;
+  }
+};
+
+// A record: the vertices' values (walk()), then the triangle's corners'
+// (corner_walk()).
+template <class C>
+const char* AttributeCoder::code_record(const AttributeRecord& r, int32_t* q, C& code) {
+  const bool ok = walk(r, q, [&](int kind, const int64_t* pred, const int* extent, int32_t* x, bool late) {
     int longest = 0;
     for (int d = 0; d < dims_; ++d) {
       const Component& c = comp_[d];
       if (c.late != late) continue;
       if (c.first) longest = 0;
       const int ctx = attribute_context(kind, c.first, extent[d], longest);
-      int64_t res;
       int length;
-      if (!dec.residual(model(kind, d, ctx), &res, &length, kCostGeometry)) return why = "attribute residual longer than 64 bits", false;
+      if (!code.residual(fast_table(kind, d, ctx), model(kind, d, ctx), c, pred[d], &x[d], &length)) return false;
       longest = std::max(longest, length);
-      if ((why = component_value(c, pred[d], res, &x[d]))) return false;
     }
     return true;
   });
-  return why;
+  if (!ok) return code.why ? code.why : "attribute data is corrupt";
+  settled_corners_.clear();
+  pending_corners_ = 0;
+  if (r.triangle && !corner_.empty() && !corner_walk(r, code)) return code.why ? code.why : "attribute data is corrupt";
+  if (late_corners_ && !corners_due(r, code)) return code.why ? code.why : "attribute data is corrupt";
+  return nullptr;
+}
+
+void AttributeCoder::encode(Encoder& enc, const AttributeRecord& r, const int32_t* q) {
+  AdaptiveOut out(enc);
+  code_record(r, const_cast<int32_t*>(q), out);  // only reads the values it is given
+}
+
+const char* AttributeCoder::decode(BasicDecoder<false>& dec, const AttributeRecord& r, int32_t* q) {
+  AdaptiveIn in(dec);
+  return code_record(r, q, in);
 }
 
 void AttributeCoder::encode_fast(FastAttributeWriter& w, const AttributeRecord& r, const int32_t* q) {
   if (w.counts.empty()) w.counts.assign(static_cast<size_t>(fast_tables()) * kFastLengthSymbols, 0);
-  int32_t* v = const_cast<int32_t*>(q);  // walk() only reads the values it is given
-  walk(r, v, [&](int kind, const int64_t* pred, const int* extent, int32_t* x, bool late) {
-    int longest = 0;
-    for (int d = 0; d < dims_; ++d) {
-      const Component& c = comp_[d];
-      if (c.late != late) continue;
-      if (c.first) longest = 0;
-      const int64_t res = component_residual(c, pred[d], x[d]);
-      const int table = fast_table(kind, d, attribute_context(kind, c.first, extent[d], longest));
-      // Spec 13.8.3: the length symbol, then the raw bits.
-      const uint64_t mag = res < 0 ? 0 - static_cast<uint64_t>(res) : static_cast<uint64_t>(res);
-      const int k = bit_length64(mag);
-      const int sym = fast_length_symbol(k, mag);
-      w.symbols.push_back(RansSymbol{static_cast<uint16_t>(table), static_cast<uint8_t>(sym)});
-      ++w.counts[static_cast<size_t>(table) * kFastLengthSymbols + static_cast<size_t>(sym)];
-      if (sym == kFastLengthEscape) {
-        w.raw.put(static_cast<uint32_t>(k - 33), 5);
-        w.raw.put(static_cast<uint32_t>((mag >> (k - 2)) & 1), 1);
-      }
-      const int nbits = fast_raw_bit_count(k);
-      const int low_bits = nbits - static_cast<int>(k != 0);
-      const uint64_t value = (static_cast<uint64_t>(res < 0) << low_bits) | (mag & ((uint64_t{1} << low_bits) - 1));
-      if (nbits > 32) {
-        w.raw.put(static_cast<uint32_t>(value), 32);
-        w.raw.put(static_cast<uint32_t>(value >> 32), nbits - 32);
-      } else {
-        w.raw.put(static_cast<uint32_t>(value), nbits);
-      }
-      longest = std::max(longest, k);
-    }
-    return true;
-  });
+  FastOut out(w);
+  code_record(r, const_cast<int32_t*>(q), out);
+}
+
+const char* AttributeCoder::decode_fast(FastAttributeReader& rd, const AttributeRecord& r, int32_t* q) {
+  FastIn in(rd);
+  return code_record(r, q, in);
 }
 
 void AttributeCoder::finish_fast(FastAttributeWriter& w, std::vector<uint8_t>* out) const {
@@ -687,45 +840,6 @@ const char* AttributeCoder::open_fast(FastAttributeReader& rd, const uint8_t* da
   rd.rans = std::make_unique<RansDecoder>(sec.rans, sec.rans_bytes);
   rd.raw = std::make_unique<RawReader>(sec.raw, sec.raw_bytes);
   return nullptr;
-}
-
-const char* AttributeCoder::decode_fast(FastAttributeReader& rd, const AttributeRecord& r, int32_t* q) {
-  const char* why = nullptr;
-  RansDecoder& dec = *rd.rans;
-  RawReader& raw = *rd.raw;
-  walk(r, q, [&](int kind, const int64_t* pred, const int* extent, int32_t* x, bool late) {
-    int longest = 0;
-    for (int d = 0; d < dims_; ++d) {
-      const Component& c = comp_[d];
-      if (c.late != late) continue;
-      if (c.first) longest = 0;
-      const int table = fast_table(kind, d, attribute_context(kind, c.first, extent[d], longest));
-      const int s = dec.decode(rd.tables[static_cast<size_t>(table)]);
-      // Spec 13.8.3: a length symbol's residual from the raw bits.
-      uint64_t mag;
-      int len;
-      if (s < kFastLengthEscape) {
-        len = s < 2 ? s : (s + 2) >> 1;
-        const int low_bits = len >= 2 ? len - 2 : 0;
-        const uint64_t lead = len == 0 ? 0 : len == 1 ? 1 : (uint64_t{2} | static_cast<uint64_t>(s & 1)) << (len - 2);
-        mag = lead | (len == 0 ? 0 : raw.get(low_bits));
-      } else if (s == kFastLengthEscape) {
-        len = 33 + static_cast<int>(raw.get(5));
-        mag = uint64_t{1} << (len - 1) | static_cast<uint64_t>(raw.get(1)) << (len - 2);
-        const int low_bits = len - 2;
-        mag |= low_bits > 32 ? raw.get(32) | static_cast<uint64_t>(raw.get(low_bits - 32)) << 32 : raw.get(low_bits);
-      } else {
-        return why = "attribute symbol of an absent table", false;
-      }
-      const bool negative = len != 0 && raw.get(1) != 0;
-      if (!negative && mag >= (uint64_t{1} << 63)) return why = "attribute residual longer than 64 bits", false;
-      int64_t res = negative ? static_cast<int64_t>(0 - mag) : static_cast<int64_t>(mag);
-      longest = std::max(longest, len);
-      if ((why = component_value(c, pred[d], res, &x[d]))) return false;
-    }
-    return true;
-  });
-  return why;
 }
 
 }  // namespace codec

@@ -9,10 +9,12 @@
 // The coder sees a record as its events: the new vertices in order of
 // introduction and the triangle with its vertex and edge slots and the
 // corners it finalizes, so that the record loops of the encoder and the
-// decoder share it.
+// decoder share it. Corner attributes (8.5), in corners.cpp, are coded
+// after them in the same section.
 #ifndef PSQ_CODEC_ATTRIBUTES_H_
 #define PSQ_CODEC_ATTRIBUTES_H_
 
+#include <algorithm>
 #include <cstdint>
 #include <deque>
 #include <memory>
@@ -32,15 +34,26 @@ constexpr uint32_t kMaxAttributeBytes = 1u << 26;  // the attribute section of o
 // A normal waits for its vertex to be finalized at most this many records
 // (spec 8.4), which bounds what a decoder holds back.
 constexpr uint64_t kMaxNormalWait = 1u << 12;
+// The distinct values of a corner attribute a vertex keeps for its corners
+// to refer to (spec 8.5); a new one beyond them drops the least recent.
+constexpr int kMaxWedges = 8;
+// The wedge symbol that says "a new value" (spec 8.5).
+constexpr uint32_t kNewWedge = kMaxWedges;
 
 // The attributes the encoder codes for a schema: the first normal, texture
 // coordinate and colour found by their names (spec 8.3). Normals and
 // texture coordinates only with non-zero bits.
-std::vector<CodedAttribute> recognize_attributes(const std::vector<Property>& vertex, int normal_bits, int uv_bits);
+// Per corner (8.5): the face properties corner_normals and corner_uv, float
+// or double lists.
+std::vector<CodedAttribute> recognize_attributes(const MeshSchema& schema, int normal_bits, int uv_bits);
 
-// Checks a header's attribute table against its vertex properties (spec
-// 4.2); an empty string when it is valid, else what is wrong.
-std::string attribute_table_error(const std::vector<Property>& vertex, const std::vector<CodedAttribute>& attrs);
+// Spec 4.2: a stream keeps the triangles' rotation when a face property is
+// not a corner attribute (whose values follow their corners).
+bool rotation_kept(const MeshSchema& schema, const std::vector<CodedAttribute>& attrs);
+
+// Checks a header's attribute table against its properties (spec 4.2); an
+// empty string when it is valid, else what is wrong.
+std::string attribute_table_error(const MeshSchema& schema, const std::vector<CodedAttribute>& attrs);
 
 // What the coder needs of one record (spec 8.3): the new vertices in order
 // of introduction; for a triangle, its corners' dense indices and vertex
@@ -57,6 +70,11 @@ struct AttributeRecord {
   // The corners' coded coordinates in a quantized stream (spec 7.1: texture
   // coordinates are predicted from the new triangle's shape), else null.
   const int64_t* pos[3] = {nullptr, nullptr, nullptr};
+  // A triangle's corner attribute values (spec 8.5), corner_dims() a
+  // corner, in the corner order above, and the number the decoder gives its
+  // event (a corner normal still to come names it).
+  int32_t* corners = nullptr;
+  uint64_t event = 0;
 };
 
 // The attribute section of a chunk with the rANS back-end (spec 13.8.4):
@@ -77,11 +95,20 @@ struct FastAttributeReader {
 
 class AttributeCoder {
  public:
-  AttributeCoder(const std::vector<Property>& vertex, const std::vector<CodedAttribute>& attrs);
-  bool empty() const { return dims_ == 0; }
+  AttributeCoder(const MeshSchema& schema, const std::vector<CodedAttribute>& attrs);
+  bool empty() const { return dims_ == 0 && corner_.empty(); }
   int dims() const { return dims_; }
-  // The vertex properties left to the property columns (spec 8.1).
+  // The vertex and face properties left to the property columns (spec 8.1).
   const std::vector<Property>& column_properties() const { return columns_; }
+  const std::vector<Property>& face_column_properties() const { return face_columns_; }
+  // Corner attributes (spec 8.5): coded values a corner.
+  int corner_dims() const { return 2 * static_cast<int>(corner_.size()); }
+  // Encoder: a face's values split into its column values and its corners'
+  // quantized values cq[3 * corner_dims()], corner by corner; kBadValue for
+  // a list of another length or a value the attribute cannot hold.
+  Status split_face(const PropertyValues& in, uint64_t face, PropertyValues* columns, int32_t* cq) const;
+  // Decoder: the face's values in schema order.
+  void merge_face(const PropertyValues& columns, const int32_t* cq, PropertyValues* out) const;
 
   // Encoder: a vertex's values (matching the schema) split into the
   // column values and the quantized attribute values q[dims()]. kBadValue
@@ -117,14 +144,27 @@ class AttributeCoder {
   void restart_models();
   // Normals are coded when their vertex settles (spec 8.4): the vertices
   // whose normals the last record coded, with their values.
-  bool late() const { return late_d_ >= 0; }
+  bool late() const { return late_d_ >= 0 || late_corners_; }
+  bool late_vertices() const { return late_d_ >= 0; }
   struct Settled {
     uint32_t index;
     int32_t q[kMaxAttributeComponents];
   };
   const std::vector<Settled>& settled() const { return settled_; }
+  // Corner normals are coded when their wedge settles (spec 8.5): the
+  // last record's triangle's corners that still wait for one, and the
+  // corners of earlier triangles (by their events) whose normals came.
+  int pending_corners() const { return pending_corners_; }
+  struct SettledCorner {
+    uint64_t event;
+    int corner, attribute;
+    int32_t q[2];
+  };
+  const std::vector<SettledCorner>& settled_corners() const { return settled_corners_; }
+  // Decoder: a settled corner's normal into its triangle's face values.
+  void patch_face(PropertyValues* values, const SettledCorner& s) const;
   int fast_table(int kind, int d, int ctx) const { return (kind * dims_ + d) * 3 + (ctx < 4 ? 0 : ctx < 8 ? 1 : 2); }
-  int fast_tables() const { return 6 * dims_; }
+  int fast_tables() const { return 6 * dims_ + 33 * static_cast<int>(corner_.size()); }
 
  private:
   struct Component {
@@ -146,12 +186,71 @@ class AttributeCoder {
     uint32_t slot, index;
     uint64_t record;
   };
+  // How a record is coded (attributes.cpp): residuals by a model
+  // (adaptive back-end) or a table (rANS), and corners' wedge symbols.
+  struct Coding {
+    virtual ~Coding() = default;
+    const char* why = nullptr;
+    virtual bool residual(int table, ResidualModel& m, const Component& c, int64_t pred, int32_t* x, int* length) = 0;
+    virtual bool symbol(int table, SymbolModel& m, uint32_t* s) = 0;
+  };
+  struct AdaptiveOut;
+  struct AdaptiveIn;
+  struct FastOut;
+  struct FastIn;
+  template <class C>
+  const char* code_record(const AttributeRecord& r, int32_t* q, C& code);
   template <class Code>
   bool ring_step(const AttributeRecord& r, Code& code);
   template <class Code>
   bool settle(int kind, Ring* ring, uint32_t index, int32_t* x, Code& code);
   template <class Code>
   bool walk(const AttributeRecord& r, int32_t* q, Code&& code);
+  // A corner attribute (spec 8.5): its values' components, its models, the
+  // value coded before and the texture's orientation seen last.
+  struct Corner {
+    CodedAttribute::Kind kind;
+    int bits;
+    Component comp[2];
+    std::vector<ResidualModel> models;  // [rule: 0-2 at once, 3-4 settled][component][length context]
+    SymbolModel wedge[3] = {SymbolModel(4), SymbolModel(4), SymbolModel(4)};  // by the vertex's wedges: 1, 2, more
+    int32_t last[2];
+    int orientation;
+  };
+  // The values a vertex slot keeps for one corner attribute, most recent
+  // first; a normal waits for its fan (spec 8.5) with its triangles' area
+  // vectors and the corners that take it.
+  struct Wedge {
+    int32_t v[2];
+    bool waiting;
+    uint64_t serial;
+    double n[3];
+    std::vector<uint64_t> refs;  // event * 4 + corner
+  };
+  struct Wedges {
+    int n = 0;
+    Wedge w[kMaxWedges];
+  };
+  struct CornerWaiting {
+    uint32_t slot;
+    uint32_t attribute;
+    uint64_t serial, record;
+  };
+  // The corners' values of a triangle (corners.cpp). `code` codes wedge
+  // symbols, code.symbol(table, model, &s), and residuals,
+  // code.residual(table, model, component, pred, &x, &length).
+  bool corner_walk(const AttributeRecord& r, Coding& code);
+  bool corner_settle(Coding& code, size_t ai, Wedge& w, int kind);
+  bool corners_due(const AttributeRecord& r, Coding& code);
+  void predict_corner(const AttributeRecord& r, const Corner& a, int j, const bool* known, int32_t (*x)[2], int* rule,
+                      int64_t* pred, int* extent) const;
+  Wedges& wedges(uint32_t slot, size_t a);
+  int corner_table(size_t a, int rule, int d, int ctx) const {
+    return 6 * dims_ + ((static_cast<int>(a) * 5 + rule) * 2 + d) * 3 + (ctx < 4 ? 0 : ctx < 8 ? 1 : 2);
+  }
+  int wedge_table(size_t a, int ctx) const {
+    return 6 * dims_ + 30 * static_cast<int>(corner_.size()) + static_cast<int>(a) * 3 + ctx;
+  }
   // Component `c`'s value from its prediction and decoded residual (spec
   // 8.3): modulo its range for a wrapping component, within its grid for a
   // texture coordinate; nullptr, or why the residual cannot be one.
@@ -170,8 +269,11 @@ class AttributeCoder {
   }
 
   std::vector<CodedAttribute> attrs_;
-  std::vector<Property> vertex_, columns_;
+  std::vector<Property> vertex_, columns_, face_, face_columns_;
+  std::vector<Corner> corner_;
+  std::vector<Wedges> wedges_;  // [vertex slot][corner attribute]
   std::vector<int> role_;  // per vertex property: its component, or -1 for a column
+  std::vector<int> face_role_;  // per face property: its corner attribute, or -1 for a column
   int dims_ = 0;  // coded values a vertex: a normal's two, a texture coordinate's two, a colour's 3 or 4
   Component comp_[kMaxAttributeComponents];
   std::vector<ResidualModel> models_;  // [kind: gate, other][component][length context]
@@ -182,7 +284,22 @@ class AttributeCoder {
   std::deque<Waiting> waiting_;  // in order of introduction
   uint64_t records_ = 0;
   std::vector<Settled> settled_;
+  bool late_corners_ = false;  // a corner normal
+  int pending_corners_ = 0;
+  uint64_t serial_ = 0;
+  std::deque<CornerWaiting> corner_waiting_;  // in order of creation
+  std::vector<SettledCorner> settled_corners_;
 };
+
+// The length context of component d (spec 8.3): the predicting values'
+// spread for an attribute's first component; for the others, the mean of
+// that spread and the longest residual of the attribute's earlier
+// components when predicted across the gate (kind 0), else that longest
+// residual alone.
+inline int attribute_context(int kind, bool first, int extent, int longest) {
+  const int c = first ? extent : kind == 0 ? (extent + longest + 1) / 2 : longest;
+  return std::min(c, kLengthContexts - 1);
+}
 
 // Normals on the octahedron (spec 8.3): `c` = 2^(bits - 1) - 1.
 void octahedral_decode(int32_t s, int32_t t, int32_t c, double out[3]);

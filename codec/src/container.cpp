@@ -174,8 +174,6 @@ Status parse_header_payload(const uint8_t* p, size_t n, uint64_t base, PsqHeader
   h->schema.triangle_count = static_cast<int64_t>(nt) - 1;
   PSQ_RETURN_IF_ERROR(get_properties(get, base, "vertex", &h->schema.vertex_properties));
   PSQ_RETURN_IF_ERROR(get_properties(get, base, "face", &h->schema.face_properties));
-  if (h->rotation != !h->schema.face_properties.empty())
-    return bad("the rotation flag must be set exactly when there are face properties", 0);
   for (const Property& pr : h->schema.vertex_properties)
     if (pr.name == "x" || pr.name == "y" || pr.name == "z")
       return bad("vertex property named '" + pr.name + "' clashes with the position", 0);
@@ -183,7 +181,7 @@ Status parse_header_payload(const uint8_t* p, size_t n, uint64_t base, PsqHeader
   // Spec 4.2: the attribute table.
   const uint64_t na = get.varint();
   if (get.malformed()) return bad("malformed varint", at);
-  if (na > 3) return bad("attribute table of " + std::to_string(na) + " entries (at most 3)", at);
+  if (na > 5) return bad("attribute table of " + std::to_string(na) + " entries (at most 5)", at);
   h->attributes.clear();
   for (uint64_t i = 0; i < na && !get.short_read(); ++i) {
     CodedAttribute a;
@@ -198,8 +196,10 @@ Status parse_header_payload(const uint8_t* p, size_t n, uint64_t base, PsqHeader
     h->attributes.push_back(std::move(a));
   }
   if (get.short_read()) return bad("header payload too short", at);
-  const std::string attr_error = attribute_table_error(h->schema.vertex_properties, h->attributes);
+  const std::string attr_error = attribute_table_error(h->schema, h->attributes);
   if (!attr_error.empty()) return bad(attr_error, at);
+  if (h->rotation != rotation_kept(h->schema, h->attributes))
+    return bad("the rotation flag must be set exactly when there are face properties other than corner attributes", 0);
   at = get.pos();
   const uint64_t nc = get.varint();
   for (uint64_t i = 0; i < nc && !get.short_read() && !get.malformed(); ++i) {

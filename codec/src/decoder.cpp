@@ -65,10 +65,11 @@ Status PsqDecoder::Impl::open(InputStream* stream) {
       std::fill(std::begin(ftable_absent), std::end(ftable_absent), true);
     }
   }
-  attrs = std::make_unique<AttributeCoder>(header.schema.vertex_properties, header.attributes);
+  attrs = std::make_unique<AttributeCoder>(header.schema, header.attributes);
   attr_q.resize(3 * static_cast<size_t>(attrs->dims()));
+  attr_cq.resize(3 * static_cast<size_t>(attrs->corner_dims()));
   late = attrs->late();
-  props = std::make_unique<PropertyUnpacker>(attrs->column_properties(), header.schema.face_properties);
+  props = std::make_unique<PropertyUnpacker>(attrs->column_properties(), attrs->face_column_properties());
   segment_next = header.segment_triangles;
   if (!header.lossless) {
     grid_max = static_cast<int64_t>((uint64_t{1} << header.bits) - 1);
@@ -121,7 +122,7 @@ Status PsqDecoder::Impl::next_chunk() {
       attr_size > kMaxAttributeBytes)
     return bad("a section is larger than the limits of spec 4.4");
   if (attrs->empty() && attr_size != 0) return bad("attribute section without attributes");
-  const bool has_props = !attrs->column_properties().empty() || !header.schema.face_properties.empty();
+  const bool has_props = !attrs->column_properties().empty() || !attrs->face_column_properties().empty();
   if (!has_props && (prop_size != 0 || prop_raw != 0)) return bad("property section without properties");
   if (has_props && prop_size == 0) return bad("no property section");
   if (segment_next != 0 && triangles_so_far() + triangles > segment_next)
@@ -372,14 +373,18 @@ Status PsqDecoder::Impl::decode_attributes(bool flush) {
   AttributeRecord r;
   r.flush = flush;
   SequenceVertex* fresh[3] = {nullptr, nullptr, nullptr};
+  SequenceTriangle* face = nullptr;
   for (size_t i = 0; i < qcount && !flush; ++i) {
     SequenceEvent& e = queue[i];
     if (e.kind == SequenceEvent::Kind::kVertex) {
       fresh[r.nnew] = &e.vertex;
       r.index[r.nnew++] = e.vertex.index;
     } else if (e.kind == SequenceEvent::Kind::kTriangle) {
-      const SequenceTriangle& t = e.triangle;
+      SequenceTriangle& t = e.triangle;
       r.triangle = true;
+      face = &t;
+      r.corners = attr_cq.data();
+      r.event = held_end + i;  // where hold() puts it
       for (int k = 0; k < 3; ++k) {
         r.v[k] = t.v[k];
         r.c[k] = t.vslot[k];
@@ -404,6 +409,10 @@ Status PsqDecoder::Impl::decode_attributes(bool flush) {
   if (rans ? attr_fast.rans->overran() || attr_fast.raw->overran() : attr_rc->overran())
     return Status(ErrorCode::kTruncated, "record " + std::to_string(record_no) + ": attribute data ends early",
                   attr_offset + attr_bytes.size());
+  if (face != nullptr && attrs->corner_dims() > 0) {
+    attr_columns.swap(face->values);
+    attrs->merge_face(attr_columns, attr_cq.data(), &face->values);
+  }
   if (!late) {
     for (int i = 0; i < r.nnew; ++i) {
       attr_columns.swap(fresh[i]->values);
@@ -414,6 +423,7 @@ Status PsqDecoder::Impl::decode_attributes(bool flush) {
   // Spec 8.4: the record's events join those held back; a vertex's
   // values stay its property columns until its normal comes.
   for (size_t i = 0; i < qcount && !flush; ++i) hold(queue[i]);
+  if (face != nullptr) held_waiting[static_cast<size_t>(r.event & (held.size() - 1))] = static_cast<uint8_t>(attrs->pending_corners());
   for (const AttributeCoder::Settled& st : attrs->settled()) {
     const uint64_t k = uint64_t{st.index} - held_first_vertex;
     if (st.index < held_first_vertex || k >= held_vertex.size()) return corrupt("a normal for a vertex that does not wait for one");
@@ -422,6 +432,15 @@ Status PsqDecoder::Impl::decode_attributes(bool flush) {
     attr_columns.swap(v.values);
     attrs->merge(attr_columns, st.q, &v.values);
     held_waiting[static_cast<size_t>(at)] = 0;
+  }
+  // Spec 8.5: corner normals into the triangles that wait for them.
+  for (const AttributeCoder::SettledCorner& st : attrs->settled_corners()) {
+    const size_t at = static_cast<size_t>(st.event & (held.size() - 1));
+    if (st.event < held_ready || st.event >= held_end || held[at].kind != SequenceEvent::Kind::kTriangle ||
+        held_waiting[at] == 0)
+      return corrupt("a corner normal for a triangle that does not wait for one");
+    attrs->patch_face(&held[at].triangle.values, st);
+    --held_waiting[at];
   }
   const uint64_t mask = held.size() - 1;
   while (held_ready < held_end && !held_waiting[held_ready & mask]) {
@@ -453,7 +472,7 @@ void PsqDecoder::Impl::hold(SequenceEvent& e) {
   SequenceEvent& h = held[at];
   // Only what the kind uses moves (the vectors keep their capacity).
   h.kind = e.kind;
-  held_waiting[at] = e.kind == SequenceEvent::Kind::kVertex;
+  held_waiting[at] = e.kind == SequenceEvent::Kind::kVertex && attrs->late_vertices();
   switch (e.kind) {
     case SequenceEvent::Kind::kVertex:
       std::swap(h.vertex, e.vertex);

@@ -66,6 +66,7 @@ struct PsqDecoder::Impl {
   uint64_t attr_offset = 0;
   std::vector<int32_t> attr_q;
   PropertyValues attr_columns;
+  std::vector<int32_t> attr_cq;  // a triangle's corner values (spec 8.5)
   PsqStats stats;
   double cost[kCostCount] = {0, 0};
   uint32_t file_crc = 0;     // of the header's bytes (spec 4.2)

@@ -50,7 +50,6 @@ Status PsqEncoder::Impl::begin(const MeshSchema& schema) {
   header.schema.has_bounds = false;
   header.lossless = opt.lossless;
   header.fast = rans = opt.fast;
-  header.rotation = !schema.face_properties.empty();
   header.boundary_limit = opt.boundary_limit;
   if (opt.segment_triangles == EncodeOptions::kAutoSegments)
     opt.segment_triangles = EncodeOptions::auto_segment_triangles(schema);
@@ -101,13 +100,16 @@ Status PsqEncoder::Impl::begin(const MeshSchema& schema) {
     return Status(ErrorCode::kUsage, "normal bits must be 0 (exact) or 2..16");
   if (!opt.lossless && (opt.uv_bits < 0 || opt.uv_bits > 24))
     return Status(ErrorCode::kUsage, "texture coordinate bits must be 0 (exact) or 1..24");
-  header.attributes = recognize_attributes(schema.vertex_properties, opt.lossless ? 0 : opt.normal_bits,
-                                           opt.lossless ? 0 : opt.uv_bits);
-  attrs = std::make_unique<AttributeCoder>(schema.vertex_properties, header.attributes);
-  props = std::make_unique<PropertyPacker>(attrs->column_properties(), schema.face_properties);
+  header.attributes =
+      recognize_attributes(schema, opt.lossless ? 0 : opt.normal_bits, opt.lossless ? 0 : opt.uv_bits);
+  attrs = std::make_unique<AttributeCoder>(schema, header.attributes);
+  header.rotation = rotation_kept(schema, header.attributes);
+  props = std::make_unique<PropertyPacker>(attrs->column_properties(), attrs->face_column_properties());
   if (!attrs->empty()) {
     if (!opt.fast) attr_rc = std::make_unique<RangeEncoder>(&attr_bytes);
     attr_q.resize(3 * static_cast<size_t>(attrs->dims()));
+    attr_cq.resize(3 * static_cast<size_t>(attrs->corner_dims()));
+    attr_face_q.resize(attr_cq.size());
   }
   if (opt.chunk_bytes < 1 || opt.chunk_bytes > kMaxRecordBytes / 2)
     return Status(ErrorCode::kUsage, "chunk size must be 1.." + std::to_string(kMaxRecordBytes / 2) + " bytes");
@@ -319,6 +321,16 @@ Status PsqEncoder::Impl::close_triangle(const SequenceTriangle& t, BTriangle& bt
       fresh |= static_cast<uint8_t>(bt.is_new[k] << k);
       final |= static_cast<uint8_t>(bt.final[k] << k);
     }
+    if (attrs->corner_dims() > 0) {
+      // Spec 8.5: the corners' values, in the record's corner order.
+      PSQ_RETURN_IF_ERROR(attrs->split_face(t.values, stats.triangles, &attr_columns, attr_face_q.data()));
+      const size_t cd = static_cast<size_t>(attrs->corner_dims());
+      for (int k = 0; k < 3; ++k)
+        for (int j = 0; j < 3; ++j)
+          if (out_index_of(t.v[j]) == boundary.vertex(bt.c[k]).index)
+            std::copy(&attr_face_q[j * cd], &attr_face_q[j * cd] + cd, &attr_cq[k * cd]);
+      attr_rec.corners = attr_cq.data();
+    }
     code_attributes(bt.c, bt.eslot, fresh, entering, final);
   }
   pending.clear();
@@ -331,7 +343,7 @@ Status PsqEncoder::Impl::close_triangle(const SequenceTriangle& t, BTriangle& bt
       if (!slot_of.empty()) slot_of.erase(v.key);
       boundary.free_vertex(bt.c[k]);
     }
-  if (!props->add_face(t.values))
+  if (!props->add_face(attrs->corner_dims() > 0 ? attr_columns : t.values))
     return Status(ErrorCode::kBadValue, "face property values do not match the schema or their types");
   ++stats.triangles;
   ++chunk_triangles;

@@ -59,6 +59,7 @@ struct PsqEncoder::Impl {
   AttributeRecord attr_rec;
   std::vector<int32_t> attr_q;
   PropertyValues attr_columns;
+  std::vector<int32_t> attr_cq, attr_face_q;  // a triangle's corner values (spec 8.5): by record corner, by input corner
   PsqStats stats;
   double cost[kCostCount] = {0, 0};
 

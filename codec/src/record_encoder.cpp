@@ -435,7 +435,7 @@ Status PsqEncoder::Impl::code_triangle(const SequenceTriangle& t, const int pend
 
 bool PsqEncoder::Impl::fast_direct(const SequenceTriangle& t, Status* status) {
   const size_t np = pending.size();
-  if (np > 1 || !expect_final.empty() || header.rotation || t.border_mask != 0 ||
+  if (np > 1 || !expect_final.empty() || header.rotation || attrs->corner_dims() > 0 || t.border_mask != 0 ||
       t.op != (np == 1 ? Op::kAdd : Op::kFill) || t.v[0] == t.v[1] || t.v[1] == t.v[2] || t.v[0] == t.v[2])
     return false;
   // The corners: the pending vertex (an add's new one, input corner j), and

@@ -91,10 +91,22 @@ class SoupSource : public MeshSource {
         a.type = name[0] == 'n' || name[1] == 0 ? ScalarType::kFloat32 : ScalarType::kUInt8;
         schema_.vertex_properties.push_back(a);
       }
-      Property id;
-      id.name = "face_id";
-      id.type = ScalarType::kInt32;
-      schema_.face_properties.push_back(id);
+      // Corner attributes (spec 8.5), coded as such when asked; with an
+      // odd vertex count no other face property, so no rotation kept.
+      for (const char* name : {"corner_normals", "corner_uv"}) {
+        Property c;
+        c.name = name;
+        c.type = ScalarType::kFloat32;
+        c.is_list = true;
+        c.count_type = ScalarType::kUInt8;
+        schema_.face_properties.push_back(c);
+      }
+      if (soup.n % 2 == 0) {
+        Property id;
+        id.name = "face_id";
+        id.type = ScalarType::kInt32;
+        schema_.face_properties.push_back(id);
+      }
     }
   }
 
@@ -129,7 +141,23 @@ class SoupSource : public MeshSource {
       const size_t t = soup_.faces_first ? k : k - nv;
       item->kind = MeshItem::Kind::kTriangle;
       for (int c = 0; c < 3; ++c) item->index[c] = soup_.triangles[t][c];
-      if (soup_.with_values) item->values.push_back(-static_cast<double>(t));
+      if (soup_.with_values) {
+        // Corner normals and texture coordinates by vertex, split where
+        // the triangle's index says (a crease, a seam).
+        item->values.push_back(9);
+        for (int c = 0; c < 3; ++c) {
+          const uint32_t i = item->index[c];
+          const double n[3] = {static_cast<double>(i % 3) - 1, static_cast<double>(t % 3 == 0), 1};
+          item->values.insert(item->values.end(), n, n + 3);
+        }
+        item->values.push_back(6);
+        for (int c = 0; c < 3; ++c) {
+          const uint32_t i = item->index[c];
+          item->values.push_back(0.125 * (i % 7) + (t % 4 == 0 ? 0.5 : 0));
+          item->values.push_back(0.25 * (i % 11) - 1);
+        }
+        if (soup_.n % 2 == 0) item->values.push_back(-static_cast<double>(t));
+      }
     }
     return Status();
   }

@@ -16,7 +16,8 @@
 //   byte 0: bits 0-5: vertex count n - 1 (n in [1, 64]); bit 6: the soup
 //           lists its triangles before its vertices; bit 7: vertices carry
 //           a uchar property, a normal, a texture coordinate and a colour
-//           (attributes, spec 8.3), and triangles an int property;
+//           (attributes, spec 8.3), and triangles corner normals and
+//           texture coordinates (8.5) and, for an even n, an int property;
 //   byte 1: bits 0-1: chunk size (2^14, 64, 256 or 4096 bytes); bits 2-3:
 //           positions (14 bits, 4 bits, 21 bits, lossless); bits 4-7: the
 //           boundary limit (0: the default, else 2 * value + 1);

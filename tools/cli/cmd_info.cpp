@@ -61,14 +61,15 @@ std::string attribute_text(const PsqHeader& h) {
   std::string o;
   for (const CodedAttribute& a : h.attributes) {
     if (!o.empty()) o += "; ";
-    o += a.kind == CodedAttribute::Kind::kNormal     ? "normals ("
-         : a.kind == CodedAttribute::Kind::kTexcoord ? "texture coordinates ("
-                                                     : "colours (";
-    for (size_t i = 0; i < a.properties.size(); ++i)
-      o += (i ? " " : "") + h.schema.vertex_properties[a.properties[i]].name;
-    o += a.kind == CodedAttribute::Kind::kNormal     ? ") quantized, " + std::to_string(a.bits) + "-bit octahedral"
-         : a.kind == CodedAttribute::Kind::kTexcoord ? ") quantized to steps of 2^-" + std::to_string(a.bits)
-                                                     : std::string(") exact");
+    const bool normal = a.kind == CodedAttribute::Kind::kNormal || a.kind == CodedAttribute::Kind::kCornerNormal;
+    const bool texcoord = a.kind == CodedAttribute::Kind::kTexcoord || a.kind == CodedAttribute::Kind::kCornerTexcoord;
+    o += std::string(a.per_corner() ? "per-corner " : "") +
+         (normal ? "normals (" : texcoord ? "texture coordinates (" : "colours (");
+    const std::vector<Property>& props = a.per_corner() ? h.schema.face_properties : h.schema.vertex_properties;
+    for (size_t i = 0; i < a.properties.size(); ++i) o += (i ? " " : "") + props[a.properties[i]].name;
+    o += normal     ? ") quantized, " + std::to_string(a.bits) + "-bit octahedral"
+         : texcoord ? ") quantized to steps of 2^-" + std::to_string(a.bits)
+                    : std::string(") exact");
   }
   return o.empty() ? "none" : o;
 }

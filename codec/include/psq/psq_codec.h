@@ -71,16 +71,24 @@ class FileWriter : public ByteWriter {
 // gate and the range coder (spec 8.3) instead of a property column. Its
 // components are vertex properties of the schema, recognized by their names
 // (nx ny nz; u v, s t, texture_u texture_v, texture_s texture_t; red green
-// blue [alpha], r g b [a]).
+// blue [alpha], r g b [a]). A corner attribute (spec 8.5) is a face list
+// property with a value per corner, as the OBJ reader gives normals and
+// texture coordinates that differ between the corners at one vertex
+// (corner_normals: nx ny nz of each corner; corner_uv: u v of each
+// corner); the stream codes, per corner, which of its vertex's values so
+// far it takes, else a new one predicted from the triangle.
 struct CodedAttribute {
-  enum class Kind : uint8_t { kNormal = 1, kTexcoord = 2, kColor = 3 };
+  enum class Kind : uint8_t { kNormal = 1, kTexcoord = 2, kColor = 3, kCornerNormal = 4, kCornerTexcoord = 5 };
   Kind kind = Kind::kNormal;
   // Normals: bits of each octahedral coordinate, 2..16 (a lossy change:
   // the decoder gives back unit vectors within the angle of that grid);
   // texture coordinates: a grid of step 2^-bits, 1..24 (within half a
   // step); colours: 8 (exact uint8 values).
   int bits = 0;
-  std::vector<uint32_t> properties;  // the components, as indices of the schema's vertex properties
+  // The components, as indices of the schema's vertex properties; for a
+  // corner attribute, the one face property that holds them.
+  std::vector<uint32_t> properties;
+  bool per_corner() const { return kind == Kind::kCornerNormal || kind == Kind::kCornerTexcoord; }
 };
 
 struct EncodeOptions {

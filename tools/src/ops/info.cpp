@@ -88,12 +88,15 @@ std::string attribute_json(const PsqHeader& h) {
   for (const CodedAttribute& a : h.attributes) {
     if (o.size() > 1) o += ", ";
     o += std::string("{\"kind\": \"") +
-         (a.kind == CodedAttribute::Kind::kNormal     ? "normal"
-          : a.kind == CodedAttribute::Kind::kTexcoord ? "texcoord"
-                                                      : "color") +
+         (a.kind == CodedAttribute::Kind::kNormal           ? "normal"
+          : a.kind == CodedAttribute::Kind::kTexcoord       ? "texcoord"
+          : a.kind == CodedAttribute::Kind::kColor          ? "color"
+          : a.kind == CodedAttribute::Kind::kCornerNormal   ? "corner normal"
+                                                            : "corner texcoord") +
          "\", \"bits\": " + std::to_string(a.bits) + ", \"properties\": [";
+    const std::vector<Property>& props = a.per_corner() ? h.schema.face_properties : h.schema.vertex_properties;
     for (size_t i = 0; i < a.properties.size(); ++i)
-      o += (i ? ", \"" : "\"") + json_escape(h.schema.vertex_properties[a.properties[i]].name) + "\"";
+      o += (i ? ", \"" : "\"") + json_escape(props[a.properties[i]].name) + "\"";
     o += "]}";
   }
   return o + "]";
