@@ -11,19 +11,22 @@
 # - real artist models with normals and texture coordinates from Debian's
 #   assimp-testmodels (BSD-3-Clause), made PLY by assimp-utils' `assimp
 #   export -jiv -tri -ptv` (one vertex per distinct position, normal and
-#   texture coordinate: seams become split vertices), and the spider OBJ
-#   split the same way;
+#   texture coordinate), and the spider OBJ split the same way; then
+#   welded into an OBJ as artists' tools write them (one `v` per distinct
+#   position, `vt` and `vn` indexed per corner), which both encoders read:
+#   psq codes its normals and texture coordinates per corner (spec 8.5);
 # - shared meshes (../shared/data) with area-weighted vertex normals, as a
 #   scanner's software writes them;
 # - fandisk.rich.ply (normals and uchar colours, synthetic), welded and
 #   made float.
-# Draco reads each mesh as OBJ when it has texture coordinates (its PLY
-# reader drops them) and as PLY otherwise; it runs as
+# Draco reads the same OBJ when the mesh has texture coordinates (its PLY
+# reader drops them) and the same PLY otherwise; it runs as
 # `draco_encoder -qp 14 -qn 8 -qt 10 -cl 7`, psq as
 # `psq convert --bits 14 --normal-bits N --uv-bits M --profile P`.
 # Needs: draco_encoder (Debian package draco), assimp (assimp-utils),
 # /usr/share/assimp/models (assimp-testmodels).
 import argparse
+import json
 import math
 import os
 import statistics
@@ -179,20 +182,96 @@ def welded_float(src, dst):
     write_ply(dst, [(n, 'f' if t == 'd' else t, None) for n, t, _ in props], verts, faces)
 
 
-def to_obj(src, dst):
+def to_obj(src, dst, texcoords=True, normals=True):
+    """A split PLY as a welded OBJ: one v per distinct position, vt and vn
+    in index spaces of their own, faces that weld degenerate dropped;
+    without the texture coordinates or the normals when asked."""
     m = read_ply(src)
     props, rows = m['vertex']
     names = [p[0] for p in props]
-    n0 = names.index('nx') if 'nx' in names else -1
+    n0 = names.index('nx') if 'nx' in names and normals else -1
     t0 = names.index('s') if 's' in names else names.index('u')
-    lines = ['v %.9g %.9g %.9g' % tuple(r[:3]) for r in rows]
-    if n0 >= 0:
-        lines += ['vn %.9g %.9g %.9g' % tuple(r[n0:n0 + 3]) for r in rows]
-    lines += ['vt %.9g %.9g' % tuple(r[t0:t0 + 2]) for r in rows]
-    form = '%d/%d/%d' if n0 >= 0 else '%d/%d'
+    spaces = [({}, []), ({}, []), ({}, [])]
+
+    def index(space, key):
+        d, out = spaces[space]
+        if key not in d:
+            d[key] = len(out)
+            out.append(key)
+        return d[key] + 1
+
+    corner = [(index(0, tuple(r[:3])), index(1, tuple(r[t0:t0 + 2])),
+               index(2, tuple(r[n0:n0 + 3])) if n0 >= 0 else 0) for r in rows]
+    lines = ['v %.9g %.9g %.9g' % p for p in spaces[0][1]]
+    lines += ['vt %.9g %.9g' % t for t in spaces[1][1]] if texcoords else []
+    lines += ['vn %.9g %.9g %.9g' % n for n in spaces[2][1]]
     for f in faces_of(m):
-        lines.append('f ' + ' '.join(form % ((i + 1,) * form.count('%d')) for i in f))
+        c = [corner[i] for i in f]
+        if len({x[0] for x in c}) == 3:
+            if not texcoords:
+                c = [(x[0], x[2]) if n0 >= 0 else (x[0],) for x in c]
+                lines.append('f ' + ' '.join(('%d//%d' if n0 >= 0 else '%d') % x for x in c))
+            else:
+                lines.append('f ' + ' '.join(('%d/%d/%d' if n0 >= 0 else '%d/%d') % x[:3 if n0 >= 0 else 2] for x in c))
     open(dst, 'w').write('\n'.join(lines) + '\n')
+
+
+def read_obj(path):
+    V, VT, VN, F = [], [], [], []
+    for line in open(path):
+        w = line.split()
+        if not w:
+            continue
+        if w[0] == 'v':
+            V.append([float(x) for x in w[1:4]])
+        elif w[0] == 'vt':
+            VT.append([float(x) for x in w[1:3]])
+        elif w[0] == 'vn':
+            VN.append([float(x) for x in w[1:4]])
+        elif w[0] == 'f':
+            F.append([[int(x) - 1 if x else -1 for x in (t.split('/') + ['', ''])[:3]] for t in w[1:]])
+    return V, VT, VN, F
+
+
+def obj_errors(src, decoded, origin, step, uv_bits):
+    """Largest corner normal angle (degrees) and texture coordinate error
+    (steps of 2^-uv_bits) between an OBJ and its decoded copy: corners
+    matched by their positions' grid points, faces by their corners'."""
+    a, b = read_obj(src), read_obj(decoded)
+
+    def cell(p):
+        return tuple(int(math.floor((p[i] - origin[i]) / step + 0.5)) for i in range(3))
+
+    def faces(m):
+        out = {}
+        for f in m[3]:
+            key = tuple(sorted(cell(m[0][c[0]]) for c in f))
+            out.setdefault(key, []).append({cell(m[0][c[0]]): c for c in f})
+        return out
+
+    fa, fb = faces(a), faces(b)
+    angle = uv = 0.0
+    for key, list_a in fa.items():
+        for ca in list_a:
+            best = None
+            for cb in fb.get(key, []):
+                ang = err = 0.0
+                for g, x in ca.items():
+                    y = cb[g]
+                    if x[1] >= 0:
+                        err = max(err, max(abs(p - q) for p, q in zip(a[1][x[1]], b[1][y[1]])) * 2 ** uv_bits)
+                    if x[2] >= 0:
+                        n, m = a[2][x[2]], b[2][y[2]]
+                        ln = math.sqrt(sum(c * c for c in n)) * math.sqrt(sum(c * c for c in m))
+                        if ln > 0:
+                            dot = sum(p * q for p, q in zip(n, m)) / ln
+                            ang = max(ang, math.degrees(math.acos(max(-1.0, min(1.0, dot)))))
+                if best is None or (err, ang) < best:
+                    best = (err, ang)
+            if best is None:
+                raise SystemExit('%s: a face of %s is missing' % (decoded, src))
+            uv, angle = max(uv, best[0]), max(angle, best[1])
+    return angle, uv
 
 
 def with_ids(src, dst):
@@ -238,6 +317,8 @@ def main():
     ap.add_argument('--normal-bits', type=int, default=8)
     ap.add_argument('--uv-bits', type=int, default=10)
     ap.add_argument('--old-psq', help='a psq of format 10.0 (properties as zstd columns), for a column of its sizes')
+    ap.add_argument('--parts', action='store_true',
+                    help='also the textured models\' bytes by part: positions, texture coordinates, normals')
     args = ap.parse_args()
     tmp = tempfile.mkdtemp(prefix='psq_attr_')
     inputs = []
@@ -270,7 +351,8 @@ def main():
         kinds = [k for k, n in (('normals', 'nx'), ('texcoords', 'u'), ('texcoords', 's'), ('colours', 'red'))
                  if n in names]
         draco_in = src
-        if 'u' in names or 's' in names:
+        textured = 'u' in names or 's' in names
+        if textured:
             draco_in = os.path.join(tmp, name + '.obj')
             to_obj(src, draco_in)
         drc = os.path.join(tmp, name + '.drc')
@@ -287,11 +369,22 @@ def main():
         for profile in ('compact', 'fast'):
             out = os.path.join(tmp, name + '.' + profile + '.psq')
             subprocess.run([args.psq, 'convert', '-q', '-f', '--profile', profile, '--bits', '14', '--normal-bits',
-                            str(args.normal_bits), '--uv-bits', str(args.uv_bits), src, out], check=True)
+                            str(args.normal_bits), '--uv-bits', str(args.uv_bits), draco_in, out], check=True)
             sizes[profile] = size(out)
             ratios[profile].append(sizes[profile] / size(drc))
         row += [str(sizes['compact']), str(sizes['fast']), '%.3f' % (sizes['compact'] / size(drc)),
                 '%.3f' % (sizes['fast'] / size(drc))]
+        if textured:
+            back = os.path.join(tmp, name + '.back.obj')
+            subprocess.run([args.psq, 'convert', '-q', '-f', os.path.join(tmp, name + '.compact.psq'), back],
+                           check=True)
+            info = json.loads(subprocess.run([args.psq, 'info', '--json', os.path.join(tmp, name + '.compact.psq')],
+                                             check=True, capture_output=True).stdout)
+            angle, uv = obj_errors(draco_in, back, info['bbox']['min'], info['psq']['step'], args.uv_bits)
+            row += ['%.3f°' % angle if 'normals' in kinds else '', '%.3f' % uv, '']
+            print('| ' + ' | '.join(row) + ' |')
+            sys.stdout.flush()
+            continue
         # The errors, through a copy with an exact vertex id (a column).
         ided = os.path.join(tmp, name + '.id.ply')
         with_ids(src, ided)
@@ -309,6 +402,30 @@ def main():
     for profile in ('compact', 'fast', 'old'):
         if ratios[profile]:
             print('median %s / Draco: %.3f' % (profile, statistics.median(ratios[profile])))
+    if args.parts:
+        # Each part is the file with it less the file without (the
+        # adaptive back-end; the same welded OBJ for both coders).
+        print()
+        print('| mesh | psq positions | Draco positions | psq texcoords | Draco texcoords | psq normals | Draco normals |')
+        print('|---|---:|---:|---:|---:|---:|---:|')
+        for src in sorted(inputs):
+            name = os.path.basename(src)[:-4]
+            names = [p[0] for p in read_ply(src)['vertex'][0]]
+            if not ('u' in names or 's' in names):
+                continue
+            sizes = {}
+            for part, (tc, nm) in (('p', (False, False)), ('t', (True, False)), ('n', (False, True))):
+                obj = os.path.join(tmp, name + '.' + part + '.obj')
+                to_obj(src, obj, tc, nm)
+                drc, out = obj[:-4] + '.drc', obj[:-4] + '.psq'
+                subprocess.run(['draco_encoder', '-i', obj, '-o', drc, '-qp', '14', '-qn', '8', '-qt', '10', '-cl', '7'],
+                               check=True, stdout=subprocess.DEVNULL)
+                subprocess.run([args.psq, 'convert', '-q', '-f', '--profile', 'compact', '--bits', '14', '--normal-bits',
+                                str(args.normal_bits), '--uv-bits', str(args.uv_bits), obj, out], check=True)
+                sizes[part] = (size(out), size(drc))
+            row = [name, sizes['p'][0], sizes['p'][1], sizes['t'][0] - sizes['p'][0], sizes['t'][1] - sizes['p'][1]]
+            row += [sizes['n'][0] - sizes['p'][0], sizes['n'][1] - sizes['p'][1]] if 'nx' in names else ['', '']
+            print('| ' + ' | '.join(str(x) for x in row) + ' |')
 
 
 if __name__ == '__main__':
