@@ -316,7 +316,7 @@ TEST(AttributeTable, BadEntriesAreRefused) {
   EXPECT_TRUE(parse({normal, uv, color}).ok());
   EXPECT_TRUE(parse({}).ok());
   const std::vector<std::vector<CodedAttribute>> bad = {
-      {attr(static_cast<K>(4), 8, {0, 1, 2})},                  // unknown kind
+      {attr(static_cast<K>(6), 8, {0, 1, 2})},                  // unknown kind
       {attr(static_cast<K>(0), 8, {0, 1, 2})},
       {normal, attr(K::kNormal, 8, {3, 4, 8})},                  // a kind twice
       {attr(K::kNormal, 1, {0, 1, 2})},                          // bits out of range
@@ -333,10 +333,78 @@ TEST(AttributeTable, BadEntriesAreRefused) {
       {attr(K::kNormal, 8, {0, 1, 8})},                          // wrong types
       {attr(K::kTexcoord, 10, {3, 5})},
       {attr(K::kColor, 8, {5, 6, 0})},
-      {normal, uv, color, attr(K::kColor, 8, {5, 6, 7})},        // more than 3
+      {normal, uv, color, attr(K::kColor, 8, {5, 6, 7})},        // a kind twice, 4 entries
+      {attr(K::kCornerNormal, 8, {0})},                          // no face property
   };
   for (size_t i = 0; i < bad.size(); ++i) {
     const Status s = parse(bad[i]);
+    EXPECT_EQ(s.code(), ErrorCode::kBadHeader) << "case " << i << ": " << s.to_string();
+  }
+}
+
+// Spec 4.2 and 8.5: a corner attribute names one float or double list
+// face property; the rotation flag is set exactly when a face property
+// is not a corner attribute.
+TEST(AttributeTable, CornerEntries) {
+  PsqHeader h;
+  h.version_major = codec::kVersionMajor;
+  h.bits = 12;
+  h.step = 1;
+  h.boundary_limit = 64;
+  h.schema.position_type = ScalarType::kFloat32;
+  auto list = [](const char* name, ScalarType t) {
+    Property p;
+    p.name = name;
+    p.type = t;
+    p.is_list = true;
+    p.count_type = ScalarType::kUInt8;
+    return p;
+  };
+  h.schema.face_properties = {list("corner_normals", ScalarType::kFloat32), list("corner_uv", ScalarType::kFloat64),
+                              list("ints", ScalarType::kInt32), {"flags", ScalarType::kUInt8}};
+  using K = CodedAttribute::Kind;
+  auto attr = [](K kind, int bits, std::vector<uint32_t> props) {
+    CodedAttribute a;
+    a.kind = kind;
+    a.bits = bits;
+    a.properties = std::move(props);
+    return a;
+  };
+  auto parse = [&](const std::vector<CodedAttribute>& table, bool rotation) {
+    PsqHeader w = h;
+    w.attributes = table;
+    w.rotation = rotation;
+    const std::vector<uint8_t> bytes = codec::write_header(w);
+    uint64_t n = 0;
+    const int len = codec::parse_varint(bytes.data() + 12, bytes.size() - 12, &n);
+    PsqHeader out;
+    out.version_major = codec::kVersionMajor;
+    out.rotation = rotation;  // the flags precede the payload
+    return codec::parse_header_payload(bytes.data() + 12 + len, static_cast<size_t>(n), 0, &out);
+  };
+  const CodedAttribute normals = attr(K::kCornerNormal, 8, {0});
+  const CodedAttribute uv = attr(K::kCornerTexcoord, 10, {1});
+  EXPECT_TRUE(parse({normals, uv}, true).ok());
+  EXPECT_EQ(parse({normals, uv}, false).code(), ErrorCode::kBadHeader);  // two face properties remain
+  h.schema.face_properties.resize(2);
+  EXPECT_TRUE(parse({normals, uv}, false).ok());
+  EXPECT_EQ(parse({normals, uv}, true).code(), ErrorCode::kBadHeader);
+  EXPECT_EQ(parse({normals}, false).code(), ErrorCode::kBadHeader);  // corner_uv is a column
+  EXPECT_TRUE(parse({normals}, true).ok());
+  h.schema.face_properties = {list("corner_normals", ScalarType::kFloat32), list("corner_uv", ScalarType::kFloat64),
+                              list("ints", ScalarType::kInt32), {"flags", ScalarType::kUInt8}};
+  const std::vector<std::vector<CodedAttribute>> bad = {
+      {attr(K::kCornerNormal, 8, {2})},       // a list of integers
+      {attr(K::kCornerNormal, 8, {3})},       // not a list
+      {attr(K::kCornerNormal, 8, {4})},       // not a face property
+      {attr(K::kCornerNormal, 8, {0, 1})},    // two components
+      {attr(K::kCornerNormal, 1, {0})},       // bits out of range
+      {attr(K::kCornerTexcoord, 25, {1})},
+      {normals, attr(K::kCornerTexcoord, 10, {0})},  // a property twice
+      {normals, attr(K::kCornerNormal, 8, {1})},     // a kind twice
+  };
+  for (size_t i = 0; i < bad.size(); ++i) {
+    const Status s = parse(bad[i], true);
     EXPECT_EQ(s.code(), ErrorCode::kBadHeader) << "case " << i << ": " << s.to_string();
   }
 }

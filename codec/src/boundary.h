@@ -226,7 +226,6 @@ class BasicBoundary {
   // 13.6.1): the first entering edge of the last triangle in edge order
   // 1, 2, 0, or kNone.
   uint32_t reference() const { return reference_; }
-  void clear_reference() { reference_ = kNone; }
   // Edges that ever entered (spec 6.1.2 step 2).
   uint64_t entered() const { return entered_; }
 

@@ -205,8 +205,6 @@ struct PsqDecoder::Impl {
   // starts here (`load`).
   Status read_segment(bool load);
   Status read_index();
-  // Loads a state block into a freshly opened decoder.
-  Status load_segment_state(uint64_t at);
 
   Status open(InputStream* stream);
   Status next_chunk();
