@@ -220,6 +220,60 @@ TEST(Corners, RoundTripWithinTheirError) {
     }
 }
 
+// Corner normals beside vertex attributes (8.3): texture coordinates and
+// colours per vertex, normals per corner (flat), with and without the
+// rotation (a material column keeps it).
+TEST(Corners, BesideVertexAttributes) {
+  for (bool material : {false, true}) {
+    Mesh m = corner_torus(true, false, 24, 12);
+    for (PropertyValues& v : m.face_values) {
+      const double mat = v[17];
+      v.resize(10);
+      if (material) v.push_back(mat);
+    }
+    m.schema.face_properties.erase(m.schema.face_properties.begin() + 1, m.schema.face_properties.end());
+    if (material) m.schema.face_properties.push_back({"material", ScalarType::kUInt8});
+    for (const char* n : {"u", "v"}) m.schema.vertex_properties.push_back({n, ScalarType::kFloat64});
+    for (const char* n : {"red", "green", "blue"}) m.schema.vertex_properties.push_back({n, ScalarType::kUInt8});
+    m.vertex_values.assign(m.positions.size(), PropertyValues());
+    for (size_t i = 0; i < m.positions.size(); ++i)
+      m.vertex_values[i] = {0.25 + 0.001 * static_cast<double>(i), 0.5, static_cast<double>(i % 256), 7, 200};
+    const Events ev = sequence_of(m);
+    for (bool fast : {false, true}) {
+      std::vector<uint8_t> bytes;
+      ASSERT_TRUE(encode(ev, options(fast, 10, 12), &bytes).ok());
+      PsqHeader h;
+      Events back;
+      const Status ds = decode(bytes, &back, &h);
+      ASSERT_TRUE(ds.ok()) << "material " << material << " fast " << fast << ": " << ds.to_string();
+      ASSERT_EQ(h.attributes.size(), 3u);
+      EXPECT_EQ(h.rotation, material);
+      ASSERT_EQ(back.events.size(), ev.events.size());
+      const int c = (1 << 9) - 1;
+      for (size_t i = 0; i < ev.events.size(); ++i) {
+        const SequenceEvent& a = ev.events[i];
+        const SequenceEvent& b = back.events[i];
+        if (a.kind == SequenceEvent::Kind::kVertex) {
+          ASSERT_EQ(b.vertex.values.size(), 5u) << "event " << i;
+          EXPECT_LE(std::fabs(a.vertex.values[0] - b.vertex.values[0]), std::ldexp(0.5, -12)) << "event " << i;
+          for (int k = 2; k < 5; ++k) EXPECT_EQ(a.vertex.values[k], b.vertex.values[k]) << "event " << i;
+        } else if (a.kind == SequenceEvent::Kind::kTriangle) {
+          ASSERT_EQ(b.triangle.values.size(), a.triangle.values.size()) << "event " << i;
+          const int r = rotation_of(a.triangle, b.triangle);
+          ASSERT_GE(r, 0);
+          for (int k = 0; k < 3; ++k) {
+            const double* n = &a.triangle.values[1 + 3 * k];
+            const double* q = &b.triangle.values[1 + 3 * ((k + r) % 3)];
+            EXPECT_LE(std::acos(std::min(1.0, n[0] * q[0] + n[1] * q[1] + n[2] * q[2])), 1.5 / c + 1e-6)
+                << "event " << i;
+          }
+          if (material) EXPECT_EQ(a.triangle.values[10], b.triangle.values[10]);
+        }
+      }
+    }
+  }
+}
+
 // A corner that takes a value its vertex already has costs a symbol, not
 // a value: texture coordinates the same at every corner of a vertex but
 // on the seam cost about what the same coordinates do per vertex, and a

@@ -413,13 +413,13 @@ Status PsqDecoder::Impl::decode_attributes(bool flush) {
     attr_columns.swap(face->values);
     attrs->merge_face(attr_columns, attr_cq.data(), &face->values);
   }
-  if (!late) {
+  // A vertex's values are whole now unless its normal waits (8.4).
+  if (!attrs->late_vertices())
     for (int i = 0; i < r.nnew; ++i) {
       attr_columns.swap(fresh[i]->values);
       attrs->merge(attr_columns, attr_q.data() + i * attrs->dims(), &fresh[i]->values);
     }
-    return Status();
-  }
+  if (!late) return Status();
   // Spec 8.4: the record's events join those held back; a vertex's
   // values stay its property columns until its normal comes.
   for (size_t i = 0; i < qcount && !flush; ++i) hold(queue[i]);
