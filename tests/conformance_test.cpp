@@ -194,7 +194,7 @@ TEST(Conformance, FastVectorsDecodeLikeTheirCompactTwins) {
   for (const char* name : {"spider_16bit", "spider_lossless", "grid_borders", "nonmanifold_wrap", "max_export_chunks",
                            "properties_lossless", "attributes_8bit", "attributes_lossless", "spider_attributes",
                            "segments_spider", "segments_spider_lossless", "segments_spider_attributes",
-                           "segments_nonmanifold_wrap", "segments_spider_corners"}) {
+                           "segments_nonmanifold_wrap", "segments_spider_corners", "corner_wedges"}) {
     EXPECT_EQ(test::read_file(kDir + "fast_" + name + ".dump"), test::read_file(kDir + name + ".dump")) << name;
     PsqDecoder dec;
     decode_vector(std::string("fast_") + name + ".psq", &dec, [](const SequenceEvent&) {});

@@ -320,6 +320,8 @@ void AttributeCoder::restart_models() {
   }
   wedges_.clear();
   corner_waiting_.clear();
+  waiters_.clear();
+  free_waiters_.clear();
   serial_ = 0;
 }
 

@@ -218,18 +218,20 @@ class AttributeCoder {
     int orientation;
   };
   // The values a vertex slot keeps for one corner attribute, most recent
-  // first; a normal waits for its fan (spec 8.5) with its triangles' area
-  // vectors and the corners that take it.
+  // first. A normal that waits for its fan (spec 8.5) has a Waiter: its
+  // number, its triangles' area vectors and the corners that took it.
   struct Wedge {
     int32_t v[2];
-    bool waiting;
-    uint64_t serial;
-    double n[3];
-    std::vector<uint64_t> refs;  // event * 4 + corner
+    uint32_t wait;  // 0, or 1 + its entry in waiters_
   };
   struct Wedges {
     int n = 0;
     Wedge w[kMaxWedges];
+  };
+  struct Waiter {
+    uint64_t serial;
+    double n[3];
+    std::vector<uint64_t> refs;  // event * 4 + corner
   };
   struct CornerWaiting {
     uint32_t slot;
@@ -242,8 +244,9 @@ class AttributeCoder {
   bool corner_walk(const AttributeRecord& r, Coding& code);
   bool corner_settle(Coding& code, size_t ai, Wedge& w, int kind);
   bool corners_due(const AttributeRecord& r, Coding& code);
-  void predict_corner(const AttributeRecord& r, const Corner& a, int j, const bool* known, int32_t (*x)[2], int* rule,
-                      int64_t* pred, int* extent) const;
+  void predict_texcoord(const AttributeRecord& r, const Corner& a, int j, const bool* known, int32_t (*x)[2],
+                        int* rule, int64_t* pred, int* extent) const;
+  void release(Wedge& w);
   Wedges& wedges(uint32_t slot, size_t a);
   int corner_table(size_t a, int rule, int d, int ctx) const {
     return 6 * dims_ + ((static_cast<int>(a) * 5 + rule) * 2 + d) * 3 + (ctx < 4 ? 0 : ctx < 8 ? 1 : 2);
@@ -288,6 +291,8 @@ class AttributeCoder {
   int pending_corners_ = 0;
   uint64_t serial_ = 0;
   std::deque<CornerWaiting> corner_waiting_;  // in order of creation
+  std::vector<Waiter> waiters_;
+  std::vector<uint32_t> free_waiters_;
   std::vector<SettledCorner> settled_corners_;
 };
 

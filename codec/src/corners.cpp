@@ -111,39 +111,16 @@ AttributeCoder::Wedges& AttributeCoder::wedges(uint32_t slot, size_t a) {
   return wedges_[static_cast<size_t>(slot) * corner_.size() + a];
 }
 
-// Spec 8.5: the prediction of corner j's new value from the triangle's
-// corners known so far (`known`, values `x`): rule 0 with both others
-// known, 1 with one, 2 with none.
-void AttributeCoder::predict_corner(const AttributeRecord& r, const Corner& a, int j, const bool* known,
-                                    int32_t (*x)[2], int* rule, int64_t* pred, int* extent) const {
+// Spec 8.5: the prediction of texture coordinate j's new value from the
+// triangle's corners known so far (`known`, values `x`): rule 0 with both
+// others known, 1 with one, 2 with none.
+void AttributeCoder::predict_texcoord(const AttributeRecord& r, const Corner& a, int j, const bool* known,
+                                      int32_t (*x)[2], int* rule, int64_t* pred, int* extent) const {
   const int p = (j + 1) % 3, q = (j + 2) % 3;
   *rule = 2 - static_cast<int>(known[p]) - static_cast<int>(known[q]);
   extent[0] = extent[1] = 0;
   pred[0] = a.last[0];
   pred[1] = a.last[1];
-  if (a.kind == CodedAttribute::Kind::kCornerNormal) {
-    // The sum of the known corners' normals, else the triangle's own.
-    const int32_t c = (int32_t{1} << (a.bits - 1)) - 1;
-    double n[3] = {0, 0, 0};
-    for (int k : {p, q}) {
-      if (!known[k]) continue;
-      double u[3];
-      octahedral_decode(x[k][0], x[k][1], c, u);
-      for (int i = 0; i < 3; ++i) n[i] = n[i] + u[i];
-    }
-    if (*rule == 2 && r.pos[0] != nullptr) {
-      int64_t e[3], f[3];
-      for (int i = 0; i < 3; ++i) {
-        e[i] = r.pos[1][i] - r.pos[0][i];
-        f[i] = r.pos[2][i] - r.pos[0][i];
-      }
-      n[0] = static_cast<double>(e[1] * f[2] - e[2] * f[1]);
-      n[1] = static_cast<double>(e[2] * f[0] - e[0] * f[2]);
-      n[2] = static_cast<double>(e[0] * f[1] - e[1] * f[0]);
-    }
-    octahedral_round(n, c, &pred[0], &pred[1]);  // a zero sum keeps the value before
-    return;
-  }
   if (*rule == 1) {
     const int k = known[p] ? p : q;
     pred[0] = x[k][0];
@@ -204,7 +181,9 @@ bool AttributeCoder::corner_walk(const AttributeRecord& r, Coding& code) {
       Wedges& W = *(w[k] = &wedges(r.c[k], ai));
       int32_t* mine = r.corners + k * cd + 2 * ai;
       if (r.new_mask >> k & 1) {
-        for (int i = 0; i < W.n; ++i) W.w[i].refs.clear();
+        // A finalized vertex's normals were settled (step 4); a slot's
+        // earlier values wait no more.
+        for (int i = 0; i < W.n; ++i) release(W.w[i]);
         W.n = 0;
       }
       if (W.n == 0) continue;
@@ -228,8 +207,7 @@ bool AttributeCoder::corner_walk(const AttributeRecord& r, Coding& code) {
       if (W.n == kMaxWedges) {
         // The least recent value leaves; a normal still waiting settles.
         Wedge& out = W.w[kMaxWedges - 1];
-        if (out.waiting && !corner_settle(code, ai, out, 1)) return false;
-        out.refs.clear();
+        if (out.wait && !corner_settle(code, ai, out, 1)) return false;
         --W.n;
       }
       std::rotate(W.w, W.w + W.n, W.w + W.n + 1);
@@ -238,17 +216,28 @@ bool AttributeCoder::corner_walk(const AttributeRecord& r, Coding& code) {
       int32_t* mine = r.corners + k * cd + 2 * ai;
       t.v[0] = mine[0];  // the encoder's value; the decoder's comes below
       t.v[1] = mine[1];
-      t.waiting = normal;
+      t.wait = 0;
       known[k] = true;
       if (normal) {
-        t.serial = serial_++;
-        t.n[0] = t.n[1] = t.n[2] = 0;
-        corner_waiting_.push_back(CornerWaiting{r.c[k], static_cast<uint32_t>(ai), t.serial, records_});
+        uint32_t at;
+        if (free_waiters_.empty()) {
+          at = static_cast<uint32_t>(waiters_.size());
+          waiters_.emplace_back();
+        } else {
+          at = free_waiters_.back();
+          free_waiters_.pop_back();
+        }
+        Waiter& g = waiters_[at];
+        g.serial = serial_++;
+        g.n[0] = g.n[1] = g.n[2] = 0;
+        g.refs.clear();
+        t.wait = at + 1;
+        corner_waiting_.push_back(CornerWaiting{r.c[k], static_cast<uint32_t>(ai), g.serial, records_});
         continue;
       }
       int rule, extent[2];
       int64_t pred[2];
-      predict_corner(r, a, k, known, x, &rule, pred, extent);
+      predict_texcoord(r, a, k, known, x, &rule, pred, extent);
       int longest = 0;
       for (int d = 0; d < 2; ++d) {
         const int ctx = attribute_context(rule == 0 ? 0 : 1, d == 0, extent[d], longest);
@@ -282,30 +271,32 @@ bool AttributeCoder::corner_walk(const AttributeRecord& r, Coding& code) {
       n[2] = static_cast<double>(e[0] * f[1] - e[1] * f[0]);
     }
     for (int k = 0; k < 3; ++k) {
-      Wedge& t = *taken[k];
-      if (!t.waiting) continue;
-      for (int i = 0; i < 3; ++i) t.n[i] = t.n[i] + n[i];
-      t.refs.push_back(r.event * 4 + static_cast<uint64_t>(k));
+      const Wedge& t = *taken[k];
+      if (!t.wait) continue;
+      Waiter& g = waiters_[t.wait - 1];
+      for (int i = 0; i < 3; ++i) g.n[i] = g.n[i] + n[i];
+      g.refs.push_back(r.event * 4 + static_cast<uint64_t>(k));
       ++pending_corners_;
     }
     for (int k : order) {
       if (!(r.final_mask >> k & 1)) continue;
       Wedges& W = *w[k];
       for (int i = 0; i < W.n; ++i)
-        if (W.w[i].waiting && !corner_settle(code, ai, W.w[i], 0)) return false;
+        if (W.w[i].wait && !corner_settle(code, ai, W.w[i], 0)) return false;
     }
   }
   return true;
 }
 
 // Spec 8.5: a corner normal predicted by the direction of its fan's area
-// vector, else by the normal coded before; coded with the models of a
-// finalized vertex (kind 0) or of the others.
+// vector, else by the normal coded before; rule 3 for a finalized vertex,
+// 4 for the others (both with the contexts of 8.3's kind 1).
 bool AttributeCoder::corner_settle(Coding& code, size_t ai, Wedge& w, int kind) {
   Corner& a = corner_[ai];
+  Waiter& g = waiters_[w.wait - 1];
   const int32_t c = (int32_t{1} << (a.bits - 1)) - 1;
   int64_t pred[2] = {a.last[0], a.last[1]};
-  octahedral_round(w.n, c, &pred[0], &pred[1]);  // a zero sum keeps the normal before
+  octahedral_round(g.n, c, &pred[0], &pred[1]);  // a zero sum keeps the normal before
   const int rule = 3 + kind;
   int longest = 0;
   for (int d = 0; d < 2; ++d) {
@@ -318,12 +309,18 @@ bool AttributeCoder::corner_settle(Coding& code, size_t ai, Wedge& w, int kind) 
   }
   a.last[0] = w.v[0];
   a.last[1] = w.v[1];
-  w.waiting = false;
-  for (uint64_t ref : w.refs)
+  for (uint64_t ref : g.refs)
     settled_corners_.push_back(
         SettledCorner{ref >> 2, static_cast<int>(ref & 3), static_cast<int>(ai), {w.v[0], w.v[1]}});
-  w.refs.clear();
+  release(w);
   return true;
+}
+
+void AttributeCoder::release(Wedge& w) {
+  if (w.wait == 0) return;
+  waiters_[w.wait - 1].refs.clear();
+  free_waiters_.push_back(w.wait - 1);
+  w.wait = 0;
 }
 
 // Spec 8.5: a corner normal waits at most kMaxNormalWait records after
@@ -335,7 +332,9 @@ bool AttributeCoder::corners_due(const AttributeRecord& r, Coding& code) {
     corner_waiting_.pop_front();
     Wedges& W = wedges(cw.slot, cw.attribute);
     for (int i = 0; i < W.n; ++i)
-      if (W.w[i].waiting && W.w[i].serial == cw.serial && !corner_settle(code, cw.attribute, W.w[i], 1)) return false;
+      if (W.w[i].wait && waiters_[W.w[i].wait - 1].serial == cw.serial &&
+          !corner_settle(code, cw.attribute, W.w[i], 1))
+        return false;
   }
   return true;
 }

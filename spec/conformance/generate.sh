@@ -172,6 +172,49 @@ valid fast_spider_attributes "$data/spider_attributes.ply" --bits 14 --normal-bi
 # Corner attributes (spec 8.5): the spider as its OBJ has it, positions
 # welded, normals and texture coordinates per corner; in chunks of 1 KiB
 # (corner normals settle at chunk ends) and segments, in both profiles.
+# A fan of 4200 triangles with uchar colours per vertex, normals per
+# corner and a material per triangle (the rotation kept): the centre's
+# normal settles by the 4096-record bound.
+awk 'BEGIN {
+  n = 4200; pi = atan2(0, -1)
+  print "ply"; print "format ascii 1.0"; print "element vertex " n + 1
+  print "property float x"; print "property float y"; print "property float z"
+  print "property uchar red"; print "property uchar green"; print "property uchar blue"
+  print "element face " n; print "property list uchar int vertex_indices"
+  print "property list uchar float corner_normals"; print "property uchar material"; print "end_header"
+  print "0 0 0 255 0 0"
+  for (j = 0; j < n; ++j) {
+    a = 2 * pi * j / n
+    printf "%.6f %.6f %.6f %d 128 7\n", cos(a), sin(a), 0.1 * sin(7 * a), j % 256
+  }
+  for (i = 0; i < n; ++i) {
+    j = (i + 1) % n; ai = 2 * pi * i / n; aj = 2 * pi * j / n
+    printf "3 0 %d %d 9 0 0 1 %.4f %.4f 1 %.4f %.4f 1 %d\n", 1 + i, 1 + j, 0.3 * cos(ai), 0.3 * sin(ai), 0.3 * cos(aj), 0.3 * sin(aj), i % 3
+  }
+}' > "$tmp/corner_fan.ply"
+valid corner_fan "$tmp/corner_fan.ply" --bits 12 --normal-bits 6
+# A fan of 60 triangles whose centre has many values per corner: texture
+# coordinates that come back after 5 triangles (wedge symbols up to 4),
+# then a new one a triangle (the ninth evicts the least recent); normals
+# that alternate between two, then a new one a triangle (evicted while
+# they wait); a texture seam where the fan closes.
+awk 'BEGIN {
+  n = 60; pi = atan2(0, -1)
+  print "ply"; print "format ascii 1.0"; print "element vertex " n + 1
+  print "property float x"; print "property float y"; print "property float z"
+  print "element face " n; print "property list uchar int vertex_indices"
+  print "property list uchar float corner_normals"; print "property list uchar float corner_uv"; print "end_header"
+  print "0 0 0"
+  for (j = 0; j < n; ++j) { a = 2 * pi * j / n; printf "%.6f %.6f %.6f\n", cos(a), sin(a), 0.1 * sin(3 * a) }
+  for (i = 0; i < n; ++i) {
+    j = (i + 1) % n; ai = 2 * pi * i / n; aj = 2 * pi * j / n
+    if (i < 30) { cu = (i % 5) / 8; cv = 0.5; ny = (i % 2) * 0.5; nx = 0 } else { cu = i / 64; cv = 0.25; ny = 0; nx = (i - 30) / 30 }
+    uj = j / 64; if (i == n - 1) uj = 1
+    printf "3 0 %d %d 9 %.4f %.4f 1 %.4f %.4f 1 %.4f %.4f 1 6 %.6f %.6f %.6f 1 %.6f 1\n", 1 + i, 1 + j, nx, ny, 0.3 * cos(ai), 0.3 * sin(ai), 0.3 * cos(aj), 0.3 * sin(aj), cu, cv, i / 64, uj
+  }
+}' > "$tmp/corner_wedges.ply"
+valid corner_wedges "$tmp/corner_wedges.ply" --bits 12 --normal-bits 8 --uv-bits 10
+valid fast_corner_wedges "$tmp/corner_wedges.ply" --bits 12 --normal-bits 8 --uv-bits 10 --profile fast
 valid segments_spider_corners "$data/spider.obj" --bits 14 --normal-bits 10 --uv-bits 12 --segment 300 --chunk 1024
 valid fast_segments_spider_corners "$data/spider.obj" --bits 14 --normal-bits 10 --uv-bits 12 --segment 300 --chunk 1024 --profile fast
 # Segments (spec 4.6, 4.7): a segment record every 300 triangles of the
