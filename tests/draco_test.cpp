@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <map>
 #include <random>
@@ -157,6 +158,83 @@ TEST(Draco, RoundTripKeepsCountsPositionsAndAttributes) {
     EXPECT_NEAR(g[prop_index(got, "v")], w[7], 1.0 / 4095);
     EXPECT_EQ(g[prop_index(got, "confidence")], w[8]);
     EXPECT_EQ(g[prop_index(got, "label")], w[9]);
+  }
+}
+
+// Normals and texture coordinates per corner (the face lists of psq's OBJ
+// reader, spec 8.5) go to Draco as points per distinct vertex and corner
+// values with welded positions, and come back welded, per corner.
+TEST(Draco, CornerAttributesRoundTripWelded) {
+  test::TempDir dir;
+  Mesh m = test::make_sphere(12, 20);
+  m.schema.vertex_properties = {{"red", ScalarType::kUInt8}, {"green", ScalarType::kUInt8}, {"blue", ScalarType::kUInt8}};
+  for (size_t i = 0; i < m.positions.size(); ++i) m.vertex_values[i] = {static_cast<double>(i % 256), 9, 200};
+  Property normals, uv;
+  normals.name = "corner_normals";
+  uv.name = "corner_uv";
+  for (Property* p : {&normals, &uv}) {
+    p->type = ScalarType::kFloat32;
+    p->is_list = true;
+    p->count_type = ScalarType::kUInt8;
+  }
+  m.schema.face_properties = {normals, uv};
+  for (size_t f = 0; f < m.triangles.size(); ++f) {
+    const auto& t = m.triangles[f];
+    const auto &a = m.positions[t[0]], &b = m.positions[t[1]], &c = m.positions[t[2]];
+    double n[3] = {(b[1] - a[1]) * (c[2] - a[2]) - (b[2] - a[2]) * (c[1] - a[1]),
+                   (b[2] - a[2]) * (c[0] - a[0]) - (b[0] - a[0]) * (c[2] - a[2]),
+                   (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])};
+    const double l = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    PropertyValues v{9};
+    for (int k = 0; k < 3; ++k)
+      for (int d = 0; d < 3; ++d) v.push_back(static_cast<float>(n[d] / l));  // flat: a crease at every edge
+    v.push_back(6);
+    const double half = (a[0] + b[0] + c[0]) > 0 ? 0.5 : 0;  // two charts, a seam between
+    for (uint32_t i : t) {
+      v.push_back(static_cast<float>(half + 0.25 * (1 + m.positions[i][1])));
+      v.push_back(static_cast<float>(0.5 + 0.5 * m.positions[i][2]));
+    }
+    m.face_values[f] = v;
+  }
+  DracoWriteOptions o;
+  o.bits = 14;
+  std::vector<std::string> dropped;
+  ASSERT_TRUE(write_drc(m, dir.file("c.drc"), o, &dropped).ok());
+  EXPECT_TRUE(dropped.empty());
+  Mesh got;
+  const Status s = read_drc(test::read_file(dir.file("c.drc")), uint64_t{64} << 20, &got);
+  ASSERT_TRUE(s.ok()) << s.to_string();
+  ASSERT_EQ(got.positions.size(), m.positions.size());  // welded again
+  ASSERT_EQ(got.schema.face_properties.size(), 2u);
+  EXPECT_EQ(got.schema.face_properties[0].name, "corner_normals");
+  EXPECT_EQ(got.schema.face_properties[1].name, "corner_uv");
+  EXPECT_EQ(prop_index(got, "red"), 0);
+  const double half_step = 2.0 / ((1 << 14) - 1) / 2;
+  const std::vector<uint32_t> to_want = match(m, got, half_step * 1.001 + 1e-6);
+  std::map<std::array<uint32_t, 3>, size_t> face_of;
+  for (size_t f = 0; f < m.triangles.size(); ++f) {
+    std::array<uint32_t, 3> k = m.triangles[f];
+    std::sort(k.begin(), k.end());
+    face_of[k] = f;
+  }
+  for (size_t i = 0; i < got.positions.size(); ++i)
+    EXPECT_EQ(got.vertex_values[i][0], m.vertex_values[to_want[i]][0]);
+  for (size_t f = 0; f < got.triangles.size(); ++f) {
+    std::array<uint32_t, 3> w;
+    for (int k = 0; k < 3; ++k) w[k] = to_want[got.triangles[f][k]];
+    std::array<uint32_t, 3> key = w;
+    std::sort(key.begin(), key.end());
+    ASSERT_TRUE(face_of.count(key)) << "triangle " << f;
+    const size_t of = face_of[key];
+    const PropertyValues& a = m.face_values[of];
+    const PropertyValues& b = got.face_values[f];
+    ASSERT_EQ(b.size(), a.size());
+    for (int k = 0; k < 3; ++k) {
+      int j = 0;
+      while (m.triangles[of][j] != w[k]) ++j;
+      for (int d = 0; d < 3; ++d) EXPECT_NEAR(b[1 + 3 * k + d], a[1 + 3 * j + d], 0.01) << "triangle " << f;
+      for (int d = 0; d < 2; ++d) EXPECT_NEAR(b[11 + 2 * k + d], a[11 + 2 * j + d], 1.0 / 4095) << "triangle " << f;
+    }
   }
 }
 

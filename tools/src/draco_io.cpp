@@ -437,6 +437,7 @@ struct DracoReader::Impl {
   struct Column {
     const draco::PointAttribute* att = nullptr;
     int components = 0;
+    int corner = -1;  // welded (below): 0 normals, 1 texture coordinates per corner, else -1
   };
   MeshSchema schema;
   SourceReport report;
@@ -451,7 +452,20 @@ struct DracoReader::Impl {
   uint32_t next_face = 0;
   bool ended = false;
   Status error;
+  // Welded: a vertex per position value, which Draco's points map to (a
+  // mesh with texture seams or creases has several points at one position,
+  // 8.5 of spec/psq-format.md), normals and texture coordinates that
+  // differ between them per corner; else a vertex per point.
+  bool welded = false;
+  uint32_t num_vertices = 0;
+  std::vector<uint32_t> vertex_of;  // by point
+  std::vector<uint32_t> point_of;   // by vertex: a point at it
 
+  // Whether the points can be welded by their position values: a mesh
+  // whose position values are each some points', and whose attributes
+  // other than one normal and one texture coordinate are the same at every
+  // point of a position. Sets vertex_of, point_of and the columns' corner.
+  bool weld(const std::vector<int>& column_kind);
   // The bytes of value `point` of `att`, or null when the file's mapping or
   // buffer does not hold them.
   static const uint8_t* value_at(const draco::PointAttribute* att, uint32_t point) {
@@ -466,6 +480,38 @@ struct DracoReader::Impl {
     return b->data() + pos;
   }
 };
+
+bool DracoReader::Impl::weld(const std::vector<int>& column_kind) {
+  if (mesh == nullptr || position->is_mapping_identity() || position->indices_map_size() < num_points) return false;
+  const uint32_t nv = static_cast<uint32_t>(position->size());
+  if (nv == 0 || nv >= num_points) return false;
+  vertex_of.assign(num_points, 0);
+  point_of.assign(nv, UINT32_MAX);
+  for (uint32_t p = 0; p < num_points; ++p) {
+    const uint32_t v = position->mapped_index(draco::PointIndex(p)).value();
+    if (v >= nv) return false;
+    vertex_of[p] = v;
+    if (point_of[v] == UINT32_MAX) point_of[v] = p;
+  }
+  for (uint32_t v = 0; v < nv; ++v)
+    if (point_of[v] == UINT32_MAX) return false;
+  for (size_t c = 0; c < columns.size(); ++c) {
+    const Column& col = columns[c];
+    const size_t len = static_cast<size_t>(draco::DataTypeLength(col.att->data_type())) * col.components;
+    bool same = true;
+    for (uint32_t p = 0; p < num_points && same; ++p) {
+      const uint8_t* a = value_at(col.att, p);
+      const uint8_t* b = value_at(col.att, point_of[vertex_of[p]]);
+      if (a == nullptr || b == nullptr) return false;
+      same = std::memcmp(a, b, len) == 0;
+    }
+    if (same) continue;
+    if (column_kind[c] < 0) return false;  // only normals and texture coordinates go per corner
+    columns[c].corner = column_kind[c];
+  }
+  num_vertices = nv;
+  return true;
+}
 
 DracoReader::DracoReader() : impl_(std::make_unique<Impl>()) {}
 DracoReader::~DracoReader() = default;
@@ -544,6 +590,8 @@ Status DracoReader::open(InputStream* in, uint64_t memory_budget) {
   // Attributes to properties.
   std::set<std::string> names;
   bool have_normal = false, have_color = false, have_uv = false;
+  std::vector<int> column_kind;  // 0 the normal, 1 the texture coordinate, else -1
+  std::vector<size_t> column_first;  // its first vertex property
   auto add = [&](const std::string& n, ScalarType t) {
     Property p;
     p.name = n;
@@ -574,9 +622,12 @@ Status DracoReader::open(InputStream* in, uint64_t memory_budget) {
       continue;
     }
     Impl::Column col{att, nc};
+    column_first.push_back(m.schema.vertex_properties.size());
+    column_kind.push_back(-1);
     if (at == draco::GeometryAttribute::NORMAL && !have_normal && nc == 3 &&
         !names.count("nx") && !names.count("ny") && !names.count("nz")) {
       have_normal = true;
+      column_kind.back() = 0;
       add("nx", t), add("ny", t), add("nz", t);
     } else if (at == draco::GeometryAttribute::COLOR && !have_color && (nc == 3 || nc == 4) &&
                !names.count("red") && !names.count("green") && !names.count("blue") && !names.count("alpha")) {
@@ -586,6 +637,7 @@ Status DracoReader::open(InputStream* in, uint64_t memory_budget) {
     } else if (at == draco::GeometryAttribute::TEX_COORD && !have_uv && nc == 2 && !names.count("u") &&
                !names.count("v")) {
       have_uv = true;
+      column_kind.back() = 1;
       add("u", t), add("v", t);
     } else {
       std::string meta;
@@ -604,7 +656,31 @@ Status DracoReader::open(InputStream* in, uint64_t memory_budget) {
     m.columns.push_back(col);
   }
   if (m.position == nullptr) return Status(ErrorCode::kBadValue, "Draco geometry without a position attribute");
+  m.welded = m.weld(column_kind);
   m.schema.vertex_count = m.num_points;
+  if (m.welded) {
+    // The corner columns' vertex properties become face lists.
+    for (size_t c = m.columns.size(); c-- > 0;) {
+      if (m.columns[c].corner < 0) continue;
+      const Property p = m.schema.vertex_properties[column_first[c]];
+      m.schema.vertex_properties.erase(m.schema.vertex_properties.begin() + static_cast<std::ptrdiff_t>(column_first[c]),
+                                       m.schema.vertex_properties.begin() +
+                                           static_cast<std::ptrdiff_t>(column_first[c] + m.columns[c].components));
+      Property list;
+      list.name = m.columns[c].corner == 0 ? "corner_normals" : "corner_uv";
+      list.type = p.type == ScalarType::kFloat64 ? ScalarType::kFloat64 : ScalarType::kFloat32;
+      list.is_list = true;
+      list.count_type = ScalarType::kUInt8;
+      m.schema.face_properties.insert(m.schema.face_properties.begin(), list);
+    }
+    if (m.schema.face_properties.size() == 2 && m.schema.face_properties[0].name == "corner_uv")
+      std::swap(m.schema.face_properties[0], m.schema.face_properties[1]);
+    m.schema.vertex_count = m.num_vertices;
+    m.report.notes.push_back(std::to_string(m.num_points) + " Draco points welded into " +
+                             std::to_string(m.num_vertices) + " vertices by position, " +
+                             (m.schema.face_properties.empty() ? std::string("their attributes the same")
+                                                               : "the attributes that differ kept per corner"));
+  }
   m.schema.triangle_count = m.num_faces;
   if (m.mesh == nullptr) m.report.notes.push_back("Draco point cloud: vertices only");
   return Status();
@@ -617,8 +693,8 @@ Status DracoReader::next(MeshItem* item) {
   Impl& m = *impl_;
   if (!m.error.ok()) return m.error;
   item->values.clear();
-  if (m.next_vertex < m.num_points) {
-    const uint32_t i = m.next_vertex;
+  if (m.next_vertex < (m.welded ? m.num_vertices : m.num_points)) {
+    const uint32_t i = m.welded ? m.point_of[m.next_vertex] : m.next_vertex;
     const uint8_t* p = Impl::value_at(m.position, i);
     if (p == nullptr) return m.error = Status(ErrorCode::kBadValue, "corrupt Draco data: point " + std::to_string(i) + " has no position");
     const int nc = m.position->num_components();
@@ -628,6 +704,7 @@ Status DracoReader::next(MeshItem* item) {
         return m.error = Status(ErrorCode::kBadValue, "Draco point " + std::to_string(i) + " has a non-finite position");
     }
     for (const Impl::Column& c : m.columns) {
+      if (c.corner >= 0) continue;
       const uint8_t* q = Impl::value_at(c.att, i);
       if (q == nullptr)
         return m.error = Status(ErrorCode::kBadValue, "corrupt Draco data: point " + std::to_string(i) + " has no attribute value");
@@ -644,8 +721,21 @@ Status DracoReader::next(MeshItem* item) {
         return m.error = Status(ErrorCode::kBadIndex, "corrupt Draco data: face " + std::to_string(m.next_face) +
                                                           " refers to point " + std::to_string(f[k].value()) + " of " +
                                                           std::to_string(m.num_points));
-      item->index[k] = f[k].value();
+      item->index[k] = m.welded ? m.vertex_of[f[k].value()] : f[k].value();
     }
+    // The corner lists, normals first, each corner's values in turn.
+    for (int kind = 0; kind < 2 && m.welded; ++kind)
+      for (const Impl::Column& c : m.columns) {
+        if (c.corner != kind) continue;
+        item->values.push_back(3.0 * c.components);
+        for (int k = 0; k < 3; ++k) {
+          const uint8_t* q = Impl::value_at(c.att, f[k].value());
+          if (q == nullptr)
+            return m.error = Status(ErrorCode::kBadValue, "corrupt Draco data: point " + std::to_string(f[k].value()) +
+                                                              " has no attribute value");
+          for (int d = 0; d < c.components; ++d) item->values.push_back(component(c.att->data_type(), q, d));
+        }
+      }
     item->kind = MeshItem::Kind::kTriangle;
     ++m.next_face;
     return Status();
@@ -674,6 +764,17 @@ struct DracoWriter::Impl {
   std::vector<double> positions;  // 3 per vertex
   std::vector<double> values;     // `slots` per vertex
   std::vector<uint32_t> indices;  // 3 per triangle
+  // Normals and texture coordinates per corner (the face lists
+  // corner_normals and corner_uv of psq's OBJ reader and codec, spec 8.5):
+  // Draco keeps them as attributes of points, one point per distinct
+  // vertex and corner values, its positions mapped to the vertices.
+  struct CornerList {
+    int property = -1;  // index of the face property, or -1
+    int arity = 0;      // values a corner: 3 or 2
+  };
+  CornerList corner[2];          // normals, texture coordinates
+  int corner_slots = 0;          // values a corner, both lists
+  std::vector<double> corners;   // corner_slots per corner, 3 corners per triangle
   uint64_t vertex_cost = 0;       // bytes per vertex, buffered and in Draco
   uint64_t used = 0;
   std::vector<std::string> dropped;
@@ -762,8 +863,19 @@ Status DracoWriter::begin(const MeshSchema& schema) {
     return -1;
   };
   std::vector<bool> used(props.size(), false);
+  // Corner lists take the place of the vertex attribute of their kind
+  // (whose properties then stay, as generic attributes).
+  const auto& fprops = schema.face_properties;
+  for (size_t i = 0; i < fprops.size(); ++i) {
+    const bool real = fprops[i].is_list &&
+                      (fprops[i].type == ScalarType::kFloat32 || fprops[i].type == ScalarType::kFloat64);
+    const int c = fprops[i].name == "corner_normals" ? 0 : fprops[i].name == "corner_uv" ? 1 : -1;
+    if (!real || c < 0 || m.corner[c].property >= 0) continue;
+    m.corner[c] = {static_cast<int>(i), c == 0 ? 3 : 2};
+    m.corner_slots += m.corner[c].arity;
+  }
   int nx = find("nx"), ny = find("ny"), nz = find("nz");
-  if (nx >= 0 && ny >= 0 && nz >= 0) {
+  if (m.corner[0].property < 0 && nx >= 0 && ny >= 0 && nz >= 0) {
     Impl::Group g;
     g.type = draco::GeometryAttribute::NORMAL;
     g.props = {nx, ny, nz};
@@ -786,7 +898,7 @@ Status DracoWriter::begin(const MeshSchema& schema) {
   for (auto [un, vn] : {std::pair<const char*, const char*>{"u", "v"}, {"s", "t"}, {"texture_u", "texture_v"},
                         {"texture_s", "texture_t"}})
     if (u < 0 || v < 0) u = find(un), v = find(vn);
-  if (u >= 0 && v >= 0) {
+  if (m.corner[1].property < 0 && u >= 0 && v >= 0) {
     Impl::Group g;
     g.type = draco::GeometryAttribute::TEX_COORD;
     g.props = {u, v};
@@ -807,7 +919,9 @@ Status DracoWriter::begin(const MeshSchema& schema) {
     g.name = props[i].name;
     m.groups.push_back(g);
   }
-  for (const Property& p : schema.face_properties) m.dropped.push_back(p.name);
+  for (size_t i = 0; i < fprops.size(); ++i)
+    if (static_cast<int>(i) != m.corner[0].property && static_cast<int>(i) != m.corner[1].property)
+      m.dropped.push_back(fprops[i].name);
   m.kept.assign(props.size(), -1);
   uint64_t draco_bytes = 12;  // position
   for (const Impl::Group& g : m.groups) {
@@ -842,8 +956,30 @@ Status DracoWriter::vertex(const double position[3], const PropertyValues& value
 
 Status DracoWriter::triangle(const uint32_t index[3], const PropertyValues& values) {
   Impl& m = *impl_;
-  PSQ_RETURN_IF_ERROR(m.charge(12 + 12 + 12));  // buffered, Draco's face, its corner table (roughly)
+  // Buffered, Draco's face, its corner table (roughly); corner values
+  // buffered and in Draco's points.
+  PSQ_RETURN_IF_ERROR(m.charge(12 + 12 + 12 + uint64_t{3} * 12 * static_cast<uint64_t>(m.corner_slots)));
   m.indices.insert(m.indices.end(), index, index + 3);
+  if (m.corner_slots == 0) return Status();
+  const size_t base = m.corners.size();
+  m.corners.resize(base + 3 * static_cast<size_t>(m.corner_slots));
+  const auto& fprops = m.schema.face_properties;
+  size_t at = 0;
+  for (size_t i = 0; i < fprops.size() && at < values.size(); ++i) {
+    const size_t n = fprops[i].is_list ? static_cast<size_t>(values[at]) : 0;
+    for (int c = 0, offset = 0; c < 2; offset += m.corner[c].arity, ++c) {
+      if (m.corner[c].property != static_cast<int>(i)) continue;
+      const int arity = m.corner[c].arity;
+      if (n != static_cast<size_t>(3 * arity) || values.size() - at < 1 + n)
+        return Status(ErrorCode::kBadValue, "triangle " + std::to_string(m.indices.size() / 3 - 1) + ": " +
+                                                fprops[i].name + " holds " + std::to_string(n) + " values, not " +
+                                                std::to_string(3 * arity));
+      for (int k = 0; k < 3; ++k)
+        for (int d = 0; d < arity; ++d)
+          m.corners[base + static_cast<size_t>(k * m.corner_slots + offset + d)] = values[at + 1 + k * arity + d];
+    }
+    at += fprops[i].is_list ? 1 + n : 1;
+  }
   return Status();
 }
 
@@ -876,12 +1012,48 @@ Status DracoWriter::finish() {
   const bool double_positions = m.options.lossless && m.schema.position_type == ScalarType::kFloat64;
   if (!double_positions) PSQ_RETURN_IF_ERROR(m.check_float_positions(nv));
 
+  // With corner values: a point per distinct vertex and corner values,
+  // found among its vertex's points so far (a vertex has few).
+  const int cs = m.corner_slots;
+  std::vector<uint32_t> point_vertex, corner_point;
+  std::vector<double> point_values;
+  if (cs > 0) {
+    std::vector<uint32_t> first(nv, UINT32_MAX), next;
+    corner_point.resize(m.indices.size());
+    for (size_t c = 0; c < m.indices.size(); ++c) {
+      const uint32_t v = m.indices[c];
+      const double* x = &m.corners[c * static_cast<size_t>(cs)];
+      uint32_t p = first[v];
+      while (p != UINT32_MAX && !std::equal(x, x + cs, &point_values[size_t{p} * static_cast<size_t>(cs)])) p = next[p];
+      if (p == UINT32_MAX) {
+        if (point_vertex.size() >= static_cast<size_t>(std::numeric_limits<int32_t>::max()))
+          return Status(ErrorCode::kLimit, "Draco holds at most 2^31 - 1 points");
+        p = static_cast<uint32_t>(point_vertex.size());
+        point_vertex.push_back(v);
+        point_values.insert(point_values.end(), x, x + cs);
+        next.push_back(first[v]);
+        first[v] = p;
+      }
+      corner_point[c] = p;
+    }
+    std::vector<double>().swap(m.corners);
+  }
+  const uint32_t np = cs > 0 ? static_cast<uint32_t>(point_vertex.size()) : nv;
+
   draco::Mesh mesh;
-  mesh.set_num_points(nv);
+  mesh.set_num_points(np);
+  // An attribute of nv values, one a vertex: the points map to their
+  // vertices' (the positions, welded, and every vertex property).
   auto add_attribute = [&](draco::GeometryAttribute::Type type, draco::DataType dt, int nc, bool normalized) {
     draco::GeometryAttribute ga;
     ga.Init(type, nullptr, static_cast<uint8_t>(nc), dt, normalized, int64_t{draco::DataTypeLength(dt)} * nc, 0);
-    return mesh.AddAttribute(ga, true, nv);
+    if (cs == 0) return mesh.AddAttribute(ga, true, nv);
+    const int id = mesh.AddAttribute(ga, false, nv);
+    draco::PointAttribute* att = mesh.attribute(id);
+    att->SetExplicitMapping(np);
+    for (uint32_t p = 0; p < np; ++p)
+      att->SetPointMapEntry(draco::PointIndex(p), draco::AttributeValueIndex(point_vertex[p]));
+    return id;
   };
   const draco::DataType pos_type = double_positions ? draco::DT_FLOAT64 : draco::DT_FLOAT32;
   const int pos_id = add_attribute(draco::GeometryAttribute::POSITION, pos_type, 3, false);
@@ -919,10 +1091,34 @@ Status DracoWriter::finish() {
     ids.emplace_back(id, &g);
   }
   std::vector<double>().swap(m.values);
+  // The corner attributes: a value a point.
+  std::vector<std::pair<int, draco::GeometryAttribute::Type>> corner_ids;
+  for (int c = 0, offset = 0; c < 2; offset += m.corner[c].arity, ++c) {
+    if (m.corner[c].property < 0) continue;
+    const int nc = m.corner[c].arity;
+    draco::GeometryAttribute ga;
+    const auto type = c == 0 ? draco::GeometryAttribute::NORMAL : draco::GeometryAttribute::TEX_COORD;
+    ga.Init(type, nullptr, static_cast<uint8_t>(nc), draco::DT_FLOAT32, false, int64_t{4} * nc, 0);
+    const int id = mesh.AddAttribute(ga, true, np);
+    draco::PointAttribute* att = mesh.attribute(id);
+    float buf[3];
+    for (uint32_t p = 0; p < np; ++p) {
+      for (int k = 0; k < nc; ++k) {
+        const double v = point_values[size_t{p} * static_cast<size_t>(cs) + static_cast<size_t>(offset + k)];
+        if (!fits_float(v))
+          return Status(ErrorCode::kBadValue, m.schema.face_properties[m.corner[c].property].name + " value " +
+                                                  number_text(v) + " is beyond float range (Draco stores a float)");
+        buf[k] = static_cast<float>(v);
+      }
+      att->SetAttributeValue(draco::AttributeValueIndex(p), buf);
+    }
+    corner_ids.emplace_back(id, type);
+  }
   mesh.SetNumFaces(nt);
   for (uint32_t f = 0; f < nt; ++f) {
     draco::Mesh::Face face;
-    for (int k = 0; k < 3; ++k) face[k] = draco::PointIndex(m.indices[3 * size_t{f} + k]);
+    for (int k = 0; k < 3; ++k)
+      face[k] = draco::PointIndex(cs > 0 ? corner_point[3 * size_t{f} + k] : m.indices[3 * size_t{f} + k]);
     mesh.SetFace(draco::FaceIndex(f), face);
   }
   std::vector<uint32_t>().swap(m.indices);
@@ -938,9 +1134,11 @@ Status DracoWriter::finish() {
   }
   if (!m.options.lossless) {
     encoder->SetAttributeQuantization(pos_id, m.options.bits);
-    for (const auto& [id, g] : ids) {
-      if (g->type == draco::GeometryAttribute::NORMAL) encoder->SetAttributeQuantization(id, 10);
-      if (g->type == draco::GeometryAttribute::TEX_COORD) encoder->SetAttributeQuantization(id, 12);
+    std::vector<std::pair<int, draco::GeometryAttribute::Type>> all = corner_ids;
+    for (const auto& [id, g] : ids) all.emplace_back(id, g->type);
+    for (const auto& [id, type] : all) {
+      if (type == draco::GeometryAttribute::NORMAL) encoder->SetAttributeQuantization(id, 10);
+      if (type == draco::GeometryAttribute::TEX_COORD) encoder->SetAttributeQuantization(id, 12);
     }
   }
   draco::EncoderBuffer buffer;
