@@ -163,6 +163,39 @@ TEST(Cli, ConvertQuantizesAttributesAndInfoSaysSo) {
   }
 }
 
+// A filter's .psq output keeps a .psq input's attribute quantization (and
+// codes per-corner values per corner); from another input it quantizes as
+// convert does.
+TEST(Cli, FiltersKeepTheAttributesQuantization) {
+  test::TempDir dir;
+  const std::string in = std::string(PSQ_TEST_DATA) + "/attributes.ply";
+  const std::string obj = std::string(PSQ_TEST_DATA) + "/spider.obj";
+  std::string out, err;
+  ASSERT_EQ(run_psq("convert -q --normal-bits 8 --uv-bits 10 " + in + " " + dir.file("a.psq"), &out, &err), 0) << err;
+  ASSERT_EQ(run_psq("convert -q --normal-bits 9 --uv-bits 11 " + obj + " " + dir.file("c.psq"), &out, &err), 0) << err;
+  for (const std::string& cmd :
+       {"smooth -q " + dir.file("a.psq") + " " + dir.file("s.psq"),
+        "simplify -q --method qem --ratio 50% " + dir.file("a.psq") + " " + dir.file("s.psq"),
+        "simplify -q --grid 4 " + dir.file("a.psq") + " " + dir.file("s.psq")}) {
+    ASSERT_EQ(run_psq(cmd + " -f", &out, &err), 0) << cmd << ": " << err;
+    ASSERT_EQ(run_psq("info " + dir.file("s.psq"), &out, &err), 0) << err;
+    EXPECT_NE(out.find("normals (nx ny nz) quantized, 8-bit octahedral; texture coordinates (s t) quantized to "
+                       "steps of 2^-10"),
+              std::string::npos)
+        << cmd << ": " << out;
+  }
+  ASSERT_EQ(run_psq("smooth -q -f " + dir.file("c.psq") + " " + dir.file("s.psq"), &out, &err), 0) << err;
+  ASSERT_EQ(run_psq("info " + dir.file("s.psq"), &out, &err), 0) << err;
+  EXPECT_NE(out.find("per-corner normals (corner_normals) quantized, 9-bit octahedral; per-corner texture "
+                     "coordinates (corner_uv) quantized to steps of 2^-11"),
+            std::string::npos)
+      << out;
+  ASSERT_EQ(run_psq("smooth -q -f " + in + " " + dir.file("s.psq"), &out, &err), 0) << err;
+  ASSERT_EQ(run_psq("info " + dir.file("s.psq"), &out, &err), 0) << err;
+  EXPECT_NE(out.find("10-bit octahedral; texture coordinates (s t) quantized to steps of 2^-12"), std::string::npos)
+      << out;
+}
+
 TEST(Cli, InfoTextAndJson) {
   test::TempDir dir;
   std::string ply = write_sphere(dir, "s.ply", true);

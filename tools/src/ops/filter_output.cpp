@@ -36,6 +36,16 @@ bool filter_encoding(const OpenedMesh& input, int bits, bool lossless, const std
   // inputs, for a little more in tables (bench/RESULTS.md, "Speed and
   // memory at 50M and 200M triangles").
   e->chunk_bytes = kFilterChunkBytes;
+  // Normals and texture coordinates (spec 8.3 to 8.5): a .psq input's
+  // quantization (0, exact, when it kept them in columns), else psq
+  // convert's defaults.
+  e->normal_bits = h ? 0 : 10;
+  e->uv_bits = h ? 0 : 12;
+  if (h)
+    for (const CodedAttribute& a : h->attributes) {
+      if (a.kind == CodedAttribute::Kind::kNormal || a.kind == CodedAttribute::Kind::kCornerNormal) e->normal_bits = a.bits;
+      if (a.kind == CodedAttribute::Kind::kTexcoord || a.kind == CodedAttribute::Kind::kCornerTexcoord) e->uv_bits = a.bits;
+    }
   return true;
 }
 

@@ -28,7 +28,10 @@ namespace psq::detail {
 // first vertex; profile "fast", "compact" or "auto": fast when the input is
 // a fast .psq or, for a mesh-stream filter (clustering), a large mesh
 // (auto_fast_profile()). False when `bits` was given for a sequence filter
-// over a lossless .psq (the caller words the usage error).
+// over a lossless .psq (the caller words the usage error). Normals and
+// texture coordinates keep a .psq input's quantization (exact when it
+// kept them exact); from another input they are quantized as psq convert
+// does by default (10 and 12 bits).
 // Its chunks close at kFilterChunkBytes coded bytes. Its segments split
 // the output in four, as a conversion of a mesh of that size would, once
 // filter_segments() knows how many triangles to expect.
