@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cmath>
 #include <regex>
 #include <set>
 #include <sstream>
@@ -402,6 +403,66 @@ TEST(Cli, ConvertWeldsASoup) {
   EXPECT_NE(err.find("bad --weld 'normals'"), std::string::npos) << err;
   EXPECT_EQ(run_psq("convert --weld " + in + " " + dir.file("x.ply"), &out, &err), 2);
   EXPECT_EQ(run_psq("convert --weld " + dir.file("plain.psq") + " " + dir.file("x.psq"), &out, &err), 2);
+  EXPECT_FALSE(test::file_exists(dir.file("x.psq")));
+  EXPECT_FALSE(test::file_exists(dir.file("x.ply")));
+}
+
+// --weld=corners: a mesh split at its seams (one vertex per distinct
+// position, normal and texture coordinate) becomes one vertex per
+// position with its normals and texture coordinates per corner, each
+// corner keeping its own.
+TEST(Cli, ConvertWeldsCorners) {
+  test::TempDir dir;
+  const std::string in = std::string(PSQ_TEST_DATA) + "/spider_attributes.ply";
+  std::string out, err;
+  ASSERT_EQ(run_psq("convert -q " + in + " " + dir.file("split.psq"), &out, &err), 0) << err;
+  ASSERT_EQ(run_psq("convert --weld=corners " + in + " " + dir.file("w.psq"), &out, &err), 0) << err;
+  EXPECT_NE(err.find("--weld=corners merged 252 of 974 vertices"), std::string::npos) << err;
+  ASSERT_EQ(run_psq("convert -f --json --weld=corners " + in + " " + dir.file("j.psq"), &out, &err), 0) << err;
+  EXPECT_NE(out.find("\"weld\": \"corners\", \"input_vertices\": 974, \"input_triangles\": 1368, "
+                     "\"welded_vertices\": 252, \"weld_dropped_triangles\": 56"),
+            std::string::npos)
+      << out;
+  EXPECT_NE(err.find("56 triangle(s) degenerate after the merge dropped"), std::string::npos) << err;
+  ASSERT_EQ(run_psq("info " + dir.file("w.psq"), &out, &err), 0) << err;
+  EXPECT_NE(out.find("per-corner normals (corner_normals) quantized, 10-bit octahedral; per-corner texture "
+                     "coordinates (corner_uv)"),
+            std::string::npos)
+      << out;
+  EXPECT_LT(test::read_file(dir.file("w.psq")).size() * 10, test::read_file(dir.file("split.psq")).size() * 9);
+  ASSERT_EQ(run_psq("convert " + dir.file("w.psq") + " " + dir.file("w.ply"), &out, &err), 0) << err;
+  Mesh split, back;
+  ASSERT_TRUE(test::load_mesh(in, &split).ok());
+  ASSERT_TRUE(test::load_mesh(dir.file("w.ply"), &back).ok());
+  EXPECT_EQ(back.positions.size(), 722u);
+  ASSERT_EQ(back.triangles.size(), 1312u);
+  ASSERT_EQ(back.schema.face_properties.size(), 2u);
+  // Every decoded corner is a corner of the split mesh: a vertex there at
+  // its position (within the 16-bit grid) with its texture coordinate
+  // (within 2^-13).
+  double extent = 0;
+  for (const auto& p : split.positions)
+    for (double c : p) extent = std::max(extent, std::fabs(c));
+  const double tol = 2 * extent / 65535;
+  for (size_t f = 0; f < back.triangles.size(); ++f) {
+    const PropertyValues& v = back.face_values[f];
+    ASSERT_EQ(v.size(), 17u);
+    for (int k = 0; k < 3; ++k) {
+      const auto& p = back.positions[back.triangles[f][k]];
+      bool found = false;
+      for (size_t i = 0; i < split.positions.size() && !found; ++i) {
+        const auto& q = split.positions[i];
+        const PropertyValues& w = split.vertex_values[i];  // nx ny nz u v
+        found = std::fabs(p[0] - q[0]) <= tol && std::fabs(p[1] - q[1]) <= tol && std::fabs(p[2] - q[2]) <= tol &&
+                std::fabs(v[11 + 2 * k] - w[3]) <= 0x1p-13 && std::fabs(v[12 + 2 * k] - w[4]) <= 0x1p-13;
+      }
+      EXPECT_TRUE(found) << "triangle " << f << " corner " << k;
+    }
+  }
+  EXPECT_EQ(run_psq("convert --weld=corners " + in + " " + dir.file("x.ply"), &out, &err), 2);
+  EXPECT_EQ(run_psq("convert --weld=corners " + dir.file("w.psq") + " " + dir.file("x.psq"), &out, &err), 2);
+  EXPECT_EQ(run_psq("convert --weld=corners --memory 64K " + in + " " + dir.file("x.psq"), &out, &err), 1);
+  EXPECT_NE(err.find("exceeds the memory budget"), std::string::npos) << err;
   EXPECT_FALSE(test::file_exists(dir.file("x.psq")));
   EXPECT_FALSE(test::file_exists(dir.file("x.ply")));
 }

@@ -437,7 +437,9 @@ def convert(src: PathLike, dst: PathLike, *, to: Optional[str] = None, bits: int
     (octahedral) and texture coordinates (a grid of 2^-uv_bits) in a .psq,
     as `psq convert --normal-bits/--uv-bits` (0 keeps them exact; lossless
     keeps everything exact); weld="all" or "positions" merges identical
-    vertices first, as `psq convert --weld`.
+    vertices first, as `psq convert --weld`; weld="corners" merges a mesh
+    split at its seams, normals and texture coordinates kept per corner,
+    as `psq convert --weld=corners`.
     """
     opts = _write_options(bits, lossless, profile, chunk_bytes, zstd_level, to, ascii, overwrite, memory, tmpdir,
                           normal_bits, uv_bits)

@@ -11,6 +11,7 @@
 
 #include "binding.h"
 #include "clustering_run.h"
+#include "corner_weld.h"
 #include "distance_report.h"
 #include "filter_output.h"
 #include "info.h"
@@ -72,15 +73,22 @@ std::string convert(const std::string& in, const std::string& out, const Convert
   if (w.chunk_bytes < 1 || w.chunk_bytes > (1u << 24)) usage("chunk_bytes must be 1 to 16M");
   if (p.threads != 1 && p.threads != 2) usage("threads must be 1 or 2");
   if (same_file(in, out)) usage("the input and the output are the same file");
-  if (p.weld != "off" && p.weld != "all" && p.weld != "positions") usage("weld must be 'off', 'all' or 'positions'");
+  if (p.weld != "off" && p.weld != "all" && p.weld != "positions" && p.weld != "corners")
+    usage("weld must be 'off', 'all', 'positions' or 'corners'");
   const WeldMode weld = p.weld == "all" ? WeldMode::kAll : p.weld == "positions" ? WeldMode::kPositions : WeldMode::kOff;
-  if (weld != WeldMode::kOff && out_format != MeshFormat::kPsq) usage("weld applies to .psq output");
+  const bool weld_corners = p.weld == "corners";
+  if ((weld != WeldMode::kOff || weld_corners) && out_format != MeshFormat::kPsq) usage("weld applies to .psq output");
   OpenOptions open_options;
   open_options.spool_dir = w.tmpdir;
   open_options.memory_budget = w.memory;
   OpenedMesh mesh;
   open_input(in, open_options, &mesh);
-  if (weld != WeldMode::kOff && mesh.decoder) usage("weld applies to a mesh input, not to a .psq");
+  if ((weld != WeldMode::kOff || weld_corners) && mesh.decoder) usage("weld applies to a mesh input, not to a .psq");
+  if (weld_corners) {
+    auto welder = std::make_unique<detail::CornerWelder>(std::move(mesh.source), w.memory);
+    check(welder->open(), in);
+    mesh.source = std::move(welder);
+  }
   OutputFile output;
   check(output.open(out, w.overwrite), out);
   std::vector<std::string> notes;
@@ -116,7 +124,7 @@ std::string convert(const std::string& in, const std::string& out, const Convert
     o += ", \"vertices\": " + n(st.vertices) + ", \"triangles\": " + n(st.triangles) +
          ", \"bytes_in\": " + n(mesh.stream->offset()) + ", \"bytes_out\": " + n(output.size()) +
          ", " + detail::json_bits_per_vertex(st) + detail::json_encoding(e) +
-         detail::json_weld(weld, report, !mesh.decoder);
+         detail::json_weld(weld, report, !mesh.decoder, dynamic_cast<const detail::CornerWelder*>(mesh.source.get()));
   } else {
     std::unique_ptr<MeshSink> writer = make_mesh_writer(out_format, &output, write_options(w));
     detail::MeshCounter counter(writer.get());

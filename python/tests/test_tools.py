@@ -166,3 +166,34 @@ def test_convert_welds_a_soup_and_quantizes_normals(tmp_path, psq_binary):
         assert (tmp_path / "w.psq").read_bytes() == (tmp_path / "c.psq").read_bytes()
     with pytest.raises(psq.UsageError):
         psq.convert(soup, tmp_path / "w.ply", weld="all")
+
+
+def test_convert_welds_corners(tmp_path, psq_binary):
+    # A grid split along a texture seam (column 6's vertices copied, the
+    # copies' u 0.5 larger): weld="corners" merges the copies, the texture
+    # coordinates kept per corner, as psq convert --weld=corners does.
+    grid, faces = grid_mesh(12)
+    uv = (grid[:, :2] / 12.0).astype(np.float32)
+    seam = np.flatnonzero(grid[:, 0] == 6)
+    copies = np.arange(len(grid), len(grid) + len(seam), dtype=np.uint32)
+    remap = np.arange(len(grid), dtype=np.uint32)
+    remap[seam] = copies
+    right = grid[faces].mean(axis=1)[:, 0] > 6
+    faces = faces.copy()
+    faces[right] = remap[faces[right]]
+    positions = np.concatenate([grid, grid[seam]])
+    uv = np.concatenate([uv, uv[seam] + [0.5, 0]]).astype(np.float32)
+    split = tmp_path / "split.ply"
+    psq.write(split, positions, faces, lossless=True,
+              vertex_properties={"u": uv[:, 0].copy(), "v": uv[:, 1].copy()})
+    ours = psq.convert(split, tmp_path / "w.psq", weld="corners", uv_bits=12)
+    assert ours["weld"] == "corners" and ours["welded_vertices"] == len(seam)
+    assert ours["vertices"] == len(grid)
+    back = psq.read(tmp_path / "w.psq")
+    assert "corner_uv" in back.face_properties and "u" not in back.vertex_properties
+    if psq_binary is not None:
+        cli = json.loads(subprocess.run([psq_binary, "convert", str(split), str(tmp_path / "c.psq"), "--json", "-q",
+                                         "--weld=corners", "--uv-bits", "12", "--threads", "1"],
+                                        capture_output=True, text=True, check=True).stdout)
+        assert cli["welded_vertices"] == ours["welded_vertices"]
+        assert (tmp_path / "w.psq").read_bytes() == (tmp_path / "c.psq").read_bytes()

@@ -11,6 +11,7 @@
 #include "cli_util.h"
 #include "progress.h"
 #include "commands.h"
+#include "corner_weld.h"
 #include "psq/ply.h"
 #include "pipeline.h"
 #include "psq/draco.h"
@@ -70,9 +71,13 @@ const char kHelp[] =
     "                 be polygons), 65536 vertices or more, where the fast\n"
     "                 profile's per-chunk tables no longer weigh; a .psq input\n"
     "                 keeps its own profile)\n"
-    "  --weld[=positions]  .psq from a mesh: merge vertices with identical\n"
-    "                 positions and property values (=positions: identical\n"
-    "                 positions alone; the first vertex keeps its values)\n"
+    "  --weld[=positions|corners]  .psq from a mesh: merge vertices with\n"
+    "                 identical positions and property values (=positions:\n"
+    "                 identical positions alone; the first vertex keeps its\n"
+    "                 values; =corners: identical positions and values but\n"
+    "                 normals and texture coordinates, which are then kept\n"
+    "                 per corner where they differ, the mesh read in memory:\n"
+    "                 for meshes split at texture seams and creases)\n"
     "                 before the sequence is built, and drop the triangles\n"
     "                 this makes degenerate. Identical: the same bits as read,\n"
     "                 -0.0 equal to 0.0. Without it the mesh is kept exactly,\n"
@@ -156,7 +161,8 @@ int to_psq(const std::string& in, const std::string& out, OpenedMesh& mesh, Outp
                     ", \"property_bits_per_vertex\": " + json_number(8.0 * st.property_bytes / nv) +
                     ", \"lossless\": " + (encode_options.lossless ? "true" : "false") +
                     ", \"bits\": " + std::to_string(encode_options.lossless ? 0 : encode_options.bits) +
-                    detail::json_weld(build_options.weld, report, !mesh.decoder);
+                    detail::json_weld(build_options.weld, report, !mesh.decoder,
+                                      dynamic_cast<const detail::CornerWelder*>(mesh.source.get()));
     o += ", \"notes\": [";
     for (size_t i = 0; i < notes.size(); ++i) o += (i ? ", \"" : "\"") + json_escape(notes[i]) + "\"";
     o += "]}\n";
@@ -239,7 +245,9 @@ int cmd_convert(int argc, char** argv) {
     return usage_error("convert", "bad --memory '" + memory + "' (e.g. 256M, 2G)");
   if (weld_text == "all") build_options.weld = WeldMode::kAll;
   else if (weld_text == "positions") build_options.weld = WeldMode::kPositions;
-  else if (weld_text != "off") return usage_error("convert", "bad --weld '" + weld_text + "' (--weld or --weld=positions)");
+  else if (weld_text != "off" && weld_text != "corners")
+    return usage_error("convert", "bad --weld '" + weld_text + "' (--weld, --weld=positions or --weld=corners)");
+  const bool weld_corners = weld_text == "corners";
 
   MeshFormat out_format = to.empty() ? format_from_extension(out) : format_from_name(to);
   if (out_format == MeshFormat::kUnknown) {
@@ -248,7 +256,7 @@ int cmd_convert(int argc, char** argv) {
   }
   if (out_format == MeshFormat::kDraco && !lossless && encode_options.bits > 30)
     return usage_error("convert", "bad --bits " + bits_text + " for Draco (1..30)");
-  if (build_options.weld != WeldMode::kOff && out_format != MeshFormat::kPsq)
+  if ((build_options.weld != WeldMode::kOff || weld_corners) && out_format != MeshFormat::kPsq)
     return usage_error("convert", "--weld applies to .psq output");
   if (same_file(in, out)) return usage_error("convert", "IN and OUT are the same file");
   if (out == "-" && json) return usage_error("convert", "--json needs OUT to be a file (stdout carries the mesh)");
@@ -262,9 +270,15 @@ int cmd_convert(int argc, char** argv) {
   OpenedMesh mesh;
   Status s = open_mesh(in, open_options, &mesh);
   if (!s.ok()) return report_error(in, s);
-  if (mesh.decoder && build_options.weld != WeldMode::kOff) {
+  if (mesh.decoder && (build_options.weld != WeldMode::kOff || weld_corners)) {
     // A .psq input is re-encoded as decoded, without a builder to weld.
     return usage_error("convert", "--weld applies to a mesh input, not to a .psq");
+  }
+  if (weld_corners) {
+    auto welder = std::make_unique<detail::CornerWelder>(std::move(mesh.source), build_options.memory_budget);
+    s = welder->open();
+    if (!s.ok()) return report_error(in, s);
+    mesh.source = std::move(welder);
   }
 
   OutputFile output;

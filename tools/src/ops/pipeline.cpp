@@ -78,7 +78,12 @@ std::vector<std::string> weld_notes(WeldMode weld, const BuildReport& report) {
   return notes;
 }
 
-std::string json_weld(WeldMode weld, const BuildReport& report, bool from_mesh) {
+std::string json_weld(WeldMode weld, const BuildReport& report, bool from_mesh, const CornerWelder* corners) {
+  if (corners != nullptr)
+    return ", \"weld\": \"corners\", \"input_vertices\": " + std::to_string(corners->input_vertices()) +
+           ", \"input_triangles\": " + std::to_string(corners->input_triangles()) +
+           ", \"welded_vertices\": " + std::to_string(corners->merged_vertices()) +
+           ", \"weld_dropped_triangles\": " + std::to_string(corners->dropped_triangles());
   std::string o = std::string(", \"weld\": \"") + weld_name(weld) + "\"";
   if (from_mesh) {
     o += ", \"input_vertices\": " + std::to_string(report.input_vertices) +

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "corner_weld.h"
 #include "psq/mesh_formats.h"
 #include "psq/psq_codec.h"
 #include "psq/sequence.h"
@@ -63,9 +64,11 @@ std::vector<std::string> input_notes(const OpenedMesh& mesh, const BuildReport& 
 // of the input repeat another's position.
 std::vector<std::string> weld_notes(WeldMode weld, const BuildReport& build);
 // The weld fields of a .psq summary, each after ", ": "weld" ("off",
-// "all" or "positions"), and for a mesh input (`from_mesh`) the input's
-// counts and what the weld merged and dropped.
-std::string json_weld(WeldMode weld, const BuildReport& build, bool from_mesh);
+// "all", "positions" or "corners"), and for a mesh input (`from_mesh`) the
+// input's counts and what the weld merged and dropped (`corners`: what
+// --weld=corners merged in front of the builder, corner_weld.h).
+std::string json_weld(WeldMode weld, const BuildReport& build, bool from_mesh,
+                      const CornerWelder* corners = nullptr);
 
 // The fields of a .psq summary that say how it was encoded, each after
 // ", ": "lossless", "bits" (0 when lossless) and "profile".
