@@ -119,20 +119,11 @@ def faces_of(m):
 
 def split_obj(src, dst):
     """An OBJ as PLY, one vertex per distinct v/vt/vn triple."""
-    V, VT, VN, F = [], [], [], []
-    for line in open(src, errors='replace'):
-        w = line.split()
-        if not w:
-            continue
-        if w[0] == 'v':
-            V.append([float(x) for x in w[1:4]])
-        elif w[0] == 'vt':
-            VT.append([float(x) for x in w[1:3]])
-        elif w[0] == 'vn':
-            VN.append([float(x) for x in w[1:4]])
-        elif w[0] == 'f':
-            c = [tuple(int(x) - 1 for x in t.split('/')) for t in w[1:]]
-            F += [(c[0], c[i], c[i + 1]) for i in range(1, len(c) - 1)]
+    V, VT, VN, polygons = read_obj(src)
+    F = []
+    for p in polygons:
+        c = [tuple(x) for x in p]
+        F += [(c[0], c[i], c[i + 1]) for i in range(1, len(c) - 1)]
     key, verts, faces = {}, [], []
     for f in F:
         idx = []
@@ -218,7 +209,7 @@ def to_obj(src, dst, texcoords=True, normals=True):
 
 def read_obj(path):
     V, VT, VN, F = [], [], [], []
-    for line in open(path):
+    for line in open(path, errors='replace'):
         w = line.split()
         if not w:
             continue

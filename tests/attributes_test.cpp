@@ -115,50 +115,10 @@ Mesh attributed_torus(const Spec& s) {
   return m;
 }
 
-Events sequence_of(const Mesh& mesh) {
-  test::MemorySource src(mesh);
-  Events ev;
-  BuildReport report;
-  Status s = build_sequence(src, ev, BuildOptions(), &report);
-  EXPECT_TRUE(s.ok()) << s.to_string();
-  return ev;
-}
-
-Status encode(const Events& ev, const EncodeOptions& o, std::vector<uint8_t>* bytes) {
-  VectorWriter w(bytes);
-  PsqEncoder enc(&w, o);
-  PSQ_RETURN_IF_ERROR(enc.begin(ev.schema));
-  for (const SequenceEvent& e : ev.events) {
-    if (e.kind == SequenceEvent::Kind::kVertex) PSQ_RETURN_IF_ERROR(enc.vertex(e.vertex));
-    else if (e.kind == SequenceEvent::Kind::kTriangle) PSQ_RETURN_IF_ERROR(enc.triangle(e.triangle));
-    else PSQ_RETURN_IF_ERROR(enc.finalize(e.finalized));
-  }
-  return enc.finish();
-}
-
-Status decode(const std::vector<uint8_t>& bytes, Events* out, PsqHeader* header = nullptr) {
-  InputStream in;
-  in.open_memory(bytes.data(), bytes.size(), "mem.psq");
-  PsqDecoder dec;
-  PSQ_RETURN_IF_ERROR(dec.open(&in));
-  if (header) *header = dec.header();
-  out->schema = dec.schema();
-  SequenceEvent e;
-  for (;;) {
-    PSQ_RETURN_IF_ERROR(dec.next(&e));
-    if (e.kind == SequenceEvent::Kind::kEnd) return Status();
-    out->events.push_back(e);
-  }
-}
-
-EncodeOptions options(bool fast, int normal_bits, int uv_bits) {
-  EncodeOptions o;
-  o.bits = 14;
-  o.fast = fast;
-  o.normal_bits = normal_bits;
-  o.uv_bits = uv_bits;
-  return o;
-}
+using test::attribute_options;
+using test::build_events;
+using test::decode_sequence;
+using test::encode_sequence;
 
 int index_of(const MeshSchema& s, const std::string& name) {
   for (size_t i = 0; i < s.vertex_properties.size(); ++i)
@@ -229,15 +189,15 @@ TEST(Attributes, RoundTripPerKindAndProfile) {
   texcoords.texcoords = true;
   colors.colors = true;
   for (const Spec& s : {all, normals, texcoords, colors}) {
-    const Events ev = sequence_of(attributed_torus(s));
+    const Events ev = build_events(attributed_torus(s));
     for (bool fast : {false, true}) {
       for (auto [nb, ub] : {std::pair<int, int>{8, 10}, {10, 12}, {16, 20}, {3, 4}}) {
         std::vector<uint8_t> bytes;
-        Status st = encode(ev, options(fast, nb, ub), &bytes);
+        Status st = encode_sequence(ev, attribute_options(fast, nb, ub), &bytes);
         ASSERT_TRUE(st.ok()) << st.to_string();
         Events out;
         PsqHeader h;
-        st = decode(bytes, &out, &h);
+        st = decode_sequence(bytes, &out, &h);
         ASSERT_TRUE(st.ok()) << st.to_string();
         EXPECT_EQ(h.fast, fast);
         const size_t kinds = (s.normals ? 1 : 0) + (s.texcoords ? 1 : 0) + (s.colors ? 1 : 0);
@@ -264,8 +224,8 @@ TEST(Attributes, NormalsArePredictedFromTheirRing) {
       add_normals(&m, shift * 24);
       std::vector<uint8_t> out;
       VectorWriter w(&out);
-      PsqEncoder enc(&w, options(fast, 10, 0));
-      const Events ev = sequence_of(m);
+      PsqEncoder enc(&w, attribute_options(fast, 10, 0));
+      const Events ev = build_events(m);
       const Status st = enc.begin(ev.schema);
       ASSERT_TRUE(st.ok()) << st.to_string();
       for (const SequenceEvent& e : ev.events) {
@@ -276,7 +236,7 @@ TEST(Attributes, NormalsArePredictedFromTheirRing) {
       ASSERT_TRUE(enc.finish().ok());
       bytes[shift] = enc.stats().attribute_bytes;
       Events back;
-      ASSERT_TRUE(decode(out, &back).ok());
+      ASSERT_TRUE(decode_sequence(out, &back).ok());
       expect_within(ev, back, 10, 0);
     }
     EXPECT_LT(3 * bytes[0], bytes[1]) << "fast " << fast << ": " << bytes[0] << " and " << bytes[1] << " bytes";
@@ -289,26 +249,19 @@ TEST(Attributes, NormalsArePredictedFromTheirRing) {
 // and the segments decoded on two threads agree.
 TEST(Attributes, ANormalWaitsAtMostItsBound) {
   const uint32_t n = 6000;
-  std::vector<std::array<double, 3>> p{{0, 0, 0}};
-  std::vector<std::array<uint32_t, 3>> t;
-  for (uint32_t i = 0; i < n; ++i) {
-    const double a = 2 * M_PI * i / n;
-    p.push_back({as_float(std::cos(a)), as_float(std::sin(a)), as_float(0.2 * std::sin(7 * a))});
-    t.push_back({0, 1 + i, 1 + (i + 1) % n});
-  }
-  Mesh m = test::make_mesh(p, t);
+  Mesh m = test::make_wavy_fan(n);
   add_normals(&m);
-  const Events ev = sequence_of(m);
+  const Events ev = build_events(m);
   for (bool fast : {false, true})
     for (uint64_t segment : {uint64_t{0}, uint64_t{1000}}) {
-      EncodeOptions o = options(fast, 12, 0);
+      EncodeOptions o = attribute_options(fast, 12, 0);
       o.segment_triangles = segment;
       o.chunk_bytes = 4096;  // chunks end while normals wait
       std::vector<uint8_t> bytes;
-      const Status st = encode(ev, o, &bytes);
+      const Status st = encode_sequence(ev, o, &bytes);
       ASSERT_TRUE(st.ok()) << st.to_string();
       Events back;
-      const Status ds = decode(bytes, &back);
+      const Status ds = decode_sequence(bytes, &back);
       ASSERT_TRUE(ds.ok()) << "fast " << fast << " segments of " << segment << ": " << ds.to_string();
       expect_within(ev, back, 12, 0);
       MeshBuffers one, two, events;
@@ -332,13 +285,13 @@ TEST(Attributes, ANormalWaitsAtMostItsBound) {
 TEST(Attributes, BackendsAgree) {
   Spec all;
   all.normals = all.texcoords = all.colors = true;
-  const Events ev = sequence_of(attributed_torus(all));
+  const Events ev = build_events(attributed_torus(all));
   std::vector<uint8_t> c, f;
-  ASSERT_TRUE(encode(ev, options(false, 9, 11), &c).ok());
-  ASSERT_TRUE(encode(ev, options(true, 9, 11), &f).ok());
+  ASSERT_TRUE(encode_sequence(ev, attribute_options(false, 9, 11), &c).ok());
+  ASSERT_TRUE(encode_sequence(ev, attribute_options(true, 9, 11), &f).ok());
   Events a, b;
-  ASSERT_TRUE(decode(c, &a).ok());
-  ASSERT_TRUE(decode(f, &b).ok());
+  ASSERT_TRUE(decode_sequence(c, &a).ok());
+  ASSERT_TRUE(decode_sequence(f, &b).ok());
   ASSERT_EQ(a.events.size(), b.events.size());
   for (size_t i = 0; i < a.events.size(); ++i) {
     if (a.events[i].kind == SequenceEvent::Kind::kVertex) {
@@ -356,12 +309,12 @@ TEST(Attributes, SeamsFarCoordinatesAndZeroNormals) {
     s.normals = s.texcoords = true;
     s.zero_normal = true;
     s.uv_offset = offset;
-    const Events ev = sequence_of(attributed_torus(s));
+    const Events ev = build_events(attributed_torus(s));
     for (bool fast : {false, true}) {
       std::vector<uint8_t> bytes;
-      ASSERT_TRUE(encode(ev, options(fast, 10, 12), &bytes).ok());
+      ASSERT_TRUE(encode_sequence(ev, attribute_options(fast, 10, 12), &bytes).ok());
       Events out;
-      ASSERT_TRUE(decode(bytes, &out).ok());
+      ASSERT_TRUE(decode_sequence(bytes, &out).ok());
       expect_within(ev, out, 10, 12);
     }
   }
@@ -372,16 +325,16 @@ TEST(Attributes, SeamsFarCoordinatesAndZeroNormals) {
 TEST(Attributes, LosslessKeepsEveryBit) {
   Spec all;
   all.normals = all.texcoords = all.colors = all.alpha = all.confidence = true;
-  const Events ev = sequence_of(attributed_torus(all));
+  const Events ev = build_events(attributed_torus(all));
   for (bool fast : {false, true}) {
     for (bool lossless : {true, false}) {
-      EncodeOptions o = options(fast, lossless ? 8 : 0, lossless ? 10 : 0);
+      EncodeOptions o = attribute_options(fast, lossless ? 8 : 0, lossless ? 10 : 0);
       o.lossless = lossless;
       std::vector<uint8_t> bytes;
-      ASSERT_TRUE(encode(ev, o, &bytes).ok());
+      ASSERT_TRUE(encode_sequence(ev, o, &bytes).ok());
       Events out;
       PsqHeader h;
-      ASSERT_TRUE(decode(bytes, &out, &h).ok());
+      ASSERT_TRUE(decode_sequence(bytes, &out, &h).ok());
       ASSERT_EQ(h.attributes.size(), 1u);
       EXPECT_EQ(h.attributes[0].kind, CodedAttribute::Kind::kColor);
       EXPECT_EQ(h.attributes[0].properties.size(), 4u);
@@ -401,11 +354,11 @@ TEST(Attributes, RecognizesTheCommonNames) {
     s.v = v;
     s.red = std::string(u) == "s" ? "r" : "red";
     std::vector<uint8_t> bytes;
-    const Events ev = sequence_of(attributed_torus(s));
-    ASSERT_TRUE(encode(ev, options(false, 8, 10), &bytes).ok());
+    const Events ev = build_events(attributed_torus(s));
+    ASSERT_TRUE(encode_sequence(ev, attribute_options(false, 8, 10), &bytes).ok());
     Events out;
     PsqHeader h;
-    ASSERT_TRUE(decode(bytes, &out, &h).ok());
+    ASSERT_TRUE(decode_sequence(bytes, &out, &h).ok());
     ASSERT_EQ(h.attributes.size(), 2u) << u;
     EXPECT_EQ(h.attributes[0].kind, CodedAttribute::Kind::kTexcoord);
     EXPECT_EQ(h.schema.vertex_properties[h.attributes[0].properties[1]].name, v);
@@ -416,12 +369,12 @@ TEST(Attributes, RecognizesTheCommonNames) {
   Mesh m = test::make_grid(4);
   for (const char* n : {"nx", "ny", "nz"}) m.schema.vertex_properties.push_back(prop(n, ScalarType::kInt8));
   for (auto& v : m.vertex_values) v = {1, -1, 0};
-  const Events ev = sequence_of(m);
+  const Events ev = build_events(m);
   std::vector<uint8_t> bytes;
-  ASSERT_TRUE(encode(ev, options(false, 8, 10), &bytes).ok());
+  ASSERT_TRUE(encode_sequence(ev, attribute_options(false, 8, 10), &bytes).ok());
   Events out;
   PsqHeader h;
-  ASSERT_TRUE(decode(bytes, &out, &h).ok());
+  ASSERT_TRUE(decode_sequence(bytes, &out, &h).ok());
   EXPECT_TRUE(h.attributes.empty());
   expect_within(ev, out, 0, 0);
 }
@@ -434,18 +387,18 @@ TEST(Attributes, EncoderRefusesBadValuesAndOptions) {
     Mesh bad = m;
     bad.vertex_values[3][0] = std::nan("");
     std::vector<uint8_t> bytes;
-    Status st = encode(sequence_of(bad), options(false, 8, 10), &bytes);
+    Status st = encode_sequence(build_events(bad), attribute_options(false, 8, 10), &bytes);
     EXPECT_EQ(st.code(), ErrorCode::kBadValue) << st.to_string();
     EXPECT_NE(st.message().find("normal"), std::string::npos) << st.message();
     // Kept exact, the same value is carried.
     bytes.clear();
-    EXPECT_TRUE(encode(sequence_of(bad), options(false, 0, 10), &bytes).ok());
+    EXPECT_TRUE(encode_sequence(build_events(bad), attribute_options(false, 0, 10), &bytes).ok());
   }
   {
     Mesh bad = m;
     bad.vertex_values[3][3] = 3e6;  // beyond 2^31 steps of 2^-10
     std::vector<uint8_t> bytes;
-    Status st = encode(sequence_of(bad), options(true, 8, 10), &bytes);
+    Status st = encode_sequence(build_events(bad), attribute_options(true, 8, 10), &bytes);
     EXPECT_EQ(st.code(), ErrorCode::kBadValue) << st.to_string();
   }
   {
@@ -455,13 +408,13 @@ TEST(Attributes, EncoderRefusesBadValuesAndOptions) {
       Mesh bad = attributed_torus(c);
       bad.vertex_values[5][1] = v;
       std::vector<uint8_t> bytes;
-      Status st = encode(sequence_of(bad), options(false, 8, 10), &bytes);
+      Status st = encode_sequence(build_events(bad), attribute_options(false, 8, 10), &bytes);
       EXPECT_EQ(st.code(), ErrorCode::kBadValue) << v << ": " << st.to_string();
     }
   }
   for (auto [nb, ub] : {std::pair<int, int>{1, 10}, {17, 10}, {-1, 10}, {8, 25}, {8, -2}}) {
     std::vector<uint8_t> bytes;
-    EXPECT_EQ(encode(sequence_of(m), options(false, nb, ub), &bytes).code(), ErrorCode::kUsage) << nb << " " << ub;
+    EXPECT_EQ(encode_sequence(build_events(m), attribute_options(false, nb, ub), &bytes).code(), ErrorCode::kUsage) << nb << " " << ub;
   }
 }
 
@@ -503,15 +456,15 @@ uint32_t crc32c(const uint8_t* p, size_t n) {
 TEST(Attributes, DamagedStreamsAreRefused) {
   Spec all;
   all.normals = all.texcoords = all.colors = true;
-  const Events ev = sequence_of(attributed_torus(all));
+  const Events ev = build_events(attributed_torus(all));
   for (bool fast : {false, true}) {
     std::vector<uint8_t> bytes;
-    ASSERT_TRUE(encode(ev, options(fast, 8, 10), &bytes).ok());
+    ASSERT_TRUE(encode_sequence(ev, attribute_options(fast, 8, 10), &bytes).ok());
     // Every truncation.
     for (size_t n = 0; n < bytes.size(); ++n) {
       std::vector<uint8_t> cut(bytes.begin(), bytes.begin() + static_cast<std::ptrdiff_t>(n));
       Events out;
-      EXPECT_FALSE(decode(cut, &out).ok()) << "cut at " << n;
+      EXPECT_FALSE(decode_sequence(cut, &out).ok()) << "cut at " << n;
     }
     // Bit flips anywhere: the checksums refuse them.
     std::mt19937 rng(7);
@@ -519,7 +472,7 @@ TEST(Attributes, DamagedStreamsAreRefused) {
       std::vector<uint8_t> b = bytes;
       b[rng() % b.size()] ^= static_cast<uint8_t>(1u << (rng() % 8));
       Events out;
-      EXPECT_FALSE(decode(b, &out).ok());
+      EXPECT_FALSE(decode_sequence(b, &out).ok());
     }
     // Garbled attribute bytes behind a valid chunk checksum reach the
     // attribute decoder: each is refused, as a corrupt section or, when its
@@ -534,7 +487,7 @@ TEST(Attributes, DamagedStreamsAreRefused) {
       const uint32_t c = crc32c(b.data() + l.chunk, l.crc - l.chunk);
       for (int j = 0; j < 4; ++j) b[l.crc + static_cast<size_t>(j)] = static_cast<uint8_t>(c >> (8 * j));
       Events out;
-      Status st = decode(b, &out);
+      Status st = decode_sequence(b, &out);
       EXPECT_TRUE(st.code() == ErrorCode::kBadValue || st.code() == ErrorCode::kTruncated ||
                   st.code() == ErrorCode::kChecksum)
           << st.to_string();

@@ -276,15 +276,42 @@ TEST(Neighbors, AddVertexIsBeginAndTwoInserts) {
 
 }  // namespace codec
 
-// Spec 4.2: a header's attribute table is checked against its vertex
-// properties; every bad entry is refused as bad_header.
-TEST(AttributeTable, BadEntriesAreRefused) {
+// A header of a 12-bit stream, its tables empty.
+static PsqHeader table_header() {
   PsqHeader h;
   h.version_major = codec::kVersionMajor;
   h.bits = 12;
   h.step = 1;
   h.boundary_limit = 64;
   h.schema.position_type = ScalarType::kFloat32;
+  return h;
+}
+
+static CodedAttribute attr(CodedAttribute::Kind kind, int bits, std::vector<uint32_t> props) {
+  CodedAttribute a;
+  a.kind = kind;
+  a.bits = bits;
+  a.properties = std::move(props);
+  return a;
+}
+
+// Writes `h` with `table` and the rotation flag, and parses the payload back.
+static Status parse_with_table(PsqHeader h, const std::vector<CodedAttribute>& table, bool rotation) {
+  h.attributes = table;
+  h.rotation = rotation;
+  const std::vector<uint8_t> bytes = codec::write_header(h);
+  uint64_t n = 0;
+  const int len = codec::parse_varint(bytes.data() + 12, bytes.size() - 12, &n);
+  PsqHeader out;
+  out.version_major = codec::kVersionMajor;
+  out.rotation = rotation;  // the flags precede the payload
+  return codec::parse_header_payload(bytes.data() + 12 + len, static_cast<size_t>(n), 0, &out);
+}
+
+// Spec 4.2: a header's attribute table is checked against its vertex
+// properties; every bad entry is refused as bad_header.
+TEST(AttributeTable, BadEntriesAreRefused) {
+  PsqHeader h = table_header();
   for (const char* n : {"nx", "ny", "nz", "u", "v", "red", "green", "blue", "i"}) {
     Property p;
     p.name = n;
@@ -293,23 +320,7 @@ TEST(AttributeTable, BadEntriesAreRefused) {
     h.schema.vertex_properties.push_back(p);
   }
   using K = CodedAttribute::Kind;
-  auto attr = [](K kind, int bits, std::vector<uint32_t> props) {
-    CodedAttribute a;
-    a.kind = kind;
-    a.bits = bits;
-    a.properties = std::move(props);
-    return a;
-  };
-  auto parse = [&](const std::vector<CodedAttribute>& table) {
-    PsqHeader w = h;
-    w.attributes = table;
-    const std::vector<uint8_t> bytes = codec::write_header(w);
-    uint64_t n = 0;
-    const int len = codec::parse_varint(bytes.data() + 12, bytes.size() - 12, &n);
-    PsqHeader out;
-    out.version_major = codec::kVersionMajor;
-    return codec::parse_header_payload(bytes.data() + 12 + len, static_cast<size_t>(n), 0, &out);
-  };
+  auto parse = [&](const std::vector<CodedAttribute>& table) { return parse_with_table(h, table, false); };
   const CodedAttribute normal = attr(K::kNormal, 8, {0, 1, 2});
   const CodedAttribute uv = attr(K::kTexcoord, 10, {3, 4});
   const CodedAttribute color = attr(K::kColor, 8, {5, 6, 7});
@@ -346,12 +357,7 @@ TEST(AttributeTable, BadEntriesAreRefused) {
 // face property; the rotation flag is set exactly when a face property
 // is not a corner attribute.
 TEST(AttributeTable, CornerEntries) {
-  PsqHeader h;
-  h.version_major = codec::kVersionMajor;
-  h.bits = 12;
-  h.step = 1;
-  h.boundary_limit = 64;
-  h.schema.position_type = ScalarType::kFloat32;
+  PsqHeader h = table_header();
   auto list = [](const char* name, ScalarType t) {
     Property p;
     p.name = name;
@@ -363,24 +369,8 @@ TEST(AttributeTable, CornerEntries) {
   h.schema.face_properties = {list("corner_normals", ScalarType::kFloat32), list("corner_uv", ScalarType::kFloat64),
                               list("ints", ScalarType::kInt32), {"flags", ScalarType::kUInt8}};
   using K = CodedAttribute::Kind;
-  auto attr = [](K kind, int bits, std::vector<uint32_t> props) {
-    CodedAttribute a;
-    a.kind = kind;
-    a.bits = bits;
-    a.properties = std::move(props);
-    return a;
-  };
   auto parse = [&](const std::vector<CodedAttribute>& table, bool rotation) {
-    PsqHeader w = h;
-    w.attributes = table;
-    w.rotation = rotation;
-    const std::vector<uint8_t> bytes = codec::write_header(w);
-    uint64_t n = 0;
-    const int len = codec::parse_varint(bytes.data() + 12, bytes.size() - 12, &n);
-    PsqHeader out;
-    out.version_major = codec::kVersionMajor;
-    out.rotation = rotation;  // the flags precede the payload
-    return codec::parse_header_payload(bytes.data() + 12 + len, static_cast<size_t>(n), 0, &out);
+    return parse_with_table(h, table, rotation);
   };
   const CodedAttribute normals = attr(K::kCornerNormal, 8, {0});
   const CodedAttribute uv = attr(K::kCornerTexcoord, 10, {1});

@@ -95,50 +95,10 @@ Mesh corner_torus(bool flat, bool islands, int seg = 48, int ring = 24) {
   return m;
 }
 
-Events sequence_of(const Mesh& mesh) {
-  test::MemorySource src(mesh);
-  Events ev;
-  BuildReport report;
-  Status s = build_sequence(src, ev, BuildOptions(), &report);
-  EXPECT_TRUE(s.ok()) << s.to_string();
-  return ev;
-}
-
-Status encode(const Events& ev, const EncodeOptions& o, std::vector<uint8_t>* bytes) {
-  VectorWriter w(bytes);
-  PsqEncoder enc(&w, o);
-  PSQ_RETURN_IF_ERROR(enc.begin(ev.schema));
-  for (const SequenceEvent& e : ev.events) {
-    if (e.kind == SequenceEvent::Kind::kVertex) PSQ_RETURN_IF_ERROR(enc.vertex(e.vertex));
-    else if (e.kind == SequenceEvent::Kind::kTriangle) PSQ_RETURN_IF_ERROR(enc.triangle(e.triangle));
-    else PSQ_RETURN_IF_ERROR(enc.finalize(e.finalized));
-  }
-  return enc.finish();
-}
-
-Status decode(const std::vector<uint8_t>& bytes, Events* out, PsqHeader* header = nullptr) {
-  InputStream in;
-  in.open_memory(bytes.data(), bytes.size(), "mem.psq");
-  PsqDecoder dec;
-  PSQ_RETURN_IF_ERROR(dec.open(&in));
-  if (header) *header = dec.header();
-  out->schema = dec.schema();
-  SequenceEvent e;
-  for (;;) {
-    PSQ_RETURN_IF_ERROR(dec.next(&e));
-    if (e.kind == SequenceEvent::Kind::kEnd) return Status();
-    out->events.push_back(e);
-  }
-}
-
-EncodeOptions options(bool fast, int normal_bits, int uv_bits) {
-  EncodeOptions o;
-  o.bits = 14;
-  o.fast = fast;
-  o.normal_bits = normal_bits;
-  o.uv_bits = uv_bits;
-  return o;
-}
+using test::attribute_options;
+using test::build_events;
+using test::decode_sequence;
+using test::encode_sequence;
 
 // The rotation r that takes triangle a's corner k to b's corner (k + r) % 3,
 // else -1.
@@ -191,18 +151,18 @@ void expect_within(const Events& in, const Events& out, int normal_bits, int uv_
 TEST(Corners, RoundTripWithinTheirError) {
   for (bool flat : {false, true})
     for (bool islands : {false, true}) {
-      const Events ev = sequence_of(corner_torus(flat, islands));
+      const Events ev = build_events(corner_torus(flat, islands));
       for (bool fast : {false, true})
         for (uint64_t segment : {uint64_t{0}, uint64_t{500}}) {
-          EncodeOptions o = options(fast, 10, 12);
+          EncodeOptions o = attribute_options(fast, 10, 12);
           o.segment_triangles = segment;
           o.chunk_bytes = 2048;  // chunks end while corner normals wait
           std::vector<uint8_t> bytes;
-          const Status st = encode(ev, o, &bytes);
+          const Status st = encode_sequence(ev, o, &bytes);
           ASSERT_TRUE(st.ok()) << st.to_string();
           PsqHeader h;
           Events back;
-          const Status ds = decode(bytes, &back, &h);
+          const Status ds = decode_sequence(bytes, &back, &h);
           ASSERT_TRUE(ds.ok()) << "flat " << flat << " islands " << islands << " fast " << fast << " segments of "
                                << segment << ": " << ds.to_string();
           ASSERT_EQ(h.attributes.size(), 2u);
@@ -238,13 +198,13 @@ TEST(Corners, BesideVertexAttributes) {
     m.vertex_values.assign(m.positions.size(), PropertyValues());
     for (size_t i = 0; i < m.positions.size(); ++i)
       m.vertex_values[i] = {0.25 + 0.001 * static_cast<double>(i), 0.5, static_cast<double>(i % 256), 7, 200};
-    const Events ev = sequence_of(m);
+    const Events ev = build_events(m);
     for (bool fast : {false, true}) {
       std::vector<uint8_t> bytes;
-      ASSERT_TRUE(encode(ev, options(fast, 10, 12), &bytes).ok());
+      ASSERT_TRUE(encode_sequence(ev, attribute_options(fast, 10, 12), &bytes).ok());
       PsqHeader h;
       Events back;
-      const Status ds = decode(bytes, &back, &h);
+      const Status ds = decode_sequence(bytes, &back, &h);
       ASSERT_TRUE(ds.ok()) << "material " << material << " fast " << fast << ": " << ds.to_string();
       ASSERT_EQ(h.attributes.size(), 3u);
       EXPECT_EQ(h.rotation, material);
@@ -267,7 +227,9 @@ TEST(Corners, BesideVertexAttributes) {
             EXPECT_LE(std::acos(std::min(1.0, n[0] * q[0] + n[1] * q[1] + n[2] * q[2])), 1.5 / c + 1e-6)
                 << "event " << i;
           }
-          if (material) EXPECT_EQ(a.triangle.values[10], b.triangle.values[10]);
+          if (material) {
+            EXPECT_EQ(a.triangle.values[10], b.triangle.values[10]);
+          }
         }
       }
     }
@@ -280,7 +242,7 @@ TEST(Corners, BesideVertexAttributes) {
 // mesh with the values per corner costs far less than one whose corners'
 // values are all different.
 TEST(Corners, RepeatedValuesCostASymbol) {
-  const Events ev = sequence_of(corner_torus(false, false));
+  const Events ev = build_events(corner_torus(false, false));
   Events split = ev;
   // Every corner a value of its own: each triangle's texture coordinates
   // moved by its index (the charts of a triangle soup).
@@ -292,11 +254,11 @@ TEST(Corners, RepeatedValuesCostASymbol) {
   }
   for (bool fast : {false, true}) {
     std::vector<uint8_t> welded, soup, none;
-    EncodeOptions o = options(fast, 10, 12);
-    ASSERT_TRUE(encode(ev, o, &welded).ok());
-    ASSERT_TRUE(encode(split, o, &soup).ok());
+    EncodeOptions o = attribute_options(fast, 10, 12);
+    ASSERT_TRUE(encode_sequence(ev, o, &welded).ok());
+    ASSERT_TRUE(encode_sequence(split, o, &soup).ok());
     o.normal_bits = o.uv_bits = 0;  // as columns
-    ASSERT_TRUE(encode(ev, o, &none).ok());
+    ASSERT_TRUE(encode_sequence(ev, o, &none).ok());
     EXPECT_LT(welded.size() * 3, none.size()) << "fast " << fast;
     EXPECT_LT(welded.size() * 5, soup.size() * 4) << "fast " << fast;
   }
@@ -310,14 +272,9 @@ TEST(Corners, RepeatedValuesCostASymbol) {
 // finalized.
 TEST(Corners, NormalsWaitForTheirFan) {
   const uint32_t n = 6000;
-  std::vector<std::array<double, 3>> p{{0, 0, 0}};
-  std::vector<std::array<uint32_t, 3>> t;
-  for (uint32_t i = 0; i < n; ++i) {
-    const double a = 2 * M_PI * i / n;
-    p.push_back({as_float(std::cos(a)), as_float(std::sin(a)), as_float(0.2 * std::sin(7 * a))});
-    t.push_back({0, 1 + i, 1 + (i + 1) % n});
-  }
-  Mesh m = test::make_mesh(p, t);
+  Mesh m = test::make_wavy_fan(n);
+  const auto& p = m.positions;
+  const auto& t = m.triangles;
   m.schema.face_properties = {list_prop("corner_normals")};
   std::vector<std::array<double, 3>> vn(p.size(), {0, 0, 0});
   for (const auto& f : t) {
@@ -353,23 +310,23 @@ TEST(Corners, NormalsWaitForTheirFan) {
     }
     for (bool fast : {false, true}) {
       std::vector<uint8_t> corners, vertices;
-      ASSERT_TRUE(encode(sequence_of(torus), options(fast, 10, 0), &corners).ok());
-      ASSERT_TRUE(encode(sequence_of(per_vertex), options(fast, 10, 0), &vertices).ok());
+      ASSERT_TRUE(encode_sequence(build_events(torus), attribute_options(fast, 10, 0), &corners).ok());
+      ASSERT_TRUE(encode_sequence(build_events(per_vertex), attribute_options(fast, 10, 0), &vertices).ok());
       EXPECT_LT(corners.size(), vertices.size() * 11 / 10 + 64) << "fast " << fast;
     }
   }
-  const Events ev = sequence_of(m);
+  const Events ev = build_events(m);
   Mesh bare = m;
   bare.schema.face_properties.clear();
   bare.face_values.assign(t.size(), PropertyValues());
-  const Events positions = sequence_of(bare);
+  const Events positions = build_events(bare);
   for (bool fast : {false, true}) {
-    EncodeOptions o = options(fast, 8, 0);
+    EncodeOptions o = attribute_options(fast, 8, 0);
     o.bits = 20;  // the fans' triangles keep their shape
     o.chunk_bytes = 1 << 20;
     std::vector<uint8_t> bytes, alone;
-    ASSERT_TRUE(encode(ev, o, &bytes).ok());
-    ASSERT_TRUE(encode(positions, o, &alone).ok());
+    ASSERT_TRUE(encode_sequence(ev, o, &bytes).ok());
+    ASSERT_TRUE(encode_sequence(positions, o, &alone).ok());
     // Under two bits a normal beyond the positions and connectivity.
     EXPECT_LT(bytes.size(), alone.size() + n / 4) << "fast " << fast;
     PsqDecoder dec;
@@ -393,7 +350,7 @@ TEST(Corners, NormalsWaitForTheirFan) {
 }
 
 TEST(Corners, EncoderRefusesWhatItCannotHold) {
-  Events ev = sequence_of(corner_torus(false, false, 12, 6));
+  Events ev = build_events(corner_torus(false, false, 12, 6));
   {
     Events bad = ev;
     for (SequenceEvent& e : bad.events)
@@ -404,11 +361,11 @@ TEST(Corners, EncoderRefusesWhatItCannotHold) {
         break;
       }
     std::vector<uint8_t> bytes;
-    const Status st = encode(bad, options(false, 10, 12), &bytes);
+    const Status st = encode_sequence(bad, attribute_options(false, 10, 12), &bytes);
     EXPECT_EQ(st.code(), ErrorCode::kBadValue);
     EXPECT_NE(st.message().find("corner_uv holds 4 values, not 6"), std::string::npos) << st.message();
     // Kept as a column when not quantized.
-    const Status kept = encode(bad, options(false, 10, 0), &bytes);
+    const Status kept = encode_sequence(bad, attribute_options(false, 10, 0), &bytes);
     EXPECT_TRUE(kept.ok()) << kept.to_string();
   }
   {
@@ -419,7 +376,7 @@ TEST(Corners, EncoderRefusesWhatItCannotHold) {
         break;
       }
     std::vector<uint8_t> bytes;
-    const Status st = encode(bad, options(true, 10, 12), &bytes);
+    const Status st = encode_sequence(bad, attribute_options(true, 10, 12), &bytes);
     EXPECT_EQ(st.code(), ErrorCode::kBadValue);
     EXPECT_NE(st.message().find("beyond the grid"), std::string::npos) << st.message();
   }
@@ -431,7 +388,7 @@ TEST(Corners, EncoderRefusesWhatItCannotHold) {
         break;
       }
     std::vector<uint8_t> bytes;
-    const Status st = encode(bad, options(false, 10, 12), &bytes);
+    const Status st = encode_sequence(bad, attribute_options(false, 10, 12), &bytes);
     EXPECT_EQ(st.code(), ErrorCode::kBadValue);
     EXPECT_NE(st.message().find("not finite"), std::string::npos) << st.message();
   }

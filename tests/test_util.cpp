@@ -18,6 +18,7 @@
 #include <gtest/gtest.h>
 
 #include "psq/mesh_formats.h"
+#include "psq/sequence_builder.h"
 
 namespace psq::test {
 
@@ -349,6 +350,66 @@ Status EventReplay::next(SequenceEvent* e) {
     e->kind = SequenceEvent::Kind::kEnd;
   }
   return Status();
+}
+
+Mesh make_wavy_fan(uint32_t n) {
+  std::vector<std::array<double, 3>> p{{0, 0, 0}};
+  std::vector<std::array<uint32_t, 3>> t;
+  for (uint32_t i = 0; i < n; ++i) {
+    const double a = 2 * M_PI * i / n;
+    // Through volatile floats: GCC 12's SLP vectorizer drops a
+    // (double)(float) rounding (../shared/toolchain).
+    volatile float x = static_cast<float>(std::cos(a)), y = static_cast<float>(std::sin(a)),
+                   z = static_cast<float>(0.2 * std::sin(7 * a));
+    p.push_back({x, y, z});
+    t.push_back({0, 1 + i, 1 + (i + 1) % n});
+  }
+  return make_mesh(p, t);
+}
+
+EventLog build_events(const Mesh& mesh) {
+  MemorySource src(mesh);
+  EventLog ev;
+  BuildReport report;
+  const Status s = build_sequence(src, ev, BuildOptions(), &report);
+  EXPECT_TRUE(s.ok()) << s.to_string();
+  return ev;
+}
+
+Status encode_sequence(const EventLog& ev, const EncodeOptions& o, std::vector<uint8_t>* bytes) {
+  VectorWriter w(bytes);
+  PsqEncoder enc(&w, o);
+  PSQ_RETURN_IF_ERROR(enc.begin(ev.schema));
+  for (const SequenceEvent& e : ev.events) {
+    if (e.kind == SequenceEvent::Kind::kVertex) PSQ_RETURN_IF_ERROR(enc.vertex(e.vertex));
+    else if (e.kind == SequenceEvent::Kind::kTriangle) PSQ_RETURN_IF_ERROR(enc.triangle(e.triangle));
+    else PSQ_RETURN_IF_ERROR(enc.finalize(e.finalized));
+  }
+  return enc.finish();
+}
+
+EncodeOptions attribute_options(bool fast, int normal_bits, int uv_bits) {
+  EncodeOptions o;
+  o.bits = 14;
+  o.fast = fast;
+  o.normal_bits = normal_bits;
+  o.uv_bits = uv_bits;
+  return o;
+}
+
+Status decode_sequence(const std::vector<uint8_t>& bytes, EventLog* out, PsqHeader* header) {
+  InputStream in;
+  in.open_memory(bytes.data(), bytes.size(), "mem.psq");
+  PsqDecoder dec;
+  PSQ_RETURN_IF_ERROR(dec.open(&in));
+  if (header) *header = dec.header();
+  out->schema = dec.schema();
+  SequenceEvent e;
+  for (;;) {
+    PSQ_RETURN_IF_ERROR(dec.next(&e));
+    if (e.kind == SequenceEvent::Kind::kEnd) return Status();
+    out->events.push_back(e);
+  }
 }
 
 }  // namespace psq::test

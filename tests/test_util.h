@@ -11,6 +11,7 @@
 
 #include "psq/indexed_mesh.h"
 #include "psq/io.h"
+#include "psq/psq_codec.h"
 #include "psq/sequence.h"
 
 namespace psq::test {
@@ -100,6 +101,9 @@ std::vector<std::array<uint32_t, 3>> canonical_triangles(const Mesh& mesh);
 // A closed genus-1 mesh: a torus (radii 1 and `thickness`) of `around` x
 // `across` quads split in triangles, float positions, counts set.
 Mesh make_torus(int around, int across, double thickness = 0.3);
+// A fan of n triangles around vertex 0, its rim wavy (z = 0.2 sin 7a),
+// float coordinates.
+Mesh make_wavy_fan(uint32_t n);
 
 // `m` with its vertices and its triangles in a random order (by `seed`),
 // indices relabelled, values kept with their elements.
@@ -119,6 +123,17 @@ struct EventLog : SequenceSink {
   std::vector<SequenceEvent> events;
   bool finished = false;
 };
+
+// The processing sequence of `mesh` (the sequence builder's defaults);
+// a failure of the builder fails the calling test.
+EventLog build_events(const Mesh& mesh);
+// A recorded sequence encoded as .psq into *bytes.
+Status encode_sequence(const EventLog& ev, const EncodeOptions& o, std::vector<uint8_t>* bytes);
+// 14-bit positions, the attributes' bits, the back-end.
+EncodeOptions attribute_options(bool fast, int normal_bits, int uv_bits);
+// .psq bytes decoded into *out (its schema and events up to the end), the
+// header into *header when given.
+Status decode_sequence(const std::vector<uint8_t>& bytes, EventLog* out, PsqHeader* header = nullptr);
 
 // Replays a recorded sequence as a SequenceSource.
 class EventReplay : public SequenceSource {

@@ -506,6 +506,21 @@ bool AttributeCoder::walk(const AttributeRecord& r, int32_t* q, Code&& code) {
   return true;
 }
 
+void AttributeCoder::area_vector(const AttributeRecord& r, double n[3]) {
+  n[0] = n[1] = n[2] = 0;
+  if (r.pos[0] == nullptr) return;
+  // Coordinates on a grid of at most 31 bits (spec 4.2): the products
+  // stay below 2^62 and their differences below 2^63.
+  int64_t e[3], f[3];
+  for (int i = 0; i < 3; ++i) {
+    e[i] = r.pos[1][i] - r.pos[0][i];
+    f[i] = r.pos[2][i] - r.pos[0][i];
+  }
+  n[0] = static_cast<double>(e[1] * f[2] - e[2] * f[1]);
+  n[1] = static_cast<double>(e[2] * f[0] - e[0] * f[2]);
+  n[2] = static_cast<double>(e[0] * f[1] - e[1] * f[0]);
+}
+
 // Spec 8.4: the new corners start their rings, in order of introduction;
 // the triangle's area vector (exact in integers, so that every rotation
 // of the triangle gives the same) joins each waiting corner's ring; the
@@ -523,19 +538,8 @@ bool AttributeCoder::ring_step(const AttributeRecord& r, Code& code) {
         g.waiting = true;
         waiting_.push_back(Waiting{r.c[k], r.index[i], records_});
       }
-  double n[3] = {0, 0, 0};
-  if (r.pos[0] != nullptr) {
-    // Coordinates on a grid of at most 31 bits (spec 4.2): the products
-    // stay below 2^62 and their differences below 2^63.
-    int64_t e[3], f[3];
-    for (int i = 0; i < 3; ++i) {
-      e[i] = r.pos[1][i] - r.pos[0][i];
-      f[i] = r.pos[2][i] - r.pos[0][i];
-    }
-    n[0] = static_cast<double>(e[1] * f[2] - e[2] * f[1]);
-    n[1] = static_cast<double>(e[2] * f[0] - e[0] * f[2]);
-    n[2] = static_cast<double>(e[0] * f[1] - e[1] * f[0]);
-  }
+  double n[3];
+  area_vector(r, n);
   for (int k = 0; k < 3; ++k) {
     if (r.c[k] >= rings_.size()) continue;
     Ring& g = rings_[r.c[k]];
@@ -584,6 +588,15 @@ bool AttributeCoder::settle(int kind, Ring* ring, uint32_t index, int32_t* x, Co
 // edge in the texture) the parallelogram stays.
 void AttributeCoder::predict_texcoord(const AttributeRecord& r, int j, int d, const int32_t* a, const int32_t* b,
                                       const int32_t* o, int64_t* pred) const {
+  double t, h;
+  if (!beside_edge(r, j, &t, &h)) return;
+  const double eu = static_cast<double>(b[d]) - a[d], ev = static_cast<double>(b[d + 1]) - a[d + 1];
+  const double side = eu * (static_cast<double>(o[d + 1]) - a[d + 1]) - ev * (static_cast<double>(o[d]) - a[d]);
+  if (side == 0) return;
+  texture_point(a + d, b + d, t, side > 0 ? -h : h, comp_[d], pred + d);  // away from the third vertex
+}
+
+bool AttributeCoder::beside_edge(const AttributeRecord& r, int j, double* t, double* h) {
   const int64_t* x = r.pos[j];
   const int64_t* p = r.pos[(j + 1) % 3];
   const int64_t* q = r.pos[(j + 2) % 3];
@@ -593,23 +606,24 @@ void AttributeCoder::predict_texcoord(const AttributeRecord& r, int j, int d, co
     f[i] = static_cast<double>(x[i] - p[i]);
   }
   const double ee = (e[0] * e[0] + e[1] * e[1]) + e[2] * e[2];
-  if (!(ee > 0)) return;
-  const double t = ((f[0] * e[0] + f[1] * e[1]) + f[2] * e[2]) / ee;
+  if (!(ee > 0)) return false;
+  *t = ((f[0] * e[0] + f[1] * e[1]) + f[2] * e[2]) / ee;
   double h2 = 0;
   for (int i = 0; i < 3; ++i) {
-    const double g = f[i] - t * e[i];
+    const double g = f[i] - *t * e[i];
     h2 = h2 + g * g;
   }
-  const double h = std::sqrt(h2 / ee);
-  const double eu = static_cast<double>(b[d]) - a[d], ev = static_cast<double>(b[d + 1]) - a[d + 1];
-  const double side = eu * (static_cast<double>(o[d + 1]) - a[d + 1]) - ev * (static_cast<double>(o[d]) - a[d]);
-  if (side == 0) return;
-  const double w = side > 0 ? -h : h;  // away from the third vertex
-  const double pu = (a[d] + t * eu) - w * ev, pv = (a[d + 1] + t * ev) + w * eu;
-  const Component& c = comp_[d];
+  *h = std::sqrt(h2 / ee);
+  return true;
+}
+
+void AttributeCoder::texture_point(const int32_t* a, const int32_t* b, double t, double w, const Component& c,
+                                   int64_t* pred) {
+  const double eu = static_cast<double>(b[0]) - a[0], ev = static_cast<double>(b[1]) - a[1];
+  const double pu = (a[0] + t * eu) - w * ev, pv = (a[1] + t * ev) + w * eu;
   if (!(std::fabs(pu) < 4.0e9) || !(std::fabs(pv) < 4.0e9)) return;
-  pred[d] = std::min(std::max(static_cast<int64_t>(std::floor(pu + 0.5)), c.lo), c.hi);
-  pred[d + 1] = std::min(std::max(static_cast<int64_t>(std::floor(pv + 0.5)), c.lo), c.hi);
+  pred[0] = std::min(std::max(static_cast<int64_t>(std::floor(pu + 0.5)), c.lo), c.hi);
+  pred[1] = std::min(std::max(static_cast<int64_t>(std::floor(pv + 0.5)), c.lo), c.hi);
 }
 
 

@@ -163,6 +163,10 @@ class AttributeCoder {
   const std::vector<SettledCorner>& settled_corners() const { return settled_corners_; }
   // Decoder: a settled corner's normal into its triangle's face values.
   void patch_face(PropertyValues* values, const SettledCorner& s) const;
+  // Spec 8.4: a record's triangle's area vector, exact in integers (the
+  // same for every rotation of its corners) and then binary64; zero in a
+  // lossless stream.
+  static void area_vector(const AttributeRecord& r, double n[3]);
   int fast_table(int kind, int d, int ctx) const { return (kind * dims_ + d) * 3 + (ctx < 4 ? 0 : ctx < 8 ? 1 : 2); }
   int fast_tables() const { return 6 * dims_ + 33 * static_cast<int>(corner_.size()); }
 
@@ -263,6 +267,13 @@ class AttributeCoder {
   static int64_t component_residual(const Component& c, int64_t pred, int64_t value);
   void predict_texcoord(const AttributeRecord& r, int j, int d, const int32_t* a, const int32_t* b, const int32_t* o,
                         int64_t* pred) const;
+  // Spec 8.3, 8.5: where corner j of a quantized stream's triangle lies
+  // beside the edge from corner j + 1 to j + 2: its foot t on the edge and
+  // its distance h from it, in edge lengths; false for an edge of no
+  // length. texture_point() carries that to the edge from a to b in the
+  // texture, at signed distance w, rounded to the grid (none beyond 4e9).
+  static bool beside_edge(const AttributeRecord& r, int j, double* t, double* h);
+  static void texture_point(const int32_t* a, const int32_t* b, double t, double w, const Component& c, int64_t* pred);
   int32_t* vertex_values(uint32_t slot) { return grow(&vattr_, slot); }
   int32_t* edge_values(uint32_t slot) { return grow(&eattr_, slot); }
   int32_t* grow(std::vector<int32_t>* a, uint32_t slot);

@@ -138,25 +138,8 @@ void AttributeCoder::predict_texcoord(const AttributeRecord& r, const Corner& a,
   // Where corner j lies beside the edge from p to q in space: its foot on
   // the edge and its distance from it, in edge lengths (as 8.3), carried
   // to the edge in the texture on the side the orientation gives.
-  double e[3], f[3];
-  for (int i = 0; i < 3; ++i) {
-    e[i] = static_cast<double>(r.pos[q][i] - r.pos[p][i]);
-    f[i] = static_cast<double>(r.pos[j][i] - r.pos[p][i]);
-  }
-  const double ee = (e[0] * e[0] + e[1] * e[1]) + e[2] * e[2];
-  if (!(ee > 0)) return;
-  const double t = ((f[0] * e[0] + f[1] * e[1]) + f[2] * e[2]) / ee;
-  double h2 = 0;
-  for (int i = 0; i < 3; ++i) {
-    const double g = f[i] - t * e[i];
-    h2 = h2 + g * g;
-  }
-  const double w = a.orientation * std::sqrt(h2 / ee);
-  const double eu = static_cast<double>(B[0]) - A[0], ev = static_cast<double>(B[1]) - A[1];
-  const double pu = (A[0] + t * eu) - w * ev, pv = (A[1] + t * ev) + w * eu;
-  if (!(std::fabs(pu) < 4.0e9) || !(std::fabs(pv) < 4.0e9)) return;
-  pred[0] = std::min(std::max(static_cast<int64_t>(std::floor(pu + 0.5)), a.comp[0].lo), a.comp[0].hi);
-  pred[1] = std::min(std::max(static_cast<int64_t>(std::floor(pv + 0.5)), a.comp[1].lo), a.comp[1].hi);
+  double t, h;
+  if (beside_edge(r, j, &t, &h)) texture_point(A, B, t, a.orientation * h, a.comp[0], pred);
 }
 
 // Spec 8.5: for each corner attribute, the corners in order of their
@@ -258,18 +241,8 @@ bool AttributeCoder::corner_walk(const AttributeRecord& r, Coding& code) {
       if (area != 0) a.orientation = area > 0 ? 1 : -1;
       continue;
     }
-    double n[3] = {0, 0, 0};
-    if (r.pos[0] != nullptr) {
-      // As 8.4: exact in integers, the same for every rotation.
-      int64_t e[3], f[3];
-      for (int i = 0; i < 3; ++i) {
-        e[i] = r.pos[1][i] - r.pos[0][i];
-        f[i] = r.pos[2][i] - r.pos[0][i];
-      }
-      n[0] = static_cast<double>(e[1] * f[2] - e[2] * f[1]);
-      n[1] = static_cast<double>(e[2] * f[0] - e[0] * f[2]);
-      n[2] = static_cast<double>(e[0] * f[1] - e[1] * f[0]);
-    }
+    double n[3];
+    area_vector(r, n);
     for (int k = 0; k < 3; ++k) {
       const Wedge& t = *taken[k];
       if (!t.wait) continue;
