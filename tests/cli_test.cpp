@@ -467,6 +467,52 @@ TEST(Cli, ConvertWeldsCorners) {
   EXPECT_FALSE(test::file_exists(dir.file("x.ply")));
 }
 
+// A mesh split at seams every fourth column (its copies' u 0.5 larger):
+// the converter suggests --weld=corners, and with it repeats no position.
+TEST(Cli, ConvertSuggestsWeldingCorners) {
+  test::TempDir dir;
+  const int n = 80;
+  Mesh grid = test::make_grid(n);
+  Mesh m = grid;
+  m.schema.vertex_properties = {{"u", ScalarType::kFloat32}, {"v", ScalarType::kFloat32}};
+  for (size_t i = 0; i < grid.positions.size(); ++i)
+    m.vertex_values[i] = {grid.positions[i][0] / 128, grid.positions[i][1] / 128};
+  std::vector<uint32_t> copy(grid.positions.size(), UINT32_MAX);
+  for (auto& t : m.triangles) {
+    const double x = (grid.positions[t[0]][0] + grid.positions[t[1]][0] + grid.positions[t[2]][0]) / 3;
+    if (static_cast<int>(x) % 8 < 4) continue;  // the other side of a seam at columns 4, 8, ...
+    for (uint32_t& v : t) {
+      const int col = static_cast<int>(grid.positions[v][0]);
+      if (col % 4 != 0) continue;
+      if (copy[v] == UINT32_MAX) {
+        copy[v] = static_cast<uint32_t>(m.positions.size());
+        m.positions.push_back(grid.positions[v]);
+        m.vertex_values.push_back({grid.positions[v][0] / 128 + 0.5, grid.positions[v][1] / 128});
+      }
+      v = copy[v];
+    }
+  }
+  m.schema.vertex_count = static_cast<int64_t>(m.positions.size());
+  {
+    OutputFile out;
+    ASSERT_TRUE(out.open(dir.file("split.ply"), false).ok());
+    PlyWriter w(&out);
+    test::MemorySource src(m);
+    ASSERT_TRUE(pump(src, w).ok());
+    ASSERT_TRUE(out.commit().ok());
+  }
+  std::string out, err;
+  ASSERT_EQ(run_psq("convert " + dir.file("split.ply") + " " + dir.file("a.psq"), &out, &err), 0) << err;
+  EXPECT_NE(err.find("--weld=corners those that differ in normals or texture coordinates only"), std::string::npos)
+      << err;
+  ASSERT_EQ(run_psq("convert --weld=corners " + dir.file("split.ply") + " " + dir.file("b.psq"), &out, &err), 0)
+      << err;
+  EXPECT_EQ(err.find("repeat another vertex's position"), std::string::npos) << err;
+  EXPECT_NE(err.find("merged " + std::to_string(m.positions.size() - grid.positions.size()) + " of"),
+            std::string::npos)
+      << err;
+}
+
 TEST(Cli, ConvertSafety) {
   test::TempDir dir;
   std::string ply = write_sphere(dir, "s.ply");

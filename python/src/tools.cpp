@@ -120,7 +120,8 @@ std::string convert(const std::string& in, const std::string& out, const Convert
     check(output.commit(), out);
     const PsqStats& st = encoder.stats();
     notes = detail::input_notes(mesh, report);
-    for (std::string& x : detail::weld_notes(weld, report)) notes.push_back(std::move(x));
+    if (!mesh.decoder)
+      for (std::string& x : detail::weld_notes(weld, report, mesh.source->schema())) notes.push_back(std::move(x));
     o += ", \"vertices\": " + n(st.vertices) + ", \"triangles\": " + n(st.triangles) +
          ", \"bytes_in\": " + n(mesh.stream->offset()) + ", \"bytes_out\": " + n(output.size()) +
          ", " + detail::json_bits_per_vertex(st) + detail::json_encoding(e) +

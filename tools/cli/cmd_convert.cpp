@@ -136,7 +136,9 @@ int to_psq(const std::string& in, const std::string& out, OpenedMesh& mesh, Outp
   if (!s.ok()) return report_error(out, s);
   const PsqStats& st = encoder.stats();
   std::vector<std::string> notes = detail::input_notes(mesh, report);
-  for (std::string& n : detail::weld_notes(build_options.weld, report)) notes.push_back(std::move(n));
+  if (!mesh.decoder)
+    for (std::string& n : detail::weld_notes(build_options.weld, report, mesh.source->schema()))
+      notes.push_back(std::move(n));
   const bool welded = build_options.weld != WeldMode::kOff;
   if (!quiet)
     for (const std::string& n : notes) note(in, n);

@@ -59,20 +59,32 @@ namespace {
 // The share of duplicated positions above which convert suggests --weld:
 // "most vertices" (a soup of a closed mesh repeats about 5 in 6).
 constexpr double kSuggestWeld = 0.5;
+// With normals or texture coordinates, what a mesh split at its seams
+// repeats: a few percent of its vertices and more.
+constexpr double kSuggestCorners = 0.05;
 
 const char* weld_name(WeldMode m) {
   return m == WeldMode::kOff ? "off" : m == WeldMode::kAll ? "all" : "positions";
 }
 }  // namespace
 
-std::vector<std::string> weld_notes(WeldMode weld, const BuildReport& report) {
+std::vector<std::string> weld_notes(WeldMode weld, const BuildReport& report, const MeshSchema& input) {
   std::vector<std::string> notes;
+  // A mesh split at its seams repeats fewer positions than a soup, and
+  // carries normals or texture coordinates (--weld=corners).
+  bool attributes = false;
+  for (const Property& p : input.vertex_properties)
+    for (const char* n : {"nx", "u", "s", "texture_u", "texture_s"}) attributes = attributes || p.name == n;
+  const std::string share = std::to_string(static_cast<int>(100 * report.duplicate_share + 0.5));
   if (weld != WeldMode::kOff) {
     notes.push_back("--weld merged " + std::to_string(report.welded_vertices) + " of " +
                     std::to_string(report.input_vertices) + " vertices and dropped " +
                     std::to_string(report.weld_dropped) + " triangle(s) it made degenerate");
+  } else if (attributes && report.duplicate_share > kSuggestCorners) {
+    notes.push_back("about " + share + "% of the vertices repeat another vertex's position: --weld would merge "
+                    "identical ones, --weld=corners those that differ in normals or texture coordinates only");
   } else if (report.duplicate_share > kSuggestWeld) {
-    notes.push_back("about " + std::to_string(static_cast<int>(100 * report.duplicate_share + 0.5)) +
+    notes.push_back("about " + share +
                     "% of the vertices repeat another vertex's position (a triangle soup?): --weld would merge them");
   }
   return notes;

@@ -61,8 +61,9 @@ std::vector<std::string> input_notes(const OpenedMesh& mesh, const BuildReport& 
 
 // The notes of psq convert's weld (psq/sequence_builder.h): how many
 // vertices --weld merged, or, without it, a suggestion when most vertices
-// of the input repeat another's position.
-std::vector<std::string> weld_notes(WeldMode weld, const BuildReport& build);
+// of the input repeat another's position (--weld), or a few of them and
+// it has normals or texture coordinates (--weld=corners too).
+std::vector<std::string> weld_notes(WeldMode weld, const BuildReport& build, const MeshSchema& input);
 // The weld fields of a .psq summary, each after ", ": "weld" ("off",
 // "all", "positions" or "corners"), and for a mesh input (`from_mesh`) the
 // input's counts and what the weld merged and dropped (`corners`: what
