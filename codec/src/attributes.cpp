@@ -506,21 +506,6 @@ bool AttributeCoder::walk(const AttributeRecord& r, int32_t* q, Code&& code) {
   return true;
 }
 
-void AttributeCoder::area_vector(const AttributeRecord& r, double n[3]) {
-  n[0] = n[1] = n[2] = 0;
-  if (r.pos[0] == nullptr) return;
-  // Coordinates on a grid of at most 31 bits (spec 4.2): the products
-  // stay below 2^62 and their differences below 2^63.
-  int64_t e[3], f[3];
-  for (int i = 0; i < 3; ++i) {
-    e[i] = r.pos[1][i] - r.pos[0][i];
-    f[i] = r.pos[2][i] - r.pos[0][i];
-  }
-  n[0] = static_cast<double>(e[1] * f[2] - e[2] * f[1]);
-  n[1] = static_cast<double>(e[2] * f[0] - e[0] * f[2]);
-  n[2] = static_cast<double>(e[0] * f[1] - e[1] * f[0]);
-}
-
 // Spec 8.4: the new corners start their rings, in order of introduction;
 // the triangle's area vector (exact in integers, so that every rotation
 // of the triangle gives the same) joins each waiting corner's ring; the
@@ -658,7 +643,7 @@ const char* AttributeCoder::component_value(const Component& c, int64_t pred, in
 namespace {
 
 // Spec 13.8.3: a residual as its length symbol in `table`, then raw bits.
-int fast_put(FastAttributeWriter& w, int table, int64_t res) {
+PSQ_INLINE int fast_put(FastAttributeWriter& w, int table, int64_t res) {
   const uint64_t mag = res < 0 ? 0 - static_cast<uint64_t>(res) : static_cast<uint64_t>(res);
   const int k = bit_length64(mag);
   const int sym = fast_length_symbol(k, mag);
@@ -681,7 +666,7 @@ int fast_put(FastAttributeWriter& w, int table, int64_t res) {
 }
 
 // Spec 13.8.3: a length symbol's residual from the raw bits.
-const char* fast_get(FastAttributeReader& rd, int table, int64_t* res, int* length) {
+PSQ_INLINE const char* fast_get(FastAttributeReader& rd, int table, int64_t* res, int* length) {
   RawReader& raw = *rd.raw;
   const int s = rd.rans->decode(rd.tables[static_cast<size_t>(table)]);
   uint64_t mag;
@@ -710,15 +695,17 @@ const char* fast_get(FastAttributeReader& rd, int table, int64_t* res, int* leng
 
 // The four ways to code a record: the adaptive and the rANS back-end,
 // encoding and decoding. Each codes a residual of a model (adaptive) or a
-// table (rANS), and a corner's wedge symbol (8.5) likewise.
+// table (rANS), and a corner's wedge symbol (8.5) likewise. Inlined into
+// code_record(), which calls them for every value knowing their type
+// (corner_walk() calls them through Coding).
 struct AttributeCoder::AdaptiveOut final : Coding {
   explicit AdaptiveOut(Encoder& x) : enc(x) {}
   Encoder& enc;
-  bool residual(int, ResidualModel& m, const Component& c, int64_t pred, int32_t* x, int* length) override {
+  PSQ_INLINE bool residual(int, ResidualModel& m, const Component& c, int64_t pred, int32_t* x, int* length) override {
     *length = enc.residual(m, component_residual(c, pred, *x), kCostGeometry);
     return true;
   }
-  bool symbol(int, SymbolModel& m, uint32_t* s) override {
+  PSQ_INLINE bool symbol(int, SymbolModel& m, uint32_t* s) override {
     enc.symbol<4>(m, *s, kCostGeometry);
     return true;
   }
@@ -726,12 +713,12 @@ struct AttributeCoder::AdaptiveOut final : Coding {
 struct AttributeCoder::AdaptiveIn final : Coding {
   explicit AdaptiveIn(BasicDecoder<false>& x) : dec(x) {}
   BasicDecoder<false>& dec;
-  bool residual(int, ResidualModel& m, const Component& c, int64_t pred, int32_t* x, int* length) override {
+  PSQ_INLINE bool residual(int, ResidualModel& m, const Component& c, int64_t pred, int32_t* x, int* length) override {
     int64_t res;
     if (!dec.residual(m, &res, length, kCostGeometry)) return why = "attribute residual longer than 64 bits", false;
     return !(why = component_value(c, pred, res, x));
   }
-  bool symbol(int, SymbolModel& m, uint32_t* s) override {
+  PSQ_INLINE bool symbol(int, SymbolModel& m, uint32_t* s) override {
     *s = dec.symbol<4>(m, kCostGeometry);
     return true;
   }
@@ -739,11 +726,12 @@ struct AttributeCoder::AdaptiveIn final : Coding {
 struct AttributeCoder::FastOut final : Coding {
   explicit FastOut(FastAttributeWriter& x) : w(x) {}
   FastAttributeWriter& w;
-  bool residual(int table, ResidualModel&, const Component& c, int64_t pred, int32_t* x, int* length) override {
+  PSQ_INLINE bool residual(int table, ResidualModel&, const Component& c, int64_t pred, int32_t* x,
+                           int* length) override {
     *length = fast_put(w, table, component_residual(c, pred, *x));
     return true;
   }
-  bool symbol(int table, SymbolModel&, uint32_t* s) override {
+  PSQ_INLINE bool symbol(int table, SymbolModel&, uint32_t* s) override {
     w.symbols.push_back(RansSymbol{static_cast<uint16_t>(table), static_cast<uint8_t>(*s)});
     ++w.counts[static_cast<size_t>(table) * kFastLengthSymbols + *s];
     return true;
@@ -752,12 +740,13 @@ struct AttributeCoder::FastOut final : Coding {
 struct AttributeCoder::FastIn final : Coding {
   explicit FastIn(FastAttributeReader& x) : rd(x) {}
   FastAttributeReader& rd;
-  bool residual(int table, ResidualModel&, const Component& c, int64_t pred, int32_t* x, int* length) override {
+  PSQ_INLINE bool residual(int table, ResidualModel&, const Component& c, int64_t pred, int32_t* x,
+                           int* length) override {
     int64_t res;
     if ((why = fast_get(rd, table, &res, length))) return false;
     return !(why = component_value(c, pred, res, x));
   }
-  bool symbol(int table, SymbolModel&, uint32_t* s) override {
+  PSQ_INLINE bool symbol(int table, SymbolModel&, uint32_t* s) override {
     const int v = rd.rans->decode(rd.tables[static_cast<size_t>(table)]);
     if (v < 0 || v >= kFastLengthSymbols) return why = "attribute symbol of an absent table", false;
     *s = static_cast<uint32_t>(v);
@@ -766,7 +755,7 @@ struct AttributeCoder::FastIn final : Coding {
 };
 
 // A record: the vertices' values (walk()), then the triangle's corners'
-// (corner_walk()).
+// (code_corners()).
 template <class C>
 const char* AttributeCoder::code_record(const AttributeRecord& r, int32_t* q, C& code) {
   const bool ok = walk(r, q, [&](int kind, const int64_t* pred, const int* extent, int32_t* x, bool late) {
@@ -783,11 +772,8 @@ const char* AttributeCoder::code_record(const AttributeRecord& r, int32_t* q, C&
     return true;
   });
   if (!ok) return code.why ? code.why : "attribute data is corrupt";
-  settled_corners_.clear();
-  pending_corners_ = 0;
-  if (r.triangle && !corner_.empty() && !corner_walk(r, code)) return code.why ? code.why : "attribute data is corrupt";
-  if (late_corners_ && !corners_due(r, code)) return code.why ? code.why : "attribute data is corrupt";
-  return nullptr;
+  // A stream without corner attributes runs none of 8.5's steps.
+  return corner_.empty() ? nullptr : code_corners(r, code);
 }
 
 void AttributeCoder::encode(Encoder& enc, const AttributeRecord& r, const int32_t* q) {

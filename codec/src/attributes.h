@@ -242,6 +242,9 @@ class AttributeCoder {
     uint32_t attribute;
     uint64_t serial, record;
   };
+  // A record's corner attributes (corners.cpp), after its vertices'
+  // values: nullptr, or why the stream is corrupt.
+  const char* code_corners(const AttributeRecord& r, Coding& code);
   // The corners' values of a triangle (corners.cpp). `code` codes wedge
   // symbols, code.symbol(table, model, &s), and residuals,
   // code.residual(table, model, component, pred, &x, &length).
@@ -274,8 +277,14 @@ class AttributeCoder {
   // texture, at signed distance w, rounded to the grid (none beyond 4e9).
   static bool beside_edge(const AttributeRecord& r, int j, double* t, double* h);
   static void texture_point(const int32_t* a, const int32_t* b, double t, double w, const Component& c, int64_t* pred);
-  int32_t* vertex_values(uint32_t slot) { return grow(&vattr_, slot); }
-  int32_t* edge_values(uint32_t slot) { return grow(&eattr_, slot); }
+  int32_t* vertex_values(uint32_t slot) { return slot_values(&vattr_, slot); }
+  int32_t* edge_values(uint32_t slot) { return slot_values(&eattr_, slot); }
+  // Inline, as a record takes several; grow() only for a slot beyond the
+  // array, which holds whole slots (dims_ values each).
+  int32_t* slot_values(std::vector<int32_t>* a, uint32_t slot) {
+    const size_t at = static_cast<size_t>(slot) * static_cast<size_t>(dims_);
+    return at < a->size() ? a->data() + at : grow(a, slot);
+  }
   int32_t* grow(std::vector<int32_t>* a, uint32_t slot);
   ResidualModel& model(int kind, int d, int ctx) {
     return models_[(static_cast<size_t>(kind) * static_cast<size_t>(dims_) + static_cast<size_t>(d)) * kLengthContexts +
@@ -306,6 +315,22 @@ class AttributeCoder {
   std::vector<uint32_t> free_waiters_;
   std::vector<SettledCorner> settled_corners_;
 };
+
+// Inline: every triangle takes it, for 8.4 and for 8.5.
+inline void AttributeCoder::area_vector(const AttributeRecord& r, double n[3]) {
+  n[0] = n[1] = n[2] = 0;
+  if (r.pos[0] == nullptr) return;
+  // Coordinates on a grid of at most 31 bits (spec 4.2): the products
+  // stay below 2^62 and their differences below 2^63.
+  int64_t e[3], f[3];
+  for (int i = 0; i < 3; ++i) {
+    e[i] = r.pos[1][i] - r.pos[0][i];
+    f[i] = r.pos[2][i] - r.pos[0][i];
+  }
+  n[0] = static_cast<double>(e[1] * f[2] - e[2] * f[1]);
+  n[1] = static_cast<double>(e[2] * f[0] - e[0] * f[2]);
+  n[2] = static_cast<double>(e[0] * f[1] - e[1] * f[0]);
+}
 
 // The length context of component d (spec 8.3): the predicting values'
 // spread for an attribute's first component; for the others, the mean of

@@ -111,6 +111,15 @@ AttributeCoder::Wedges& AttributeCoder::wedges(uint32_t slot, size_t a) {
   return wedges_[static_cast<size_t>(slot) * corner_.size() + a];
 }
 
+// Spec 8.5: the triangle's corners, then the corner normals now due.
+const char* AttributeCoder::code_corners(const AttributeRecord& r, Coding& code) {
+  settled_corners_.clear();
+  pending_corners_ = 0;
+  if ((r.triangle && !corner_walk(r, code)) || (late_corners_ && !corners_due(r, code)))
+    return code.why ? code.why : "attribute data is corrupt";
+  return nullptr;
+}
+
 // Spec 8.5: the prediction of texture coordinate j's new value from the
 // triangle's corners known so far (`known`, values `x`): rule 0 with both
 // others known, 1 with one, 2 with none.

@@ -69,6 +69,8 @@ Status PsqDecoder::Impl::open(InputStream* stream) {
   attr_q.resize(3 * static_cast<size_t>(attrs->dims()));
   attr_cq.resize(3 * static_cast<size_t>(attrs->corner_dims()));
   late = attrs->late();
+  late_vertices = attrs->late_vertices();
+  corners = attrs->corner_dims() > 0;
   props = std::make_unique<PropertyUnpacker>(attrs->column_properties(), attrs->face_column_properties());
   segment_next = header.segment_triangles;
   if (!header.lossless) {
@@ -373,7 +375,7 @@ Status PsqDecoder::Impl::decode_attributes(bool flush) {
   AttributeRecord r;
   r.flush = flush;
   SequenceVertex* fresh[3] = {nullptr, nullptr, nullptr};
-  SequenceTriangle* face = nullptr;
+  SequenceTriangle* face = nullptr;  // the triangle, when it has corner values (8.5)
   for (size_t i = 0; i < qcount && !flush; ++i) {
     SequenceEvent& e = queue[i];
     if (e.kind == SequenceEvent::Kind::kVertex) {
@@ -382,9 +384,11 @@ Status PsqDecoder::Impl::decode_attributes(bool flush) {
     } else if (e.kind == SequenceEvent::Kind::kTriangle) {
       SequenceTriangle& t = e.triangle;
       r.triangle = true;
-      face = &t;
-      r.corners = attr_cq.data();
-      r.event = held_end + i;  // where hold() puts it
+      if (corners) {
+        face = &t;
+        r.corners = attr_cq.data();
+        r.event = held_end + i;  // where hold() puts it
+      }
       for (int k = 0; k < 3; ++k) {
         r.v[k] = t.v[k];
         r.c[k] = t.vslot[k];
@@ -409,21 +413,23 @@ Status PsqDecoder::Impl::decode_attributes(bool flush) {
   if (rans ? attr_fast.rans->overran() || attr_fast.raw->overran() : attr_rc->overran())
     return Status(ErrorCode::kTruncated, "record " + std::to_string(record_no) + ": attribute data ends early",
                   attr_offset + attr_bytes.size());
-  if (face != nullptr && attrs->corner_dims() > 0) {
+  if (face != nullptr) {
     attr_columns.swap(face->values);
     attrs->merge_face(attr_columns, attr_cq.data(), &face->values);
   }
   // A vertex's values are whole now unless its normal waits (8.4).
-  if (!attrs->late_vertices())
+  if (!late_vertices) {
     for (int i = 0; i < r.nnew; ++i) {
       attr_columns.swap(fresh[i]->values);
       attrs->merge(attr_columns, attr_q.data() + i * attrs->dims(), &fresh[i]->values);
     }
-  if (!late) return Status();
+    if (!late) return Status();  // nor corner normals: nothing is held
+  }
   // Spec 8.4: the record's events join those held back; a vertex's
   // values stay its property columns until its normal comes.
   for (size_t i = 0; i < qcount && !flush; ++i) hold(queue[i]);
-  if (face != nullptr) held_waiting[static_cast<size_t>(r.event & (held.size() - 1))] = static_cast<uint8_t>(attrs->pending_corners());
+  if (face != nullptr)
+    held_waiting[static_cast<size_t>(r.event & (held.size() - 1))] = static_cast<uint8_t>(attrs->pending_corners());
   for (const AttributeCoder::Settled& st : attrs->settled()) {
     const uint64_t k = uint64_t{st.index} - held_first_vertex;
     if (st.index < held_first_vertex || k >= held_vertex.size()) return corrupt("a normal for a vertex that does not wait for one");
@@ -434,14 +440,15 @@ Status PsqDecoder::Impl::decode_attributes(bool flush) {
     held_waiting[static_cast<size_t>(at)] = 0;
   }
   // Spec 8.5: corner normals into the triangles that wait for them.
-  for (const AttributeCoder::SettledCorner& st : attrs->settled_corners()) {
-    const size_t at = static_cast<size_t>(st.event & (held.size() - 1));
-    if (st.event < held_ready || st.event >= held_end || held[at].kind != SequenceEvent::Kind::kTriangle ||
-        held_waiting[at] == 0)
-      return corrupt("a corner normal for a triangle that does not wait for one");
-    attrs->patch_face(&held[at].triangle.values, st);
-    --held_waiting[at];
-  }
+  if (corners)
+    for (const AttributeCoder::SettledCorner& st : attrs->settled_corners()) {
+      const size_t at = static_cast<size_t>(st.event & (held.size() - 1));
+      if (st.event < held_ready || st.event >= held_end || held[at].kind != SequenceEvent::Kind::kTriangle ||
+          held_waiting[at] == 0)
+        return corrupt("a corner normal for a triangle that does not wait for one");
+      attrs->patch_face(&held[at].triangle.values, st);
+      --held_waiting[at];
+    }
   const uint64_t mask = held.size() - 1;
   while (held_ready < held_end && !held_waiting[held_ready & mask]) {
     if (held[held_ready & mask].kind == SequenceEvent::Kind::kVertex) {
@@ -472,7 +479,7 @@ void PsqDecoder::Impl::hold(SequenceEvent& e) {
   SequenceEvent& h = held[at];
   // Only what the kind uses moves (the vectors keep their capacity).
   h.kind = e.kind;
-  held_waiting[at] = e.kind == SequenceEvent::Kind::kVertex && attrs->late_vertices();
+  held_waiting[at] = e.kind == SequenceEvent::Kind::kVertex && late_vertices;
   switch (e.kind) {
     case SequenceEvent::Kind::kVertex:
       std::swap(h.vertex, e.vertex);

@@ -98,6 +98,10 @@ struct PsqDecoder::Impl {
   // they are decoded and released in order once that normal has come:
   // [held_begin, held_ready) released, [held_ready, held_end) held.
   bool late = false;
+  // Asked once: whether vertices wait for their normals (8.4) and
+  // whether triangles have corner values (8.5); without, their steps
+  // are skipped.
+  bool late_vertices = false, corners = false;
   std::vector<SequenceEvent> held;
   std::vector<uint8_t> held_waiting;  // a vertex event whose normal is still to come
   uint64_t held_begin = 0, held_ready = 0, held_end = 0;
