@@ -107,6 +107,10 @@ inline int triangle_extent(const int64_t* a, const int64_t* b, const int64_t* c,
 // starting there instead of at one half saves the models' learning, which
 // weighs most on a small mesh.
 void init_length_prior(ResidualModel& m, int c);
+// Spec 13.2.1: the adaptive back-end's initial state of the record class
+// table A[ctx] and of a B symbol table of shape context `shape` (0 to 4).
+void init_class_prior(SymbolModel& tree, int ctx);
+void init_gate_prior(SymbolModel& tree, int shape);
 // Sets the nodes of bit-tree `tree` to the distribution of its leaves'
 // weights `leaf` (one per leaf; each node's p0 the share of its
 // 0-subtree, clamped to 32..65504, its count n 2).

@@ -57,6 +57,10 @@ inline void reset_adaptive_models(std::vector<SymbolModel>* models) {
       leaf[s] = uint64_t{1} << (24 - std::min(24, std::abs(length_of_symbol(s) - mu)));
     init_tree((*models)[t], leaf);
   }
+  // The record classes and B symbols start from their priors (13.2.1).
+  for (int ctx = 0; ctx < kFastAContexts; ++ctx) init_class_prior((*models)[kFastTableA + ctx], ctx);
+  for (int t = kFastTableB; t < kFastTableB + kFastBContexts; ++t) init_gate_prior((*models)[t], 0);
+  for (int t = kFastTables; t < kAdaptiveTables; ++t) init_gate_prior((*models)[t], 1 + (t - kFastTables) / kFastBContexts);
 }
 
 class RansSymbolDecoder {
