@@ -298,6 +298,23 @@ def errors(src, decoded, uv_bits):
     return angle, uv, colour
 
 
+def textured_models(tmp):
+    """The textured models as split PLYs written to tmp (one vertex per
+    distinct position, normal and texture coordinate): their paths."""
+    inputs = []
+    for name, src in [('bcn_epileptic', 'X/BCN_Epileptic.X'), ('duck', 'Collada/duck.dae'),
+                      ('dwarf', 'COB/dwarf.cob'), ('faerie', 'MD2/faerie.md2'),
+                      ('milktruck', 'glTF/CesiumMilkTruck/CesiumMilkTruck.gltf'), ('teapots', 'Collada/teapots.DAE'),
+                      ('wuson', 'X/Testwuson.X')]:
+        dst = os.path.join(tmp, name + '.ply')
+        subprocess.run(['assimp', 'export', os.path.join(ASSIMP, src), dst, '-jiv', '-tri', '-ptv'], check=True,
+                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        inputs.append(dst)
+    split_obj(os.path.join(ASSIMP, 'OBJ/spider.obj'), os.path.join(tmp, 'spider.ply'))
+    inputs.append(os.path.join(tmp, 'spider.ply'))
+    return inputs
+
+
 def size(path):
     return os.path.getsize(path)
 
@@ -312,17 +329,7 @@ def main():
                     help='also the textured models\' bytes by part: positions, texture coordinates, normals')
     args = ap.parse_args()
     tmp = tempfile.mkdtemp(prefix='psq_attr_')
-    inputs = []
-    for name, src in [('bcn_epileptic', 'X/BCN_Epileptic.X'), ('duck', 'Collada/duck.dae'),
-                      ('dwarf', 'COB/dwarf.cob'), ('faerie', 'MD2/faerie.md2'),
-                      ('milktruck', 'glTF/CesiumMilkTruck/CesiumMilkTruck.gltf'), ('teapots', 'Collada/teapots.DAE'),
-                      ('wuson', 'X/Testwuson.X')]:
-        dst = os.path.join(tmp, name + '.ply')
-        subprocess.run(['assimp', 'export', os.path.join(ASSIMP, src), dst, '-jiv', '-tri', '-ptv'], check=True,
-                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        inputs.append(dst)
-    split_obj(os.path.join(ASSIMP, 'OBJ/spider.obj'), os.path.join(tmp, 'spider.ply'))
-    inputs.append(os.path.join(tmp, 'spider.ply'))
+    inputs = textured_models(tmp)
     for name in ('bunny', 'bunny_closed', 'diplodocus', 'fandisk', 'refined_elephant'):
         dst = os.path.join(tmp, name + '_normals.ply')
         with_normals(os.path.join(SHARED, 'meshes', name + '.ply'), dst)

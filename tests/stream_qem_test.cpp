@@ -525,6 +525,150 @@ TEST(StreamQem, PropertiesTravelWithTheirElements) {
   }
 }
 
+Mesh subdivided_cube(int n);  // below, with the smoother's tests
+
+// The face lists corner_uv and corner_normals (an OBJ's vt and vn, per
+// corner) for each triangle of m, from functions of the position: the
+// texture coordinates of `uv`, and `normal`, of corner k of triangle t.
+template <class Uv, class Normal>
+void add_corner_lists(Mesh* m, Uv uv, Normal normal) {
+  m->schema.face_properties.push_back({"corner_uv", ScalarType::kFloat32, true, ScalarType::kUInt8});
+  m->schema.face_properties.push_back({"corner_normals", ScalarType::kFloat32, true, ScalarType::kUInt8});
+  for (size_t t = 0; t < m->triangles.size(); ++t) {
+    PropertyValues f = {6};
+    for (uint32_t k = 0; k < 3; ++k) {
+      const std::array<double, 2> c = uv(t, k);
+      f.insert(f.end(), c.begin(), c.end());
+    }
+    f.push_back(9);
+    for (uint32_t k = 0; k < 3; ++k) {
+      const Pos n = normal(t, k);
+      f.insert(f.end(), n.begin(), n.end());
+    }
+    m->face_values[t] = f;
+  }
+}
+
+// Longitude and latitude of a point of the unit sphere, as texture
+// coordinates in [0, 1).
+std::array<double, 2> lat_long(const Pos& p) {
+  const double pi = 3.14159265358979323846;
+  double u = std::atan2(p[1], p[0]) / (2 * pi);
+  if (u < 0) u += 1;
+  return {u, std::acos(std::max(-1.0, std::min(1.0, p[2]))) / pi};
+}
+
+// A globe's texture: one chart, cut along the meridian where u wraps
+// from 1 to 0 (a seam: the corners of the triangles east of it have
+// u near 1, those west near 0) and at the poles (a corner per triangle).
+// After simplification, every corner still has its chart's coordinates at
+// its vertex, and no triangle spans the texture (a torn seam would make
+// one that does); the smooth normals stay those of the sphere.
+TEST(StreamQem, CornerTexturesAndNormalsFollowTheirCharts) {
+  Mesh m = test::make_sphere(30, 40);
+  add_corner_lists(
+      &m,
+      [&](size_t t, uint32_t k) {
+        std::array<double, 2> c[3];
+        for (int i = 0; i < 3; ++i) c[i] = lat_long(m.positions[m.triangles[t][i]]);
+        for (int i = 0; i < 3; ++i)  // east of the seam
+          for (int j = 0; j < 3; ++j)
+            if (c[j][0] - c[i][0] > 0.5) c[i][0] += 1;
+        for (int i = 0; i < 3; ++i)  // a pole: the triangle's longitude
+          if (std::abs(m.positions[m.triangles[t][i]][2]) == 1) c[i][0] = (c[(i + 1) % 3][0] + c[(i + 2) % 3][0]) / 2;
+        return c[k];
+      },
+      [&](size_t t, uint32_t k) { return m.positions[m.triangles[t][k]]; });
+  QemOptions o;
+  o.ratio = 0.2;
+  o.buffer_triangles = 600;
+  Collected out;
+  ASSERT_TRUE(simplify(m, o, &out).ok());
+  EXPECT_LE(out.triangles.size(), m.triangles.size() / 4);
+  ASSERT_EQ(out.schema.face_properties.size(), 2u);
+  double worst_u = 0, worst_v = 0, worst_normal = 0, widest = 0;
+  for (size_t t = 0; t < out.triangles.size(); ++t) {
+    const PropertyValues& f = out.face_values[t];
+    ASSERT_EQ(f.size(), 17u);
+    double lo = 2, hi = -1;
+    for (int k = 0; k < 3; ++k) {
+      const Pos& p = out.positions[out.triangles[t][k]];
+      const double r = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+      const Pos unit = {p[0] / r, p[1] / r, p[2] / r};
+      const std::array<double, 2> want = lat_long(unit);
+      const double u = f[1 + 2 * k], v = f[2 + 2 * k];
+      lo = std::min(lo, u);
+      hi = std::max(hi, u);
+      worst_v = std::max(worst_v, std::abs(v - want[1]) * 3.14159265358979323846);
+      if (std::abs(unit[2]) < 0.99) {
+        const double du = std::abs(u - want[0]);
+        // In lengths on the sphere: a turn of longitude is 2 pi sin(latitude) long.
+        worst_u = std::max(worst_u, std::min(du, std::abs(du - 1)) * 2 * 3.14159265358979323846 * std::sqrt(1 - unit[2] * unit[2]));
+      }
+      const double* n = &f[8 + 3 * k];
+      const double dot = (n[0] * unit[0] + n[1] * unit[1] + n[2] * unit[2]) / std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+      worst_normal = std::max(worst_normal, std::acos(std::min(1.0, dot)));
+    }
+    widest = std::max(widest, hi - lo);
+  }
+  // Interpolated along chords of a curved chart: a tenth of an output
+  // edge (about 0.25 long). Each triangle's own input values, kept as they
+  // were, are off by a whole edge.
+  EXPECT_LT(worst_u, 0.08);
+  EXPECT_LT(worst_v, 0.08);
+  EXPECT_LT(worst_normal, 0.02);
+  EXPECT_LT(widest, 0.5);
+}
+
+// A cube of six charts, one a face, each face flat with its own normal
+// (hard edges: every cube edge is a seam of both lists). The faces
+// simplify to a few triangles each, and every corner keeps its face's
+// normal and its face's planar texture coordinates exactly.
+TEST(StreamQem, CornerSeamsAlongHardEdgesStay) {
+  Mesh m = subdivided_cube(8);
+  auto face_of = [&](size_t t) {
+    const Pos& a = m.positions[m.triangles[t][0]];
+    const Pos& b = m.positions[m.triangles[t][1]];
+    const Pos& c = m.positions[m.triangles[t][2]];
+    const Pos e1 = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2 = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    const Pos n = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+    int axis = 0;
+    for (int i = 1; i < 3; ++i)
+      if (std::abs(n[i]) > std::abs(n[axis])) axis = i;
+    return 2 * axis + (n[axis] > 0 ? 1 : 0);
+  };
+  auto chart = [](int face, const Pos& p) {  // face f's chart: the plane's coordinates, moved to [2f, 2f + 1]
+    const int axis = face / 2;
+    return std::array<double, 2>{2.0 * face + p[(axis + 1) % 3], p[(axis + 2) % 3]};
+  };
+  auto normal = [](int face) {
+    Pos n = {0, 0, 0};
+    n[static_cast<size_t>(face / 2)] = face % 2 ? 1 : -1;
+    return n;
+  };
+  add_corner_lists(
+      &m, [&](size_t t, uint32_t k) { return chart(face_of(t), m.positions[m.triangles[t][k]]); },
+      [&](size_t t, uint32_t) { return normal(face_of(t)); });
+  QemOptions o;
+  o.ratio = 0.1;
+  Collected out;
+  ASSERT_TRUE(simplify(m, o, &out).ok());
+  EXPECT_LE(out.triangles.size(), m.triangles.size() / 8);
+  for (size_t t = 0; t < out.triangles.size(); ++t) {
+    const PropertyValues& f = out.face_values[t];
+    ASSERT_EQ(f.size(), 17u);
+    const int face = static_cast<int>(std::floor(f[1] / 2));
+    ASSERT_GE(face, 0);
+    ASSERT_LT(face, 6);
+    for (int k = 0; k < 3; ++k) {
+      const std::array<double, 2> want = chart(face, out.positions[out.triangles[t][k]]);
+      EXPECT_NEAR(f[1 + 2 * k], want[0], 1e-5) << "triangle " << t << " corner " << k;
+      EXPECT_NEAR(f[2 + 2 * k], want[1], 1e-5) << "triangle " << t << " corner " << k;
+      for (int i = 0; i < 3; ++i) EXPECT_NEAR(f[8 + 3 * k + i], normal(face)[static_cast<size_t>(i)], 1e-6);
+    }
+  }
+}
+
 // A recorded sequence as a pull source.
 class Replay : public SequenceSource {
  public:

@@ -88,6 +88,8 @@ const PropertyValues& TriangleBuffer::face_values(uint32_t t) const {
   return has_face_values_ ? face_values_[t] : empty_values_;
 }
 
+PropertyValues* TriangleBuffer::mutable_face_values(uint32_t t) { return has_face_values_ ? &face_values_[t] : nullptr; }
+
 Status TriangleBuffer::vertex(const SequenceVertex& v) {
   // A vertex is introduced right before its first triangle, or finalized
   // right away (isolated): at most three wait for their triangle.

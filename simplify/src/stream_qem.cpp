@@ -15,6 +15,7 @@
 #include <limits>
 #include <vector>
 
+#include "corner_values.h"
 #include "qem_quadric.h"
 #include "sink_state.h"
 
@@ -205,6 +206,7 @@ struct StreamQem::Impl {
   static constexpr float kInfinity = std::numeric_limits<float>::infinity();
 
   TriangleBuffer buffer;
+  detail::CornerValues corners;  // corner_uv and corner_normals, if the mesh has them
   QemOptions opt;
   QemReport report;
   detail::SinkState state;
@@ -333,6 +335,7 @@ struct StreamQem::Impl {
   // end (none where the border rules allow one place only).
   bool evaluate(uint32_t h, Candidate* c, Candidate* ends = nullptr, int* n_ends = nullptr);
   bool allowed(const Candidate& c, bool topology_checked);
+  void kept_place(const Candidate& c, double p[3]);
   void apply(const Candidate& c);
   bool flips(uint32_t h, const double p[3]);
   void fan_normal(uint32_t a, uint32_t b, double n[3]);
@@ -401,6 +404,7 @@ Status StreamQem::Impl::begin(const MeshSchema& schema) {
   data.reserve(vertices);
   score.reserve(vertices);
   reference.reserve(room);
+  corners.init(schema);
   return buffer.begin(schema);
 }
 
@@ -526,18 +530,26 @@ bool StreamQem::Impl::evaluate(uint32_t h, Candidate* c, Candidate* ends, int* n
   // Border vertices stay on the border: a border edge collapses onto
   // itself, and an interior vertex merges into a border neighbour, so that
   // the border only shrinks.
+  // Seams of the corner values (a texture chart's border, a hard edge)
+  // are kept the same way: a seam vertex merges only along its seam.
   const bool ba = buffer.border(a), bb = buffer.border(b);
-  if (pa || pb || ba != bb) {
-    c->keep_start = pa || (!pb && ba);
+  const bool sa = corners.active() && corners.seam_vertex(buffer, a);
+  const bool sb = corners.active() && corners.seam_vertex(buffer, b);
+  const bool ca = ba || sa, cb = bb || sb;
+  if (pa || pb || ca != cb) {
+    c->keep_start = pa || (!pb && ca);
     std::copy(c->keep_start ? xa : xb, (c->keep_start ? xa : xb) + 3, c->x);
     c->cost = q.value(c->x);
     return true;
   }
-  if (ba && buffer.opposite(h) != TriangleBuffer::kBorder) return false;  // a pinch: can_collapse refuses it
+  // Both ends on borders or seams: only an edge along them collapses (one
+  // between two border vertices is a pinch, which can_collapse refuses).
+  if (ca && !(ba && bb && buffer.opposite(h) == TriangleBuffer::kBorder) && !(sa && sb && corners.seam_edge(buffer, h)))
+    return false;
   double e[3];
   sub(xb, xa, e);
   bool placed = false;
-  if (!ba) {
+  if (!ca) {
     double m[3];
     for (int i = 0; i < 3; ++i) m[i] = 0.5 * (xa[i] + xb[i]);
     placed = q.minimum(kPull * (q.a00 + q.a11 + q.a22), m, c->x);
@@ -657,9 +669,20 @@ void StreamQem::Impl::fan_normal(uint32_t a, uint32_t b, double n[3]) {
 bool StreamQem::Impl::allowed(const Candidate& c, bool topology_checked) {
   if (!topology_checked && !buffer.can_collapse(c.h)) return false;
   double p[3];
+  kept_place(c, p);
+  return !flips(c.h, p) && (!corners.active() || corners.plan(buffer, c.h, c.keep_start, p));
+}
+
+// Where collapse c puts its kept vertex: c's place, rounded as the buffer
+// stores it, or where it is if it is pinned.
+void StreamQem::Impl::kept_place(const Candidate& c, double p[3]) {
+  const uint32_t keep = buffer.vertex_of(c.keep_start ? c.h : TriangleBuffer::next(c.h));
+  if (pinned(keep)) {
+    std::copy(buffer.position(keep), buffer.position(keep) + 3, p);
+    return;
+  }
   world(c.x, p);
   buffer.round_position(p);
-  return !flips(c.h, p);
 }
 
 // v's cheapest edge was refused: offer its cheapest collapse that passes,
@@ -700,17 +723,18 @@ void StreamQem::Impl::apply(const Candidate& k) {
   const uint32_t h = k.h;
   const uint32_t a = buffer.vertex_of(h), b = buffer.vertex_of(TriangleBuffer::next(h));
   double p[3];
-  world(k.x, p);
-  buffer.round_position(p);
+  kept_place(k, p);
+  // allowed(k) held: the corners' values have a plan.
+  const bool moves_corners = corners.active() && corners.plan(buffer, h, k.keep_start, p);
   QemQuadric q = data[a].q;
   q.add(data[b].q);
-  const bool keep_pinned = pinned(k.keep_start ? a : b);
   const uint32_t gone = k.keep_start ? b : a;
   leave_set(gone);
   const uint32_t keep = buffer.collapse(h, k.keep_start);
   data[keep].q = q;
   data[keep].inverse_weight = q.weight > 0 ? 1 / q.weight : 1;
-  if (!keep_pinned) buffer.set_position(keep, p);
+  buffer.set_position(keep, p);
+  if (moves_corners) corners.apply(&buffer);
   score[keep] = static_cast<float>(k.cost);
   max_cost = std::max(max_cost, k.cost);
   // The kept vertex moved and its quadric grew: its edges cost anew.

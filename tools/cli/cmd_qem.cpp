@@ -26,6 +26,8 @@ const char kHelp[] =
     "Components, handles and borders are kept, unless a count target cannot\n"
     "be met otherwise: then small components that no collapse can reduce\n"
     "further go whole, and handles three edges around are cut (reported).\n"
+    "Texture coordinates and normals given per corner (an OBJ's vt and vn)\n"
+    "follow their charts, and their seams are kept as borders are.\n"
     "The same input and options give the same output.\n"
     "\n"
     "Options:\n"

@@ -169,6 +169,9 @@ class TriangleBuffer {
   void round_position(double p[3]) const;
   const PropertyValues& vertex_values(uint32_t v) const;
   const PropertyValues& face_values(uint32_t t) const;
+  // Triangle t's values to change in place (a simplifier that moves a
+  // corner's attributes), or null when the schema has no face property.
+  PropertyValues* mutable_face_values(uint32_t t);
   // The input has not finalized v yet (it is on the input boundary).
   bool input_open(uint32_t v) const { return (verts_[v].flags & kInputFinal) == 0; }
   // A triangle of v was written (v is on the output boundary).

@@ -66,7 +66,14 @@
 // same input events and options (seeded choices).
 //
 // Vertex properties: a merged vertex keeps the values of the end it kept
-// (the one nearer its new place); triangles keep theirs.
+// (the one nearer its new place); triangles keep theirs, except the
+// corner lists corner_uv and corner_normals (texture coordinates and
+// normals per corner, as an OBJ's vt and vn are read): the corners of a
+// merged vertex take their chart's values at its new place, interpolated
+// in the collapsed triangle of the same chart (normals renormalized). A
+// seam of those values (a texture chart's border, a hard edge) is kept as
+// a border is: a vertex on a seam merges only along it, and a collapse
+// whose corners would leave their chart is refused.
 #ifndef PSQ_STREAM_QEM_H_
 #define PSQ_STREAM_QEM_H_
 
