@@ -16,6 +16,7 @@
 #include "psq/sequence_check.h"
 #include "psq/stream_qem.h"
 #include "psq/taubin_smooth.h"
+#include "corner_values.h"
 #include "test_util.h"
 
 namespace psq {
@@ -667,6 +668,128 @@ TEST(StreamQem, CornerSeamsAlongHardEdgesStay) {
       for (int i = 0; i < 3; ++i) EXPECT_NEAR(f[8 + 3 * k + i], normal(face)[static_cast<size_t>(i)], 1e-6);
     }
   }
+}
+
+// A seam from the border into the grid that ends inside it: a slit along
+// y = 1/2 for x < 1/2, across which v jumps by 2 (1/2 - x), closing at
+// the slit's end (a single-valued vertex). No triangle may span the gap
+// (a corner of the lower side beside one of the upper), and border
+// vertices, the seam's end on the border too, stay on the border.
+TEST(StreamQem, SeamThatEndsInsideAndMeetsTheBorder) {
+  const int n = 40;
+  Mesh m = bumpy_grid(n);
+  auto gap = [](double x) { return std::max(0.0, 0.5 - x) * 2; };
+  add_corner_lists(
+      &m,
+      [&](size_t t, uint32_t k) {
+        double cy = 0;
+        for (int i = 0; i < 3; ++i) cy += m.positions[m.triangles[t][i]][1] / (3.0 * n);
+        const Pos& p = m.positions[m.triangles[t][k]];
+        const double x = p[0] / n, y = p[1] / n;
+        return std::array<double, 2>{x, cy > 0.5 ? y + gap(x) : y};
+      },
+      [&](size_t, uint32_t) { return Pos{0, 0, 1}; });
+  QemOptions o;
+  o.ratio = 0.1;
+  o.buffer_triangles = 600;
+  Collected out;
+  ASSERT_TRUE(simplify(m, o, &out).ok());
+  EXPECT_LE(out.triangles.size(), m.triangles.size() / 5);
+  int torn = 0, lost = 0;
+  for (size_t t = 0; t < out.triangles.size(); ++t) {
+    bool lower = false, upper = false;
+    for (int k = 0; k < 3; ++k) {
+      const Pos& p = out.positions[out.triangles[t][k]];
+      const double x = p[0] / n, y = p[1] / n, u = out.face_values[t][1 + 2 * k], v = out.face_values[t][2 + 2 * k];
+      EXPECT_NEAR(u, x, 0.02);
+      const double g = gap(x);
+      if (g < 0.1) continue;  // near the slit's end (and the kink of v at x = 1/2)
+      const bool l = std::abs(v - y) < g / 4, h = std::abs(v - y - g) < g / 4;
+      lower = lower || l;
+      upper = upper || h;
+      lost += !l && !h;
+    }
+    torn += lower && upper;
+  }
+  EXPECT_EQ(torn, 0);
+  EXPECT_EQ(lost, 0);
+  for (uint32_t v : out.border_vertices) {
+    const Pos& p = out.positions[v];
+    const double d = std::min({std::fabs(p[0]), std::fabs(p[0] - n), std::fabs(p[1]), std::fabs(p[1] - n)});
+    EXPECT_LT(d, 1e-3 * n) << p[0] << " " << p[1];
+  }
+}
+
+// The events of a sequence into a TriangleBuffer's input side.
+class IntoBuffer : public SequenceSink {
+ public:
+  explicit IntoBuffer(TriangleBuffer* b) : b_(b) {}
+  Status begin(const MeshSchema& s) override { return b_->begin(s); }
+  Status vertex(const SequenceVertex& v) override { return b_->vertex(v); }
+  Status triangle(const SequenceTriangle& t) override {
+    uint32_t id;
+    return b_->triangle(t, &id);
+  }
+  Status finalize(uint32_t i) override { return b_->finalize(i); }
+  Status finish() override { return Status(); }
+
+ private:
+  TriangleBuffer* b_;
+};
+
+// The wedge rule at the end of a seam: on a 4 x 4 grid slit along y = 2
+// from the border to E = (2, 2), where the two sides' values meet again,
+// E (one value) cannot merge into K = (1, 2) on the slit (two values): its
+// corners above the slit would take K's value below it. Along the grid's
+// middle, away from the slit, a merge is planned.
+TEST(CornerValues, ASeamThatEndsAtTheMergedVertexIsRefused) {
+  Mesh m = test::make_grid(4);
+  add_corner_lists(
+      &m,
+      [&](size_t t, uint32_t k) {
+        double cy = 0;
+        for (int i = 0; i < 3; ++i) cy += m.positions[m.triangles[t][i]][1] / 3;
+        const Pos& p = m.positions[m.triangles[t][k]];
+        return std::array<double, 2>{p[0], cy > 2 ? p[1] + std::max(0.0, 2 - p[0]) : p[1]};
+      },
+      [&](size_t, uint32_t) { return Pos{0, 0, 1}; });
+  Collected sink;
+  TriangleBuffer buffer(&sink);
+  IntoBuffer into(&buffer);
+  ASSERT_TRUE(run(m, into).ok());
+  detail::CornerValues corners;
+  ASSERT_TRUE(corners.init(m.schema));
+  auto vertex_at = [&](double x, double y) {
+    for (uint32_t v = 0; v < buffer.vertex_capacity(); ++v)
+      if (buffer.first_corner(v) != TriangleBuffer::kNone && buffer.position(v)[0] == x && buffer.position(v)[1] == y)
+        return v;
+    return TriangleBuffer::kNone;
+  };
+  auto edge = [&](uint32_t from, uint32_t to) {
+    for (uint32_t c = buffer.first_corner(from); c != TriangleBuffer::kNone; c = buffer.next_corner(c))
+      if (buffer.vertex_of(TriangleBuffer::next(c)) == to) return c;
+    return TriangleBuffer::kNone;
+  };
+  const uint32_t e = vertex_at(2, 2), k = vertex_at(1, 2), r = vertex_at(3, 2), a = vertex_at(2, 3);
+  ASSERT_NE(e, TriangleBuffer::kNone);
+  ASSERT_NE(k, TriangleBuffer::kNone);
+  EXPECT_FALSE(corners.seam_vertex(buffer, e));
+  EXPECT_TRUE(corners.seam_vertex(buffer, k));
+  uint32_t h = edge(e, k);
+  if (h == TriangleBuffer::kNone) h = edge(k, e);
+  ASSERT_NE(h, TriangleBuffer::kNone);
+  EXPECT_TRUE(corners.seam_edge(buffer, h));
+  const bool keep_start = buffer.vertex_of(h) == k;
+  EXPECT_FALSE(corners.plan(buffer, h, keep_start, buffer.position(k)));
+  // E into its neighbour R beyond the slit's end, at their midpoint.
+  h = edge(e, r);
+  if (h == TriangleBuffer::kNone) h = edge(r, e);
+  ASSERT_NE(h, TriangleBuffer::kNone);
+  EXPECT_FALSE(corners.seam_edge(buffer, h));
+  const double mid[3] = {2.5, 2, 0};
+  EXPECT_TRUE(corners.plan(buffer, h, buffer.vertex_of(h) == r, mid));
+  // A above E: a vertex of the upper side only, its values one chart.
+  EXPECT_FALSE(corners.seam_vertex(buffer, a));
 }
 
 // A recorded sequence as a pull source.

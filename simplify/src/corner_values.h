@@ -50,6 +50,11 @@ class CornerValues {
   // After TriangleBuffer::collapse() of the edge plan() was given: writes
   // the planned values.
   void apply(TriangleBuffer* b) const;
+  // Gives the corners of cap t (a triangle TriangleBuffer::cut() made,
+  // with another triangle's values) the values at their vertices of the
+  // triangles across its edges, so that a cap brings no new value to a
+  // vertex.
+  void fill_cap(TriangleBuffer* b, uint32_t t) const;
 
  private:
   struct List {
@@ -64,10 +69,10 @@ class CornerValues {
     double value[3];
   };
   // Index of the first value of corner k of list `l` in face values `fv`,
-  // or kNoValue when the triangle's list does not hold three values.
+  // or kNoValue when the triangle's list does not hold three values (or
+  // the values are malformed: any SequenceSource may be the input).
   size_t value_index(const PropertyValues& fv, size_t l, uint32_t k) const;
   bool same_value(const TriangleBuffer& b, size_t l, uint32_t c, uint32_t d) const;
-  bool seam_at(const TriangleBuffer& b, size_t l, uint32_t c, uint32_t d) const;
 
   static constexpr size_t kNoValue = ~size_t{0};
   std::vector<bool> is_list_;  // per face property of the schema

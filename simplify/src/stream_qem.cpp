@@ -336,7 +336,7 @@ struct StreamQem::Impl {
   bool evaluate(uint32_t h, Candidate* c, Candidate* ends = nullptr, int* n_ends = nullptr);
   bool allowed(const Candidate& c, bool topology_checked);
   void kept_place(const Candidate& c, double p[3]);
-  void apply(const Candidate& c);
+  bool apply(const Candidate& c);
   bool flips(uint32_t h, const double p[3]);
   void fan_normal(uint32_t a, uint32_t b, double n[3]);
   void refuse(uint32_t v);
@@ -530,22 +530,27 @@ bool StreamQem::Impl::evaluate(uint32_t h, Candidate* c, Candidate* ends, int* n
   // Border vertices stay on the border: a border edge collapses onto
   // itself, and an interior vertex merges into a border neighbour, so that
   // the border only shrinks.
-  // Seams of the corner values (a texture chart's border, a hard edge)
-  // are kept the same way: a seam vertex merges only along its seam.
   const bool ba = buffer.border(a), bb = buffer.border(b);
-  const bool sa = corners.active() && corners.seam_vertex(buffer, a);
-  const bool sb = corners.active() && corners.seam_vertex(buffer, b);
-  const bool ca = ba || sa, cb = bb || sb;
-  if (pa || pb || ca != cb) {
-    c->keep_start = pa || (!pb && ca);
+  if (pa || pb || ba != bb) {
+    c->keep_start = pa || (!pb && ba);
     std::copy(c->keep_start ? xa : xb, (c->keep_start ? xa : xb) + 3, c->x);
     c->cost = q.value(c->x);
     return true;
   }
-  // Both ends on borders or seams: only an edge along them collapses (one
-  // between two border vertices is a pinch, which can_collapse refuses).
-  if (ca && !(ba && bb && buffer.opposite(h) == TriangleBuffer::kBorder) && !(sa && sb && corners.seam_edge(buffer, h)))
-    return false;
+  if (ba && buffer.opposite(h) != TriangleBuffer::kBorder) return false;  // a pinch: can_collapse refuses it
+  // Away from borders, seams of the corner values (a texture chart's
+  // border, a hard edge) are kept the same way: a seam vertex merges only
+  // along its seam, and an interior vertex into a seam neighbour, in place.
+  const bool sa = !ba && corners.active() && corners.seam_vertex(buffer, a);
+  const bool sb = !ba && corners.active() && corners.seam_vertex(buffer, b);
+  if (sa != sb) {
+    c->keep_start = sa;
+    std::copy(c->keep_start ? xa : xb, (c->keep_start ? xa : xb) + 3, c->x);
+    c->cost = q.value(c->x);
+    return true;
+  }
+  if (sa && !corners.seam_edge(buffer, h)) return false;
+  const bool ca = ba || sa;
   double e[3];
   sub(xb, xa, e);
   bool placed = false;
@@ -719,13 +724,14 @@ void StreamQem::Impl::refuse(uint32_t v) {
   set_cost(v, kInfinity, TriangleBuffer::kNone);
 }
 
-void StreamQem::Impl::apply(const Candidate& k) {
+// Collapses k (allowed(k) held); false, changing nothing, if its corner
+// values have no plan (allowed() made the same one: not expected).
+bool StreamQem::Impl::apply(const Candidate& k) {
   const uint32_t h = k.h;
   const uint32_t a = buffer.vertex_of(h), b = buffer.vertex_of(TriangleBuffer::next(h));
   double p[3];
   kept_place(k, p);
-  // allowed(k) held: the corners' values have a plan.
-  const bool moves_corners = corners.active() && corners.plan(buffer, h, k.keep_start, p);
+  if (corners.active() && !corners.plan(buffer, h, k.keep_start, p)) return false;
   QemQuadric q = data[a].q;
   q.add(data[b].q);
   const uint32_t gone = k.keep_start ? b : a;
@@ -734,11 +740,12 @@ void StreamQem::Impl::apply(const Candidate& k) {
   data[keep].q = q;
   data[keep].inverse_weight = q.weight > 0 ? 1 / q.weight : 1;
   buffer.set_position(keep, p);
-  if (moves_corners) corners.apply(&buffer);
+  if (corners.active()) corners.apply(&buffer);
   score[keep] = static_cast<float>(k.cost);
   max_cost = std::max(max_cost, k.cost);
   // The kept vertex moved and its quadric grew: its edges cost anew.
   refresh(keep, true, a, b);
+  return true;
 }
 
 bool StreamQem::Impl::collapse_one(double limit) {
@@ -785,7 +792,10 @@ bool StreamQem::Impl::collapse_one(double limit) {
     }
     k = ends[i];
   }
-  apply(k);
+  if (!apply(k)) {
+    refuse(v);
+    return false;
+  }
   return true;
 }
 
@@ -1012,6 +1022,8 @@ bool StreamQem::Impl::cut_cycles(double excess, double limit, bool beyond) {
     const uint32_t v[3] = {buffer.vertex_of(f.h), buffer.vertex_of(TriangleBuffer::next(f.h)), c};
     uint32_t copies[3], caps[2];
     if (!buffer.cut(f.h, c, copies, caps)) continue;
+    for (uint32_t cap : caps)
+      if (corners.active()) corners.fill_cap(&buffer, cap);
     if (data.size() < buffer.vertex_capacity()) {
       data.resize(buffer.vertex_capacity());
       score.resize(buffer.vertex_capacity());
