@@ -550,6 +550,14 @@ void add_corner_lists(Mesh* m, Uv uv, Normal normal) {
   }
 }
 
+// m simplified to `ratio` of its triangles in a buffer of 600.
+Status simplify_in_600(const Mesh& m, double ratio, Collected* out) {
+  QemOptions o;
+  o.ratio = ratio;
+  o.buffer_triangles = 600;
+  return simplify(m, o, out);
+}
+
 // Longitude and latitude of a point of the unit sphere, as texture
 // coordinates in [0, 1).
 std::array<double, 2> lat_long(const Pos& p) {
@@ -580,11 +588,8 @@ TEST(StreamQem, CornerTexturesAndNormalsFollowTheirCharts) {
         return c[k];
       },
       [&](size_t t, uint32_t k) { return m.positions[m.triangles[t][k]]; });
-  QemOptions o;
-  o.ratio = 0.2;
-  o.buffer_triangles = 600;
   Collected out;
-  ASSERT_TRUE(simplify(m, o, &out).ok());
+  ASSERT_TRUE(simplify_in_600(m, 0.2, &out).ok());
   EXPECT_LE(out.triangles.size(), m.triangles.size() / 4);
   ASSERT_EQ(out.schema.face_properties.size(), 2u);
   double worst_u = 0, worst_v = 0, worst_normal = 0, widest = 0;
@@ -689,11 +694,8 @@ TEST(StreamQem, SeamThatEndsInsideAndMeetsTheBorder) {
         return std::array<double, 2>{x, cy > 0.5 ? y + gap(x) : y};
       },
       [&](size_t, uint32_t) { return Pos{0, 0, 1}; });
-  QemOptions o;
-  o.ratio = 0.1;
-  o.buffer_triangles = 600;
   Collected out;
-  ASSERT_TRUE(simplify(m, o, &out).ok());
+  ASSERT_TRUE(simplify_in_600(m, 0.1, &out).ok());
   EXPECT_LE(out.triangles.size(), m.triangles.size() / 5);
   int torn = 0, lost = 0;
   for (size_t t = 0; t < out.triangles.size(); ++t) {
