@@ -278,6 +278,11 @@ TEST(OpsClustering, NotesNameDroppedListsAndAnEmptyOutput) {
   EXPECT_EQ(notes[0], "face property 'texcoord' dropped: lists do not merge");
   EXPECT_EQ(notes[1], "from the writer");
   EXPECT_NE(notes[2].find("the output is empty"), std::string::npos);
+  // Corner texture coordinates: the method that keeps them is named.
+  list.name = "corner_uv";
+  schema.face_properties = {list};
+  EXPECT_EQ(detail::clustering_notes(schema, ClusteringStats(), {})[0],
+            "face property 'corner_uv' dropped: lists do not merge (--method qem keeps them)");
 }
 
 }  // namespace

@@ -72,8 +72,14 @@ std::vector<std::string> clustering_notes(const MeshSchema& input, const Cluster
   std::vector<std::string> notes;
   for (const Property& p : input.vertex_properties)
     if (p.is_list) notes.push_back("vertex property '" + p.name + "' dropped: lists do not merge");
-  for (const Property& p : input.face_properties)
-    if (p.is_list) notes.push_back("face property '" + p.name + "' dropped: lists do not merge");
+  for (const Property& p : input.face_properties) {
+    if (!p.is_list) continue;
+    // Texture coordinates and normals per corner (an OBJ's vt and vn):
+    // the edge-collapse simplifier keeps them in their charts.
+    const bool corner = p.name == "corner_uv" || p.name == "corner_normals";
+    notes.push_back("face property '" + p.name + "' dropped: lists do not merge" +
+                    (corner ? " (--method qem keeps them)" : ""));
+  }
   notes.insert(notes.end(), writer_notes.begin(), writer_notes.end());
   if (stats.triangles_in > 0 && stats.triangles_out == 0)
     notes.push_back("no triangle has its corners in three cells: the output is empty (use a finer grid)");
