@@ -203,7 +203,7 @@ void CornerValues::fill_cap(TriangleBuffer* b, uint32_t t) const {
       const size_t at = value_index(b->face_values(t), l, k);
       const size_t src = value_index(b->face_values(from / 3), l, from % 3);
       if (at == kNoValue || src == kNoValue) continue;
-      const PropertyValues values = b->face_values(from / 3);
+      const PropertyValues& values = b->face_values(from / 3);  // another triangle's: not fv
       PropertyValues& fv = *b->mutable_face_values(t);
       for (int j = 0; j < lists_[l].arity; ++j) fv[at + static_cast<size_t>(j)] = values[src + static_cast<size_t>(j)];
     }

@@ -15,7 +15,9 @@
 // same value. A corner whose value no collapsed triangle has is on a seam
 // that does not run along the edge: the collapse would tear the texture
 // (or smear a hard edge), so it is refused, unless that corner's vertex is
-// `keep` and stays where it is (its values stay right). This is the
+// `keep` and stays where it is (its values stay right). So is one whose
+// value both collapsed triangles hold while they part at the edge's other
+// end: a seam that ends at its vertex, which it could not follow. This is the
 // wedge rule of Hoppe's progressive meshes and of meshoptimizer's
 // attribute-aware simplifier, for the corner lists a streamed mesh
 // carries.
