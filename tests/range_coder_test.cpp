@@ -1,12 +1,11 @@
 // SPDX-License-Identifier: Apache-2.0
-// The range coder: exact round trips of bits, symbols, raw bits and
-// integers; compression close to the entropy; safe decoding of truncated
+// The range coder: exact round trips of bits, symbols and raw bits;
+// compression close to the entropy; safe decoding of truncated
 // and corrupt streams.
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <cstdint>
-#include <limits>
 #include <random>
 #include <vector>
 
@@ -16,7 +15,7 @@ namespace psq {
 namespace {
 
 struct Op {
-  int kind;  // 0 bit, 1 symbol, 2 raw, 3 int
+  int kind;  // 0 bit, 1 symbol, 2 raw
   uint32_t value;
   int bits;
 };
@@ -25,16 +24,11 @@ std::vector<Op> random_ops(uint32_t seed, size_t n) {
   std::mt19937 rng(seed);
   std::vector<Op> ops;
   for (size_t i = 0; i < n; ++i) {
-    Op op{static_cast<int>(rng() % 4), 0, 0};
+    Op op{static_cast<int>(rng() % 3), 0, 0};
     switch (op.kind) {
       case 0: op.value = (rng() % 10) < 2 ? 1 : 0; break;
       case 1: op.value = rng() % 37 < 30 ? rng() % 4 : rng() % 256; break;
       case 2: op.bits = static_cast<int>(rng() % 33); op.value = op.bits == 32 ? rng() : rng() & ((1u << op.bits) - 1); break;
-      case 3: {
-        int shift = static_cast<int>(rng() % 32);
-        op.value = static_cast<uint32_t>(static_cast<int32_t>(rng()) >> shift);
-        break;
-      }
     }
     ops.push_back(op);
   }
@@ -46,13 +40,11 @@ std::vector<uint8_t> encode(const std::vector<Op>& ops) {
   RangeEncoder enc(&bytes);
   BitModel bit;
   SymbolModel sym(8);
-  IntegerModel num;
   for (const Op& op : ops) {
     switch (op.kind) {
       case 0: enc.encode_bit(bit, static_cast<int>(op.value)); break;
       case 1: enc.encode_symbol(sym, op.value); break;
       case 2: enc.encode_raw(op.value, op.bits); break;
-      case 3: enc.encode_int(num, static_cast<int32_t>(op.value)); break;
     }
   }
   enc.finish();
@@ -64,7 +56,6 @@ size_t decode_matches(const std::vector<Op>& ops, const std::vector<uint8_t>& by
   RangeDecoder dec(bytes.data(), bytes.size());
   BitModel bit;
   SymbolModel sym(8);
-  IntegerModel num;
   size_t matched = 0;
   for (const Op& op : ops) {
     uint32_t v = 0;
@@ -72,7 +63,6 @@ size_t decode_matches(const std::vector<Op>& ops, const std::vector<uint8_t>& by
       case 0: v = static_cast<uint32_t>(dec.decode_bit(bit)); break;
       case 1: v = dec.decode_symbol(sym); break;
       case 2: v = dec.decode_raw(op.bits); break;
-      case 3: v = static_cast<uint32_t>(dec.decode_int(num)); break;
     }
     if (v == op.value) ++matched;
   }
@@ -115,20 +105,6 @@ TEST(RangeCoder, ShortRawDecodesAsRaw) {
       ASSERT_EQ(a.consumed(), b.consumed());
     }
   }
-}
-
-TEST(RangeCoder, IntegerExtremes) {
-  const int32_t values[] = {0, 1, -1, 2, -2, 1000, -1000, std::numeric_limits<int32_t>::max(),
-                            std::numeric_limits<int32_t>::min(), std::numeric_limits<int32_t>::min() + 1};
-  std::vector<uint8_t> bytes;
-  RangeEncoder enc(&bytes);
-  IntegerModel m;
-  for (int32_t v : values) enc.encode_int(m, v);
-  enc.finish();
-  RangeDecoder dec(bytes.data(), bytes.size());
-  IntegerModel d;
-  for (int32_t v : values) EXPECT_EQ(dec.decode_int(d), v);
-  EXPECT_FALSE(dec.overran());
 }
 
 TEST(RangeCoder, SkewedBitsCostCloseToTheirEntropy) {

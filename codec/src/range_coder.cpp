@@ -3,17 +3,13 @@
 // the style of Martin (1979), with 32-bit range, bottom renormalisation by
 // bytes and carry propagation through a cached byte and a run of 0xff bytes
 // (the scheme of Subbotin's and LZMA's coders); 16-bit adaptive bit models
-// whose update rate slows as they learn (adapt_step); integers as bit length + sign + low bits as in
-// LASzip's integer coder (Isenburg, "LASzip: lossless compression of LiDAR
-// data", 2013).
+// whose update rate slows as they learn (adapt_step).
 #include "range_coder.h"
 
 namespace psq {
 namespace {
 
 constexpr uint32_t kTop = 1u << 24;
-
-int bit_length(uint32_t v) { return v == 0 ? 0 : 32 - __builtin_clz(v); }
 
 }  // namespace
 
@@ -65,17 +61,6 @@ void RangeEncoder::encode_raw(uint32_t value, int bits) {
   }
 }
 
-void RangeEncoder::encode_int(IntegerModel& m, int32_t value) {
-  // The magnitude of INT32_MIN does not fit int32: take it in 64 bits.
-  int64_t v = value;
-  uint32_t magnitude = static_cast<uint32_t>(v < 0 ? -v : v);
-  int k = bit_length(magnitude);
-  encode_symbol(m.length, static_cast<uint32_t>(k));
-  if (k == 0) return;
-  encode_bit(m.sign, value < 0 ? 1 : 0);
-  encode_raw(magnitude - (1u << (k - 1)), k - 1);  // the leading one is implied
-}
-
 void RangeEncoder::finish() {
   for (int i = 0; i < 5; ++i) shift_low();
 }
@@ -103,25 +88,6 @@ uint32_t RangeDecoder::decode_raw(int bits) {
     value = (value << n) | decode_raw_short(n);
   }
   return value;
-}
-
-int32_t RangeDecoder::decode_int(IntegerModel& m) {
-  uint32_t k = decode_symbol(m.length);
-  if (k == 0) return 0;
-  if (k > 32) {  // no int32 has more than 32 bits: a corrupt stream
-    overran_ = true;
-    return 0;
-  }
-  int negative = decode_bit(m.sign);
-  uint32_t magnitude = (1u << (k - 1)) | decode_raw(static_cast<int>(k - 1));
-  if (!negative) {
-    if (magnitude > 0x7fffffffu) {
-      overran_ = true;
-      return 0;
-    }
-    return static_cast<int32_t>(magnitude);
-  }
-  return static_cast<int32_t>(-static_cast<int64_t>(magnitude));
 }
 
 }  // namespace psq

@@ -4,15 +4,14 @@
 // A range coder (Martin 1979; the carry handling with a cached byte as in
 // Subbotin's and LZMA's coders) that codes binary decisions with adaptive
 // probabilities, symbols of up to 16 bits as a binary tree of such decisions,
-// raw bits at probability one half, and signed integers as a bit length
-// followed by the bits below the leading one (after the integer coder of
-// LASzip, Isenburg 2013).
+// and raw bits at probability one half (coding.h codes signed integers with
+// them as a bit length followed by the bits below the leading one, after the
+// integer coder of LASzip, Isenburg 2013).
 //
 // Probabilities are 16-bit (1/65536 units, kept within [32, 65504]) and
-// adapt by 1/2^s of the error, where s grows from 2 to 6 with the number of
-// updates the model has seen (fast learning, then stable estimates; spec
-// 5.1)
-// after each decision. The encoder appends to a byte vector; the decoder
+// adapt after each decision by 1/2^s of the error, where s grows from 2 to 6
+// with the number of updates the model has seen (fast learning, then stable
+// estimates; spec 5.1). The encoder appends to a byte vector; the decoder
 // reads a byte span and never reads outside it: past the end it reads zero
 // bytes and remembers that it overran, which the caller turns into an error
 // (overran()). Decoding is therefore safe on untrusted input; what a corrupt
@@ -65,12 +64,6 @@ class SymbolModel {
   std::vector<BitModel> tree_;  // node 1 is the root; 2^bits entries
 };
 
-// Models for IntegerCoder: the bit length of a value (0..32) and its sign.
-struct IntegerModel {
-  SymbolModel length{6};
-  BitModel sign;
-};
-
 class RangeEncoder {
  public:
   // Appends the coded bytes to `out`, which must outlive the encoder.
@@ -97,8 +90,6 @@ class RangeEncoder {
   }
   void encode_symbol(SymbolModel& m, uint32_t symbol);  // symbol < 2^bits
   void encode_raw(uint32_t value, int bits);           // bits 0..32
-  // Codes `value` (any int32) as its bit length, sign and low bits.
-  void encode_int(IntegerModel& m, int32_t value);
   // Flushes the final state (5 bytes). The encoder must not be used after.
   void finish();
 
@@ -152,7 +143,6 @@ class RangeDecoder {
     if (range_ < (1u << 24)) normalize();
     return part;
   }
-  int32_t decode_int(IntegerModel& m);
 
   // True when decoding needed bytes past the end of the input: the stream
   // was truncated or corrupt.
