@@ -702,11 +702,11 @@ struct AttributeCoder::AdaptiveOut final : Coding {
   explicit AdaptiveOut(Encoder& x) : enc(x) {}
   Encoder& enc;
   PSQ_INLINE bool residual(int, ResidualModel& m, const Component& c, int64_t pred, int32_t* x, int* length) override {
-    *length = enc.residual(m, component_residual(c, pred, *x), kCostGeometry);
+    *length = enc.residual(m, component_residual(c, pred, *x));
     return true;
   }
   PSQ_INLINE bool symbol(int, SymbolModel& m, uint32_t* s) override {
-    enc.symbol<4>(m, *s, kCostGeometry);
+    enc.symbol<4>(m, *s);
     return true;
   }
 };
@@ -715,11 +715,11 @@ struct AttributeCoder::AdaptiveIn final : Coding {
   BasicDecoder<false>& dec;
   PSQ_INLINE bool residual(int, ResidualModel& m, const Component& c, int64_t pred, int32_t* x, int* length) override {
     int64_t res;
-    if (!dec.residual(m, &res, length, kCostGeometry)) return why = "attribute residual longer than 64 bits", false;
+    if (!dec.residual(m, &res, length)) return why = "attribute residual longer than 64 bits", false;
     return !(why = component_value(c, pred, res, x));
   }
   PSQ_INLINE bool symbol(int, SymbolModel& m, uint32_t* s) override {
-    *s = dec.symbol<4>(m, kCostGeometry);
+    *s = dec.symbol<4>(m);
     return true;
   }
 };

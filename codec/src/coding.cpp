@@ -1,10 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
-// codec/src/coding.cpp: the models' initial state and the cost table of
-// coding.h.
+// codec/src/coding.cpp: the models' initial state of coding.h.
 #include "coding.h"
 
 #include <algorithm>
-#include <cmath>
 #include <cstdlib>
 #include <vector>
 
@@ -99,23 +97,6 @@ void init_exponent_prior(SymbolModel& tree, const uint8_t* exponent, int symbols
 void init_class_prior(SymbolModel& tree, int ctx) { init_exponent_prior(tree, kClassPrior[ctx], 7); }
 
 void init_gate_prior(SymbolModel& tree, int shape) { init_exponent_prior(tree, kGatePrior[shape], kFastBSymbols); }
-
-namespace {
-struct CostTable {
-  double v[4097];
-  CostTable() {
-    v[0] = 12;
-    for (int i = 1; i <= 4096; ++i) v[i] = -std::log2(i / 4096.0);
-  }
-};
-const CostTable& cost_table() {
-  static const CostTable kTable;
-  return kTable;
-}
-}  // namespace
-
-double bit_cost(uint32_t p12) { return cost_table().v[p12 > 4096 ? 4096 : p12]; }
-
 
 }  // namespace codec
 }  // namespace psq

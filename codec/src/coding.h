@@ -4,10 +4,6 @@
 // 7.3), the length and degree contexts of the records (13.7.3, 13.8.1),
 // and the residual models of the attribute section's adaptive back-end
 // (5.6, 8.3) with the helpers that code with them and the range coder.
-//
-// Every helper optionally adds the information content of what it codes
-// (-log2 of the model's probability) to a cost counter, so that `psq info`
-// and the encoder can split the size into connectivity and geometry.
 #ifndef PSQ_CODEC_CODING_H_
 #define PSQ_CODEC_CODING_H_
 
@@ -131,10 +127,6 @@ inline int slot_bits(uint32_t capacity) { return capacity <= 1 ? 0 : 32 - __buil
 // of the format).
 enum Cost { kCostConnectivity = 0, kCostGeometry = 1, kCostCount = 2 };
 
-// -log2(p / 4096) for a probability p in 1/4096 units (callers shift
-// the models' 16-bit probabilities by 4).
-double bit_cost(uint32_t p12);
-
 // Forces the inlining of the coders' per-decision helpers, which GCC
 // otherwise leaves as calls in the encoder's large functions.
 #if defined(__GNUC__)
@@ -149,25 +141,21 @@ double bit_cost(uint32_t p12);
 
 class Encoder {
  public:
-  Encoder(RangeEncoder* rc, double* cost) : rc_(rc), cost_(cost) {}
-  PSQ_INLINE void bit(BitModel& m, int b, Cost c) {
-    if (cost_) add_cost(m, b, c);
-    rc_->encode_bit(m, b);
-  }
+  explicit Encoder(RangeEncoder* rc) : rc_(rc) {}
+  PSQ_INLINE void bit(BitModel& m, int b) { rc_->encode_bit(m, b); }
   // A symbol of a model of kBits bits (kBits must be m.bits(); a template
   // parameter, so that the tree's walk unrolls; spec 5.5).
   template <int kBits>
-  PSQ_INLINE void symbol(SymbolModel& m, uint32_t s, Cost c) {
+  PSQ_INLINE void symbol(SymbolModel& m, uint32_t s) {
     BitModel* tree = m.tree();
     uint32_t node = 1;
     for (int i = kBits - 1; i >= 0; --i) {
       int b = static_cast<int>((s >> i) & 1u);
-      bit(tree[node], b, c);
+      bit(tree[node], b);
       node = (node << 1) | static_cast<uint32_t>(b);
     }
   }
-  void raw(uint64_t v, int bits, Cost c) {
-    if (cost_) cost_[c] += bits;
+  void raw(uint64_t v, int bits) {
     if (bits > 32) {
       rc_->encode_raw(static_cast<uint32_t>(v >> 32), bits - 32);
       bits = 32;
@@ -175,57 +163,46 @@ class Encoder {
     rc_->encode_raw(static_cast<uint32_t>(v), bits);
   }
   // Returns the bit length it coded.
-  int residual(ResidualModel& m, int64_t r, Cost c) {
+  int residual(ResidualModel& m, int64_t r) {
     uint64_t mag = r < 0 ? 0 - static_cast<uint64_t>(r) : static_cast<uint64_t>(r);
     int k = mag == 0 ? 0 : 64 - __builtin_clzll(mag);
     if (k < static_cast<int>(kLengthEscape)) {
-      symbol<4>(m.length, static_cast<uint32_t>(k), c);
+      symbol<4>(m.length, static_cast<uint32_t>(k));
     } else {
-      symbol<4>(m.length, kLengthEscape, c);
-      symbol<6>(m.escape, static_cast<uint32_t>(k) - kLengthEscape, c);
+      symbol<4>(m.length, kLengthEscape);
+      symbol<6>(m.escape, static_cast<uint32_t>(k) - kLengthEscape);
     }
     if (k == 0) return 0;
-    if (k >= 2) bit(m.second[k], static_cast<int>((mag >> (k - 2)) & 1), c);
+    if (k >= 2) bit(m.second[k], static_cast<int>((mag >> (k - 2)) & 1));
     // One raw value: the sign above the k - 2 bits below the second bit
     // (none for k = 1).
     const int low_bits = k >= 2 ? k - 2 : 0;
     const uint64_t low = mag & ((uint64_t{1} << low_bits) - 1);
-    raw((static_cast<uint64_t>(r < 0) << low_bits) | low, low_bits + 1, c);
+    raw((static_cast<uint64_t>(r < 0) << low_bits) | low, low_bits + 1);
     return k;
   }
 
  private:
-  // Out of line: only `psq info` and the tests measure costs.
-  void add_cost(const BitModel& m, int b, Cost c) { cost_[c] += bit_cost((b ? 65536u - m.p0 : m.p0) >> 4); }
-
   RangeEncoder* rc_;
-  double* cost_;
 };
 
-// kMeasure: whether it adds up costs (psq info); a template parameter so
-// that plain decoding tests nothing per decision.
-template <bool kMeasure>
+// Encoder's counterpart. (A template only because attributes.h names it
+// BasicDecoder<false>; the parameter is unused.)
+template <bool>
 class BasicDecoder {
  public:
-  BasicDecoder(RangeDecoder* rc, double* cost) : rc_(rc), cost_(cost) {}
-  PSQ_INLINE int bit(BitModel& m, Cost c) {
-    if (!kMeasure) return rc_->decode_bit(m);
-    const uint16_t p0 = m.p0;
-    const int b = rc_->decode_bit(m);
-    cost_[c] += bit_cost((b ? 65536u - p0 : p0) >> 4);
-    return b;
-  }
+  explicit BasicDecoder(RangeDecoder* rc) : rc_(rc) {}
+  PSQ_INLINE int bit(BitModel& m) { return rc_->decode_bit(m); }
   // A symbol of a model of kBits bits (kBits must be m.bits(); a template
   // parameter, so that the tree's walk unrolls; spec 5.5).
   template <int kBits>
-  uint32_t symbol(SymbolModel& m, Cost c) {
+  uint32_t symbol(SymbolModel& m) {
     BitModel* tree = m.tree();
     uint32_t node = 1;
-    for (int i = 0; i < kBits; ++i) node = (node << 1) | static_cast<uint32_t>(bit(tree[node], c));
+    for (int i = 0; i < kBits; ++i) node = (node << 1) | static_cast<uint32_t>(bit(tree[node]));
     return node - (1u << kBits);
   }
-  uint64_t raw(int bits, Cost c) {
-    if (kMeasure) cost_[c] += bits;
+  uint64_t raw(int bits) {
     if (bits >= 1 && bits <= 16) return rc_->decode_raw_short(bits);
     uint64_t v = 0;
     if (bits > 32) {
@@ -235,9 +212,9 @@ class BasicDecoder {
     return v | rc_->decode_raw(bits);
   }
   // Returns false on a length above 64 (a corrupt stream); sets *length.
-  bool residual(ResidualModel& m, int64_t* r, int* length, Cost c) {
-    uint32_t k = symbol<4>(m.length, c);
-    if (k == kLengthEscape) k += symbol<6>(m.escape, c);
+  bool residual(ResidualModel& m, int64_t* r, int* length) {
+    uint32_t k = symbol<4>(m.length);
+    if (k == kLengthEscape) k += symbol<6>(m.escape);
     *length = static_cast<int>(k);
     if (k == 0) {
       *r = 0;
@@ -245,9 +222,9 @@ class BasicDecoder {
     }
     if (k > 64) return false;
     uint64_t mag = uint64_t{1} << (k - 1);
-    if (k >= 2) mag |= static_cast<uint64_t>(bit(m.second[k], c)) << (k - 2);
+    if (k >= 2) mag |= static_cast<uint64_t>(bit(m.second[k])) << (k - 2);
     const int low_bits = k >= 2 ? static_cast<int>(k) - 2 : 0;
-    const uint64_t v = raw(low_bits + 1, c);
+    const uint64_t v = raw(low_bits + 1);
     const int negative = static_cast<int>(v >> low_bits);
     mag |= v & ((uint64_t{1} << low_bits) - 1);
     *r = negative ? static_cast<int64_t>(0 - mag) : static_cast<int64_t>(mag);
@@ -258,7 +235,6 @@ class BasicDecoder {
 
  private:
   RangeDecoder* rc_;
-  double* cost_;
 };
 
 }  // namespace codec

@@ -404,7 +404,7 @@ Status PsqDecoder::Impl::decode_attributes(bool flush) {
   if (rans) {
     why = attrs->decode_fast(attr_fast, r, attr_q.data());
   } else {
-    BasicDecoder<false> dec(attr_rc.get(), nullptr);
+    BasicDecoder<false> dec(attr_rc.get());
     why = attrs->decode(dec, r, attr_q.data());
   }
   if (why)

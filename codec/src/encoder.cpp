@@ -380,7 +380,7 @@ void PsqEncoder::Impl::code_attributes(const uint32_t* corner, const uint32_t* e
   if (rans) {
     attrs->encode_fast(attr_fast, r, attr_q.data());
   } else {
-    Encoder enc(attr_rc.get(), nullptr);
+    Encoder enc(attr_rc.get());
     attrs->encode(enc, r, attr_q.data());
   }
   r = AttributeRecord();
