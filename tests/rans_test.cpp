@@ -2,6 +2,7 @@
 // The fast profile's static rANS coder and raw bit stream (codec/src/rans.h).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <random>
@@ -13,6 +14,12 @@
 namespace psq {
 namespace codec {
 namespace {
+
+void rans_encode(const std::vector<RansSymbol>& symbols, const RansTable* tables, std::vector<uint8_t>* out) {
+  size_t ntables = 0;
+  for (const RansSymbol& s : symbols) ntables = std::max<size_t>(ntables, s.table + size_t{1});
+  codec::rans_encode(symbols.data(), symbols.size(), tables, ntables, out);
+}
 
 TEST(RawBits, RoundTripsEveryWidth) {
   std::mt19937 rng(1);

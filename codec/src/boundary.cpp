@@ -16,18 +16,20 @@ namespace codec {
 // inline (PSQ_INLINE, coding.h): GCC would keep them as calls, a few per
 // triangle, in the decoder's and the encoder's loops.
 
-// Edge k of t, whose endpoints are both old: an error when it is open
-// already or dead (spec 13.6.3), else it completes its open twin or, without
-// one, enters or is a border as t.border says.
+// Edge k of t, whose endpoints are both old: new to the mesh, it enters or
+// is a border as t.border says; else it must complete its open twin (an
+// edge open already, or dead, is an error: spec 13.6.3).
 template <bool L>
-PSQ_INLINE bool BasicBoundary<L>::classify_old_edge(BTriangle& t, int k) const {
+PSQ_INLINE bool BasicBoundary<L>::classify_old_edge(BTriangle& t, int k, const Neighbors& used) const {
   const uint32_t u = t.c[k], w = t.c[k == 2 ? 0 : k + 1];
-  if (find_edge(u, w) != kNone || is_border(u, w)) return false;
+  if (!used.contains(u, w)) {
+    t.completes[k] = kNone;
+    t.state[k] = t.border[k] ? EdgeState::kBorder : EdgeState::kEnters;
+    return true;
+  }
   t.completes[k] = find_edge(w, u);
-  t.state[k] = t.completes[k] != kNone ? EdgeState::kCompletes
-               : t.border[k]           ? EdgeState::kBorder
-                                       : EdgeState::kEnters;
-  return true;
+  t.state[k] = EdgeState::kCompletes;
+  return t.completes[k] != kNone;
 }
 
 // An edge with a new endpoint enters or is a border.
@@ -37,11 +39,11 @@ PSQ_INLINE void classify_new_edge(BTriangle& t, int k) {
 }
 
 template <bool L>
-bool BasicBoundary<L>::find_completions(BTriangle& t) const {
+bool BasicBoundary<L>::find_completions(BTriangle& t, const Neighbors& used) const {
   if (t.gate == kNone) {
     for (int k = 0; k < 3; ++k) {
       if (t.is_new[k] || t.is_new[(k + 1) % 3]) classify_new_edge(t, k);
-      else if (!classify_old_edge(t, k)) return false;
+      else if (!classify_old_edge(t, k, used)) return false;
     }
     return true;
   }
@@ -65,14 +67,14 @@ bool BasicBoundary<L>::find_completions(BTriangle& t) const {
   if (g.prev != kNone && edges_[g.prev].org == x) {
     t.completes[1] = g.prev;
     t.state[1] = EdgeState::kCompletes;
-    return classify_old_edge(t, 2);
+    return classify_old_edge(t, 2, used);
   }
   if (g.next != kNone && edges_[g.next].dst == x) {
     t.completes[2] = g.next;
     t.state[2] = EdgeState::kCompletes;
-    return classify_old_edge(t, 1);
+    return classify_old_edge(t, 1, used);
   }
-  return classify_old_edge(t, 1) && classify_old_edge(t, 2);
+  return classify_old_edge(t, 1, used) && classify_old_edge(t, 2, used);
 }
 
 // Makes q follow p on its loop (either may be kNone), first detaching
@@ -110,23 +112,14 @@ PSQ_INLINE uint32_t BasicBoundary<L>::enter_edge(BTriangle& t, int k) {
   ++vd.open;
   t.eslot[k] = s;
   e.age = entered_++;
-  if constexpr (L) {
-    BLinks& lo = links_[org];
-    BLinks& ld = links_[dst];
-    e.next_out = lo.first_out;
-    lo.first_out = s;
-    e.next_in = ld.first_in;
-    ld.first_in = s;
-  }
+  if constexpr (L) list_entered(s);
   return s;
 }
 
 template <bool L>
 PSQ_INLINE void BasicBoundary<L>::close_edge(BTriangle& t, int k) {
-  const uint32_t u = t.c[k], w = t.c[k == 2 ? 0 : k + 1];
   t.eslot[k] = t.completes[k];
   free_edge(t.completes[k]);
-  if constexpr (L) add_border(u, w);  // now used by two triangles: dead
 }
 
 template <bool L>
@@ -194,17 +187,8 @@ bool BasicBoundary<L>::apply(BTriangle& t) {
     }
   }
   for (int k = 0; k < 3; ++k) {
-    if (t.state[k] == EdgeState::kCompletes) {
-      close_edge(t, k);
-    } else if (t.state[k] == EdgeState::kBorder) {
-      const uint32_t u = t.c[k], w = t.c[k == 2 ? 0 : k + 1];
-      t.eslot[k] = kNone;
-      if constexpr (L) {
-        add_border(u, w);
-        ++vertices_[u].borders;
-        ++vertices_[w].borders;
-      }
-    }
+    if (t.state[k] == EdgeState::kCompletes) close_edge(t, k);
+    else if (t.state[k] == EdgeState::kBorder) t.eslot[k] = kNone;
   }
   for (int i = 0; i < nlinks; ++i) link(lp[i], lq[i]);
   // The reference edge R (spec 6.1.2 step 5): the first entering edge in edge order 1, 2, 0.
@@ -251,49 +235,30 @@ bool BasicBoundary<L>::apply_on_gate(BTriangle& t) {
   return true;
 }
 
-// apply_on_gate() for an add: p->x and x->q enter, the gate closes. The
-// same steps again, with what an add implies resolved: no old link names a
-// completed edge but the gate (the gate is neither its own neighbour nor
-// one of the fresh edges), and no vertex becomes final (p and q trade the
-// gate for a fresh edge; x has two).
+// apply_on_gate() for an add (p->x and x->q enter, the gate closes) and
+// for a fill whose edge 3 - k completes the gate's neighbour on its side
+// (linked to it: the edge before the gate for k = 2, after it for k = 1)
+// and whose edge k enters: lean_add() and lean_fill().
 template <bool L>
 PSQ_INLINE bool BasicBoundary<L>::apply_add(BTriangle& t) {
-  const uint32_t f1 = enter_edge(t, 1);
+  const uint32_t f1 = lean_add(t.completes[0], t.c[2]);
   if (f1 == kNone) return false;
-  const uint32_t f2 = enter_edge(t, 2);
-  if (f2 == kNone) return false;
-  const uint32_t g = t.completes[0];
-  const uint32_t gate_prev = edges_[g].prev, gate_next = edges_[g].next;
-  close_edge(t, 0);  // clears the neighbours' links to the gate
-  splice_add(f1, f2, gate_prev, gate_next);
-  for (int k = 0; k < 3; ++k) {
-    ++vertices_[t.c[k]].degree;
-    t.final[k] = false;
-  }
+  t.eslot[0] = t.completes[0];
+  t.eslot[1] = f1;
+  t.eslot[2] = edges_[f1].next;
+  t.final[0] = t.final[1] = t.final[2] = false;
   return true;
 }
 
-// apply_on_gate() for a fill: edge 3 - k completes the gate's neighbour
-// on its side (linked to it: the edge before the gate for k = 2, after it
-// for k = 1), and edge k enters. Resolved: the fresh edge takes the place
-// of the two completed ones on the loop, between the neighbour's other
-// neighbour and the gate's other neighbour. The triangle completes neither
-// of these: the neighbour's other neighbour ends or starts at x, not at p
-// or q, and the gate's other neighbour would be edge k's twin (edge k
-// would complete it, not enter).
 template <bool L>
 PSQ_INLINE bool BasicBoundary<L>::apply_fill(BTriangle& t, int k) {
-  const uint32_t f = enter_edge(t, k);
+  uint32_t final;
+  const uint32_t f = lean_fill(t.completes[0], k == 2, &final);
   if (f == kNone) return false;
-  const uint32_t g = t.completes[0], c = t.completes[3 - k];
-  // k = 2: prev of f is the neighbour's prev, next of f the gate's next.
-  // k = 1: prev of f is the gate's prev, next of f the neighbour's next.
-  const uint32_t before = k == 2 ? edges_[c].prev : edges_[g].prev;
-  const uint32_t after = k == 2 ? edges_[g].next : edges_[c].next;
-  close_edge(t, 0);
-  close_edge(t, 3 - k);
-  splice_fill(f, before, after);
-  finish_triangle(t);
+  t.eslot[0] = t.completes[0];
+  t.eslot[3 - k] = t.completes[3 - k];
+  t.eslot[k] = f;
+  for (int i = 0; i < 3; ++i) t.final[i] = (final >> i) & 1;
   return true;
 }
 
@@ -335,12 +300,7 @@ void BasicBoundary<L>::load_edge(uint32_t slot, uint32_t org, uint32_t dst, uint
   ++vertices_[dst].open;
   ++open_edges_;
   loaded_.push_back(slot);
-  if constexpr (L) {
-    e.next_out = links_[org].first_out;
-    links_[org].first_out = slot;
-    e.next_in = links_[dst].first_in;
-    links_[dst].first_in = slot;
-  }
+  if constexpr (L) list_entered(slot);
 }
 
 template <bool L>

@@ -32,36 +32,27 @@
 
 #include "coding.h"
 #include "geometry.h"
+#include "neighbors.h"
 
 namespace psq {
 namespace codec {
 
 constexpr uint32_t kNone = 0xffffffffu;
 
-// Dead edges a vertex keeps inline before it links BBorder records.
-constexpr uint32_t kInlineDead = 5;
-
 struct BVertex {
   uint32_t index = 0;        // dense index in the sequence
   uint32_t key = 0;          // the encoder's input index (for its map); decode_mesh's mesh index
   uint32_t open = 0;         // open edges touching it
   uint32_t degree = 0;       // triangles that used it so far
-  uint32_t borders = 0;      // border edges touching it (spec 6.1.1); no symbol's context reads it
   int64_t pos[3] = {0, 0, 0};  // coded coordinates (spec 7.1)
 };
 
 // A vertex's lookups (kLookups only), beside its BVertex rather than in it,
-// so that the fast decoder's vertices take 48 bytes instead of 80 (its
+// so that the fast decoder's vertices take 40 bytes instead of 48 (its
 // boundary's arrays are what it touches at random).
 struct BLinks {
   uint32_t first_out = kNone;  // open edges leaving it (through BEdge::next_out)
   uint32_t first_in = kNone;   // open edges entering it (through BEdge::next_in)
-  uint32_t first_border = kNone;  // dead edges touching it that did not fit inline (through BBorder)
-  // Dead edges touching it, as the other endpoint's slot: the first few
-  // inline (an edge is inline at both endpoints or in BBorder records at
-  // both), since most active vertices have none to three.
-  uint32_t ndead = 0;
-  uint32_t dead[kInlineDead];
 };
 
 struct BEdge {
@@ -72,14 +63,6 @@ struct BEdge {
   int64_t opp[3] = {0, 0, 0};  // coordinates of the third vertex of its triangle
   uint64_t age = 0;  // when it entered: the count of edges that entered before it (spec 6.1.1, 13.6.2)
   bool live = false;
-};
-
-// A dead edge between two active vertices (spec 13.6.3): a border, or an
-// edge two triangles completed. No later triangle may use it; remembered
-// until one of its vertices is finalized.
-struct BBorder {
-  uint32_t v[2] = {kNone, kNone};     // vertex slots
-  uint32_t next[2] = {kNone, kNone};  // next border record at v[0], at v[1]
 };
 
 // What a triangle does to each of its edges (spec 6.2.2).
@@ -107,28 +90,12 @@ struct BTriangle {
 };
 
 // The free slots of one kind, last freed first (the order the spec's slot
-// numbers follow, section 6.1.1). A plain array and a count: its push and
-// pop stay inline in the decoder's loop, where std::vector's push_back
-// would be a call per triangle.
-class SlotStack {
- public:
-  bool empty() const { return n_ == 0; }
-  void clear() { n_ = 0; }
-  __attribute__((always_inline)) uint32_t pop() { return slots_[--n_]; }
-  __attribute__((always_inline)) void push(uint32_t slot) {
-    if (n_ == slots_.size()) grow();
-    slots_[n_++] = slot;
-  }
-
- private:
-  __attribute__((noinline)) void grow() { slots_.resize(2 * slots_.size() + 64); }
-  std::vector<uint32_t> slots_;
-  size_t n_ = 0;
-};
+// numbers follow, section 6.1.1).
+using SlotStack = ArrayStack<uint32_t, 64>;
 
 // kLookups: whether the boundary can find an open edge by its endpoints
-// and knows its dead edges (the encoder, which must find a triangle's
-// completions and check its input). Without them (the decoder, whose
+// (the encoder, which must find a triangle's completions and check its
+// input). Without them (the decoder, whose
 // records name every completion, spec 13.6), it keeps only slots, counts
 // and loop links: find_edge() and find_completions() must not be used,
 // and apply() takes the completions it is given.
@@ -156,8 +123,6 @@ class BasicBoundary {
     free_vertices_.clear();
     edges_.clear();
     free_edges_.clear();
-    borders_.clear();
-    free_borders_.clear();
     active_vertices_ = open_edges_ = 0;
     reference_ = kNone;
     entered_ = 0;
@@ -165,8 +130,7 @@ class BasicBoundary {
   }
   // A new vertex slot, or kNone when `limit` vertices are active.
   uint32_t new_vertex(uint32_t index, uint32_t key, const int64_t pos[3]);
-  // Releases a vertex slot (after its finalization) and forgets the dead
-  // edges touching it.
+  // Releases a vertex slot (after its finalization).
   void free_vertex(uint32_t slot);
 
   BVertex& vertex(uint32_t slot) { return vertices_[slot]; }
@@ -190,8 +154,10 @@ class BasicBoundary {
   // Fills t.completes and t.state for each edge (borders are taken from
   // t.border where an edge does not complete). Returns false when the
   // triangle would put an edge on the boundary twice or use a dead edge (a
-  // border, or an edge already used by two triangles; spec 13.6.3).
-  bool find_completions(BTriangle& t) const;
+  // border, or an edge already used by two triangles; spec 13.6.3): an
+  // edge between old vertices that `used` (every edge between the active
+  // vertices) lists and that is no open edge's twin.
+  bool find_completions(BTriangle& t, const Neighbors& used) const;
 
   // Applies a triangle whose completions were found: removes completed
   // edges, adds entering ones (with `opp` from the corner positions),
@@ -209,18 +175,10 @@ class BasicBoundary {
   // triangle completes; x->q (left) or p->x (right) enters. Returns the
   // entering edge's slot, or kNone at the limit, and sets *final to the
   // corners (bit k for corner k of q, p, x) whose vertex has no open edge
-  // left. With kLookups (the encoder's direct path, fast_direct()) they
-  // keep the endpoint lists and dead edges as apply() does, in the same
-  // order, so that later lookups and join edges are the same.
+  // left. With kLookups they keep the endpoint lists as apply() does, in
+  // the same order, so that later lookups and join edges are the same.
   uint32_t lean_add(uint32_t gate, uint32_t x);
   uint32_t lean_fill(uint32_t gate, bool left, uint32_t* final);
-  // Whether a triangle's edge a->b between old vertices would enter the
-  // boundary (kLookups only): no open edge runs a->b or b->a and {a, b} is
-  // no dead edge (find_completions()' test for an edge that does not
-  // complete).
-  bool edge_is_new(uint32_t a, uint32_t b) const {
-    return find_edge(a, b) == kNone && find_edge(b, a) == kNone && !is_border(a, b);
-  }
 
   // The reference edge R after the last apply() (spec 6.1.2 step 5,
   // 13.6.1): the first entering edge of the last triangle in edge order
@@ -229,32 +187,15 @@ class BasicBoundary {
   // Edges that ever entered (spec 6.1.2 step 2).
   uint64_t entered() const { return entered_; }
 
-  // The other endpoints of the dead edges at vertex slot `a` (kLookups
-  // only), in no particular order.
-  template <class F>
-  void for_each_dead(uint32_t a, F f) const {
-    const BLinks& va = links_[a];
-    for (uint32_t i = 0; i < va.ndead; ++i) f(va.dead[i]);
-    for (uint32_t r = va.first_border; r != kNone;) {
-      const BBorder& e = borders_[r];
-      const int side = e.v[0] == a ? 0 : 1;
-      f(e.v[1 - side]);
-      r = e.next[side];
-    }
-  }
   // A boundary loaded from the state of a segment record (segment.h), on
-  // a fresh one: its vertices and edges in their slots, then (kLookups)
-  // the dead edges, then load_end(), which makes any other slot below the
+  // a fresh one: its vertices and edges in their slots, then load_end(),
+  // which makes any other slot below the
   // highest one of each kind free, the lowest taken first (segment states
   // load dense slots, 0 to n - 1, which leaves none: spec 4.6).
   void load_vertex(uint32_t slot, uint32_t index, uint32_t key, uint32_t degree, const int64_t pos[3]);
   void load_edge(uint32_t slot, uint32_t org, uint32_t dst, uint64_t age, const int64_t opp[3]);
-  void load_dead(uint32_t a, uint32_t b) {
-    if constexpr (kLookups) add_border(a, b);
-  }
   // next[i] (kNone: none) for the i-th edge loaded.
   void load_end(const uint32_t* next, uint64_t entered, uint32_t reference);
-
 
  private:
   uint32_t alloc_edge();
@@ -270,14 +211,12 @@ class BasicBoundary {
   void finish_triangle(BTriangle& t);
   bool apply_on_gate(BTriangle& t);
   bool apply_add(BTriangle& t);
-  void splice_add(uint32_t f1, uint32_t f2, uint32_t gate_prev, uint32_t gate_next);
-  void splice_fill(uint32_t f, uint32_t before, uint32_t after);
-  // kLookups: fresh edge s joins the endpoint lists, as enter_edge() does.
-  void list_entered(uint32_t s);
   bool apply_fill(BTriangle& t, int k);
-  bool is_border(uint32_t a, uint32_t b) const;
-  bool classify_old_edge(BTriangle& t, int k) const;
-  void add_border(uint32_t a, uint32_t b);
+  // kLookups: fresh edge s joins the endpoint lists; unlist() takes an
+  // edge off them.
+  void list_entered(uint32_t s);
+  void unlist(uint32_t s);
+  bool classify_old_edge(BTriangle& t, int k, const Neighbors& used) const;
   void free_edge(uint32_t slot);
   // free_edge() without the unlinking, for lean_fill() without lookups:
   // the loop links are symmetric (a.next = b exactly when b.prev = a, as
@@ -285,7 +224,6 @@ class BasicBoundary {
   // edges are between them and from the edges before and after them,
   // which the splice overwrites.
   void retire_edge(uint32_t slot);
-  void forget_dead_edges(uint32_t slot);
   void link(uint32_t p, uint32_t q);
 
   uint32_t limit_;
@@ -298,8 +236,6 @@ class BasicBoundary {
   SlotStack free_vertices_;
   std::vector<BEdge> edges_;
   SlotStack free_edges_;
-  std::vector<BBorder> borders_;
-  SlotStack free_borders_;
   uint32_t active_vertices_ = 0;
   uint32_t open_edges_ = 0;
   uint32_t reference_ = kNone;
@@ -325,15 +261,10 @@ PSQ_INLINE uint32_t BasicBoundary<L>::new_vertex(uint32_t index, uint32_t key, c
     vlive_.push_back(0);
   }
   BVertex& v = vertices_[slot];
-  // Every field but the unused inline dead entries.
   v.index = index;
   v.key = key;
-  v.open = v.degree = v.borders = 0;
-  if constexpr (L) {
-    BLinks& k = links_[slot];
-    k.first_out = k.first_in = k.first_border = kNone;
-    k.ndead = 0;
-  }
+  v.open = v.degree = 0;
+  if constexpr (L) links_[slot] = BLinks();
   for (int i = 0; i < 3; ++i) v.pos[i] = pos[i];
   vlive_[slot] = 1;
   ++active_vertices_;
@@ -342,81 +273,9 @@ PSQ_INLINE uint32_t BasicBoundary<L>::new_vertex(uint32_t index, uint32_t key, c
 
 template <bool L>
 PSQ_INLINE void BasicBoundary<L>::free_vertex(uint32_t slot) {
-  if constexpr (L) forget_dead_edges(slot);
   vlive_[slot] = 0;
   --active_vertices_;
   free_vertices_.push(slot);
-}
-
-template <bool L>
-PSQ_INLINE void BasicBoundary<L>::forget_dead_edges(uint32_t slot) {
-  // Forget its inline dead edges: remove it from each other endpoint's
-  // inline list (order within a list does not matter).
-  BLinks& v = links_[slot];
-  for (uint32_t i = 0; i < v.ndead; ++i) {
-    BLinks& o = links_[v.dead[i]];
-    uint32_t j = 0;
-    while (o.dead[j] != slot) ++j;
-    o.dead[j] = o.dead[--o.ndead];
-  }
-  v.ndead = 0;
-  // Forget its border edges: unlink each from the other endpoint's list.
-  for (uint32_t r = links_[slot].first_border; r != kNone;) {
-    BBorder& e = borders_[r];
-    const int side = e.v[0] == slot ? 0 : 1;
-    const uint32_t other = e.v[1 - side];
-    uint32_t* p = &links_[other].first_border;
-    while (*p != r) {
-      BBorder& q = borders_[*p];
-      p = &q.next[q.v[0] == other ? 0 : 1];
-    }
-    *p = e.next[1 - side];
-    const uint32_t next = e.next[side];
-    free_borders_.push(r);
-    r = next;
-  }
-  links_[slot].first_border = kNone;
-}
-
-// Dead edges and lookups (kLookups only), inline for the fast encoder's
-// direct path (lean_add(), lean_fill(), edge_is_new()).
-template <bool L>
-PSQ_INLINE bool BasicBoundary<L>::is_border(uint32_t a, uint32_t b) const {
-  const BLinks& va = links_[a];
-  for (uint32_t i = 0; i < va.ndead; ++i)
-    if (va.dead[i] == b) return true;
-  for (uint32_t r = va.first_border; r != kNone;) {
-    const BBorder& e = borders_[r];
-    const int side = e.v[0] == a ? 0 : 1;
-    if (e.v[1 - side] == b) return true;
-    r = e.next[side];
-  }
-  return false;
-}
-
-template <bool L>
-PSQ_INLINE void BasicBoundary<L>::add_border(uint32_t a, uint32_t b) {
-  BLinks& va = links_[a];
-  BLinks& vb = links_[b];
-  if (va.ndead < kInlineDead && vb.ndead < kInlineDead) {
-    va.dead[va.ndead++] = b;
-    vb.dead[vb.ndead++] = a;
-    return;
-  }
-  uint32_t r;
-  if (!free_borders_.empty()) {
-    r = free_borders_.pop();
-  } else {
-    r = static_cast<uint32_t>(borders_.size());
-    borders_.emplace_back();
-  }
-  BBorder& e = borders_[r];
-  e.v[0] = a;
-  e.v[1] = b;
-  e.next[0] = links_[a].first_border;
-  e.next[1] = links_[b].first_border;
-  links_[a].first_border = r;
-  links_[b].first_border = r;
 }
 
 template <bool L>
@@ -425,7 +284,6 @@ PSQ_INLINE uint32_t BasicBoundary<L>::find_edge(uint32_t a, uint32_t b) const {
     if (edges_[e].dst == b) return e;
   return kNone;
 }
-
 
 template <bool L>
 PSQ_INLINE uint32_t BasicBoundary<L>::alloc_edge() {
@@ -465,43 +323,8 @@ PSQ_INLINE void BasicBoundary<L>::free_edge(uint32_t slot) {
   BEdge& e = edges_[slot];
   if (e.next != kNone && edges_[e.next].prev == slot) edges_[e.next].prev = kNone;
   if (e.prev != kNone && edges_[e.prev].next == slot) edges_[e.prev].next = kNone;
-  if constexpr (L) {
-    // Unlink from the out-list of org and the in-list of dst.
-    uint32_t* p = &links_[e.org].first_out;
-    while (*p != slot) p = &edges_[*p].next_out;
-    *p = e.next_out;
-    p = &links_[e.dst].first_in;
-    while (*p != slot) p = &edges_[*p].next_in;
-    *p = e.next_in;
-  }
+  if constexpr (L) unlist(slot);
   retire_edge(slot);
-}
-
-// The loop links of an add (fresh f1 then f2 between the gate's old
-// neighbours) and of a fill (fresh f between `before` and `after`), shared
-// by apply_add()/apply_fill() and lean_add()/lean_fill(); the fresh edge
-// that comes first becomes the reference edge R (spec 6.1.2 step 5).
-template <bool L>
-PSQ_INLINE void BasicBoundary<L>::splice_add(uint32_t f1, uint32_t f2, uint32_t gate_prev, uint32_t gate_next) {
-  BEdge& e1 = edges_[f1];
-  BEdge& e2 = edges_[f2];
-  e1.prev = gate_prev;
-  e1.next = f2;
-  e2.prev = f1;
-  e2.next = gate_next;
-  if (gate_prev != kNone) edges_[gate_prev].next = f1;
-  if (gate_next != kNone) edges_[gate_next].prev = f2;
-  reference_ = f1;
-}
-
-template <bool L>
-PSQ_INLINE void BasicBoundary<L>::splice_fill(uint32_t f, uint32_t before, uint32_t after) {
-  BEdge& e = edges_[f];
-  e.prev = before;
-  e.next = after;
-  if (before != kNone) edges_[before].next = f;
-  if (after != kNone) edges_[after].prev = f;
-  reference_ = f;
 }
 
 template <bool L>
@@ -515,10 +338,23 @@ PSQ_INLINE void BasicBoundary<L>::list_entered(uint32_t s) {
   ld.first_in = s;
 }
 
+template <bool L>
+PSQ_INLINE void BasicBoundary<L>::unlist(uint32_t s) {
+  const BEdge& e = edges_[s];
+  uint32_t* p = &links_[e.org].first_out;
+  while (*p != s) p = &edges_[*p].next_out;
+  *p = e.next_out;
+  p = &links_[e.dst].first_in;
+  while (*p != s) p = &edges_[*p].next_in;
+  *p = e.next_in;
+}
+
 // lean_add() and lean_fill(): apply_add() and apply_fill() with the corners
 // of the triangle (q, p, x) known from the gate. The slots are allocated,
-// aged and freed in the same order, so the slot numbers and the ring's
-// ages agree with the encoder's boundary.
+// aged and freed in the same order as apply() would, so the slot numbers
+// and the ring's ages agree with the encoder's boundary. Their splices set
+// the loop links; the fresh edge that comes first becomes the reference
+// edge R (spec 6.1.2 step 5).
 template <bool L>
 PSQ_INLINE uint32_t BasicBoundary<L>::lean_add(uint32_t gate, uint32_t x) {
   const uint32_t p = edges_[gate].org, q = edges_[gate].dst;
@@ -549,22 +385,22 @@ PSQ_INLINE uint32_t BasicBoundary<L>::lean_add(uint32_t gate, uint32_t x) {
   BEdge& g = edges_[gate];
   const uint32_t gate_prev = g.prev, gate_next = g.next;
   if constexpr (L) {
-    // apply_add()'s order: f1 and f2 join the lists, the gate leaves them
-    // and becomes dead (close_edge()).
+    // apply()'s order: f1 and f2 join the lists, the gate leaves them.
     list_entered(f1);
     list_entered(f2);
-    uint32_t* at = &links_[p].first_out;
-    while (*at != gate) at = &edges_[*at].next_out;
-    *at = g.next_out;
-    at = &links_[q].first_in;
-    while (*at != gate) at = &edges_[*at].next_in;
-    *at = g.next_in;
-    add_border(q, p);
+    unlist(gate);
   }
   g.live = false;
   --open_edges_;
   free_edges_.push(gate);
-  splice_add(f1, f2, gate_prev, gate_next);
+  // Fresh f1 then f2 between the gate's old neighbours.
+  e1.prev = gate_prev;
+  e1.next = f2;
+  e2.prev = f1;
+  e2.next = gate_next;
+  if (gate_prev != kNone) edges_[gate_prev].next = f1;
+  if (gate_next != kNone) edges_[gate_next].prev = f2;
+  reference_ = f1;
   return f1;
 }
 
@@ -584,22 +420,29 @@ PSQ_INLINE uint32_t BasicBoundary<L>::lean_fill(uint32_t gate, bool left, uint32
   e.age = entered_++;
   ++vertices_[e.org].open;
   ++vertices_[e.dst].open;
+  // The fresh edge takes the place of the two completed ones on the loop,
+  // between the neighbour's other neighbour and the gate's other
+  // neighbour. The triangle completes neither of these: the neighbour's
+  // other neighbour ends or starts at x, not at p or q, and the gate's
+  // other neighbour would be the fresh edge's twin (it would complete it,
+  // not enter).
   const uint32_t before = left ? edges_[c].prev : edges_[gate].prev;
   const uint32_t after = left ? edges_[gate].next : edges_[c].next;
   if constexpr (L) {
-    // apply_fill()'s order: f joins the lists; the gate and then the
-    // neighbour leave them (free_edge()) and become dead (close_edge()).
+    // apply()'s order: f joins the lists; the gate and then the neighbour
+    // leave them (free_edge()).
     list_entered(f);
     free_edge(gate);
-    add_border(q, p);
     free_edge(c);
-    if (left) add_border(p, x);
-    else add_border(x, q);
   } else {
     retire_edge(gate);
     retire_edge(c);
   }
-  splice_fill(f, before, after);
+  e.prev = before;
+  e.next = after;
+  if (before != kNone) edges_[before].next = f;
+  if (after != kNone) edges_[after].prev = f;
+  reference_ = f;
   const uint32_t corner[3] = {q, p, x};
   uint32_t m = 0;
   for (int k = 0; k < 3; ++k) {
@@ -613,11 +456,6 @@ PSQ_INLINE uint32_t BasicBoundary<L>::lean_fill(uint32_t gate, bool left, uint32
 
 using Boundary = BasicBoundary<true>;
 using FastBoundary = BasicBoundary<false>;
-
-// The parallelogram point across open edge `edge` (spec 7.3): its
-// endpoints' coordinates added, its `opp` subtracted, modulo 2^64.
-// The extents (spec 7.4) of the triangle that made `edge` open: per axis,
-// the bit length of the largest coordinate distance of its corners.
 
 // The prediction of a record's i-th new vertex (spec 7.3) and its residual
 // contexts (7.4). For an add (gate != kNone), by `choice` (coding.h): the
@@ -637,6 +475,8 @@ struct Prediction {
   int extent[3];  // per axis: the bit length of the predicting triangle's extent, or 0
 };
 
+// The parallelogram point across open edge `edge` (spec 7.3): its
+// endpoints' coordinates added, its `opp` subtracted, modulo 2^64.
 template <class B>
 PSQ_INLINE void parallelogram(const B& boundary, uint32_t edge, int64_t out[3]) {
   const BEdge& g = boundary.edge(edge);
@@ -645,6 +485,8 @@ PSQ_INLINE void parallelogram(const B& boundary, uint32_t edge, int64_t out[3]) 
   for (int k = 0; k < 3; ++k) out[k] = wrap_sub(wrap_add(a[k], b[k]), g.opp[k]);
 }
 
+// The extents (spec 7.4) of the triangle that made `edge` open: per axis,
+// the bit length of the largest coordinate distance of its corners.
 template <class B>
 PSQ_INLINE void triangle_extents(const B& boundary, uint32_t edge, int out[3]) {
   const BEdge& g = boundary.edge(edge);

@@ -30,14 +30,12 @@ void init_tree(SymbolModel& tree, const std::vector<uint64_t>& leaf) {
 
 
 void init_length_prior(ResidualModel& m, int c) {
-  const int mu = 3 * c / 4;
-  auto weight = [mu](int k) { return uint64_t{1} << (24 - std::min(24, std::abs(k - mu))); };
   std::vector<uint64_t> length(16, 0), escape(64, 0);
   for (int k = 0; k <= 64; ++k) {
-    if (k < static_cast<int>(kLengthEscape)) length[k] = weight(k);
+    if (k < static_cast<int>(kLengthEscape)) length[k] = length_weight(k, c);
     else {
-      length[kLengthEscape] += weight(k);
-      escape[k - kLengthEscape] = weight(k);
+      length[kLengthEscape] += length_weight(k, c);
+      escape[k - kLengthEscape] = length_weight(k, c);
     }
   }
   init_tree(m.length, length);

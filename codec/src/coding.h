@@ -8,9 +8,12 @@
 #define PSQ_CODEC_CODING_H_
 
 #include <algorithm>
+#include <cstddef>
 #include <cstdint>
+#include <cstdlib>
 #include <vector>
 
+#include "psq/psq_memory.h"  // DefaultInitAllocator
 #include "range_coder.h"
 
 namespace psq {
@@ -93,10 +96,12 @@ inline int triangle_extent(const int64_t* a, const int64_t* b, const int64_t* c,
   return bit_length64(std::max(coord_distance(x, y), std::max(coord_distance(x, z), coord_distance(y, z))));
 }
 
+// The prior weight of residual length k in length context c (spec 8.3,
+// 13.2.1): 2^(24 - min(24, |k - mu|)), with mu = floor(3c / 4).
+inline uint64_t length_weight(int k, int c) { return uint64_t{1} << (24 - std::min(24, std::abs(k - 3 * c / 4))); }
 // Spec 8.3: the initial state of the length and escape trees of an
 // attribute residual model with length context `c`. Each length k
-// <= 64 gets the weight 2^(24 - min(24, |k - mu|)), with mu = floor(3c / 4);
-// leaf 15 of the length tree weighs all lengths from 15 on, leaf e of the
+// <= 64 gets the weight length_weight(k, c); leaf 15 of the length tree weighs all lengths from 15 on, leaf e of the
 // escape tree the length 15 + e (0 above 64); each node's p0 is the share
 // of its 0-subtree in its weight, and its count n starts at 2. The typical
 // length grows with the context (about 3c/4 on the shared meshes);
@@ -138,6 +143,33 @@ enum Cost { kCostConnectivity = 0, kCostGeometry = 1, kCostCount = 2 };
 #define PSQ_LAMBDA_INLINE
 #define PSQ_NOINLINE
 #endif
+
+// A stack of T in a plain array and a count: its push stays inline in the
+// encoder's and the decoder's loops, where std::vector's push_back would be
+// a call. It grows to the capacity reserved, else to twice its size plus
+// kMinGrow, without zeroing: every element is written before it is read.
+template <class T, size_t kMinGrow>
+class ArrayStack {
+ public:
+  bool empty() const { return n_ == 0; }
+  size_t size() const { return n_; }
+  const T* data() const { return v_.data(); }
+  const T* begin() const { return v_.data(); }
+  const T* end() const { return v_.data() + n_; }
+  void clear() { n_ = 0; }
+  // Room for n elements without moving them (address space only).
+  void reserve(size_t n) { v_.reserve(n); }
+  __attribute__((always_inline)) T pop() { return v_[--n_]; }
+  __attribute__((always_inline)) void push(T x) {
+    if (n_ == v_.size()) grow();
+    v_[n_++] = x;
+  }
+
+ private:
+  __attribute__((noinline)) void grow() { v_.resize(std::max(v_.capacity(), 2 * v_.size() + kMinGrow)); }
+  std::vector<T, DefaultInitAllocator<T>> v_;
+  size_t n_ = 0;
+};
 
 class Encoder {
  public:

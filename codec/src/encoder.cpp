@@ -10,9 +10,6 @@
 #include "container.h"
 #include "crc32c.h"
 #include "geometry.h"
-#include "properties.h"
-#include "attributes.h"
-#include "psq/psq_codec.h"
 #include "segment.h"
 
 namespace psq {
@@ -248,23 +245,14 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
       ++nnew;
       continue;
     }
-    const uint32_t hint = t.vslot[k];
-    if (hint != kNoSlot) {
-      const uint32_t s = hint < by_inslot.size() ? by_inslot[hint] : kNone;
-      if (s != kNone && boundary.vertex_live(s) && boundary.vertex(s).key == t.v[k]) {
-        slots[k] = s;
-        continue;
-      }
-      // A vertex whose slot was too large for the array (register_vertex())
-      // is in the map.
-      auto it = slot_of.find(t.v[k]);
-      if (it == slot_of.end())
-        return bad_sequence("triangle uses vertex " + std::to_string(t.v[k]) + " with boundary slot " +
-                            std::to_string(hint) + ", which is not its active vertex's");
-      slots[k] = it->second;
-      continue;
-    }
+    slots[k] = slot_by_hint(t.vslot[k], t.v[k]);
+    if (slots[k] != kNone) continue;
+    // A vertex without a slot, or whose slot was too large for the array
+    // (register_vertex()), is in the map.
     auto it = slot_of.find(t.v[k]);
+    if (it == slot_of.end() && t.vslot[k] != kNoSlot)
+      return bad_sequence("triangle uses vertex " + std::to_string(t.v[k]) + " with boundary slot " +
+                          std::to_string(t.vslot[k]) + ", which is not its active vertex's");
     if (it == slot_of.end())
       return bad_sequence("triangle uses vertex " + std::to_string(t.v[k]) + ", which is not active");
     slots[k] = it->second;
@@ -278,10 +266,9 @@ Status PsqEncoder::Impl::triangle(const SequenceTriangle& t) {
 
 Status PsqEncoder::Impl::register_vertex(const PendingVertex& v, uint32_t* slot) {
   const uint32_t s = boundary.new_vertex(out_index_of(v.in_index), v.in_index, v.pos);
-  if (s == kNone)
-    return Status(ErrorCode::kLimit, "more than " + std::to_string(opt.boundary_limit) +
-                                         " active vertices (the boundary limit)");
+  if (s == kNone) return boundary_full("active vertices");
   *slot = s;
+  used.vertex_begins(s);
   // The input's slots stay below the size of its working set
   // (psq/sequence.h: the converter's waiting area, or the boundary); one
   // beyond the vertices introduced so far plus 2^20 goes to the map, so
@@ -295,59 +282,9 @@ Status PsqEncoder::Impl::register_vertex(const PendingVertex& v, uint32_t* slot)
   return Status();
 }
 
-Status PsqEncoder::Impl::close_triangle(const SequenceTriangle& t, BTriangle& bt, int nnew) {
-  int completed = 0;
-  for (int k = 0; k < 3; ++k) completed += bt.state[k] == EdgeState::kCompletes;
-  Op op = nnew == 3 ? Op::kStart
-          : completed == 1 ? (nnew == 1 ? Op::kAdd : Op::kJoin)
-          : completed == 2 ? Op::kFill
-                           : Op::kEnd;
-  if ((nnew == 1 && completed != 1) || (nnew == 3 && completed != 0))
-    return bad_sequence("triangle is no valid op");
-  if (op != t.op)
-    return bad_sequence(std::string("triangle claims op ") + op_name(t.op) + " but is " + op_name(op));
-  if (!boundary.apply(bt))
-    return Status(ErrorCode::kLimit, "more than " + std::to_string(opt.boundary_limit) +
-                                         " open edges (the boundary limit)");
-  // Spec 13.6.2: entering edges join the ring, in edge order.
-  for (int k = 0; k < 3; ++k)
-      if (bt.state[k] == EdgeState::kEnters) ring.push(boundary, bt.eslot[k]);
-  if (!attrs->empty()) {
-    uint8_t entering = 0;
-    for (int k = 0; k < 3; ++k) entering |= static_cast<uint8_t>((bt.state[k] == EdgeState::kEnters) << k);
-    uint8_t fresh = 0;
-    uint8_t final = 0;
-    for (int k = 0; k < 3; ++k) {
-      fresh |= static_cast<uint8_t>(bt.is_new[k] << k);
-      final |= static_cast<uint8_t>(bt.final[k] << k);
-    }
-    if (attrs->corner_dims() > 0) {
-      // Spec 8.5: the corners' values, in the record's corner order.
-      PSQ_RETURN_IF_ERROR(attrs->split_face(t.values, stats.triangles, &attr_columns, attr_face_q.data()));
-      const size_t cd = static_cast<size_t>(attrs->corner_dims());
-      for (int k = 0; k < 3; ++k)
-        for (int j = 0; j < 3; ++j)
-          if (out_index_of(t.v[j]) == boundary.vertex(bt.c[k]).index)
-            std::copy(&attr_face_q[j * cd], &attr_face_q[j * cd] + cd, &attr_cq[k * cd]);
-      attr_rec.corners = attr_cq.data();
-    }
-    code_attributes(bt.c, bt.eslot, fresh, entering, final);
-  }
-  pending.clear();
-  // Spec 6.4: vertices left with no open edge are finalized, in canonical
-  // corner order; the input must finalize exactly these next.
-  for (int k = 0; k < 3; ++k)
-    if (bt.final[k]) {
-      const BVertex& v = boundary.vertex(bt.c[k]);
-      expect_final.push_back(v.key);
-      if (!slot_of.empty()) slot_of.erase(v.key);
-      boundary.free_vertex(bt.c[k]);
-    }
-  if (!props->add_face(attrs->corner_dims() > 0 ? attr_columns : t.values))
-    return Status(ErrorCode::kBadValue, "face property values do not match the schema or their types");
-  ++stats.triangles;
-  ++chunk_triangles;
-  return after_record();
+Status PsqEncoder::Impl::boundary_full(const char* what) const {
+  return Status(ErrorCode::kLimit,
+                "more than " + std::to_string(opt.boundary_limit) + " " + what + " (the boundary limit)");
 }
 
 Status PsqEncoder::Impl::isolated(size_t at) {
@@ -355,7 +292,7 @@ Status PsqEncoder::Impl::isolated(size_t at) {
   PendingVertex v = std::move(pending[at]);
   pending.erase(pending.begin() + static_cast<std::ptrdiff_t>(at));
   PSQ_RETURN_IF_ERROR(introduce(v));
-  PSQ_RETURN_IF_ERROR(code_isolated(v));
+  code_isolated(v);
   code_attributes(nullptr, nullptr, 0, 0);
   return after_record();
 }
@@ -451,15 +388,19 @@ Status PsqEncoder::Impl::close_chunk() {
   stats.attribute_bytes += attr_bytes.size();
   attr_bytes.clear();
   if (attr_rc) attr_rc = std::make_unique<RangeEncoder>(&attr_bytes);
-  put.u32(crc32c_update(0, chunk.data(), chunk.size()));
+  seal(&chunk);
   stats.record_bytes += records.size();
   stats.property_bytes += packed.size();
   stats.chunk_overhead_bytes += fields + 4;
   ++stats.chunks;
   records.clear();
   chunk_records = chunk_vertices = chunk_triangles = 0;
-  chain_crc = crc32c_update(chain_crc, chunk.data() + chunk.size() - 4, 4);
   return emit(chunk);
+}
+
+void PsqEncoder::Impl::seal(std::vector<uint8_t>* rec) {
+  Put(rec).u32(crc32c_update(0, rec->data(), rec->size()));
+  chain_crc = crc32c_update(chain_crc, rec->data() + rec->size() - 4, 4);
 }
 
 Status PsqEncoder::Impl::write_segment() {
@@ -472,15 +413,12 @@ Status PsqEncoder::Impl::write_segment() {
   st.choice = static_cast<uint32_t>(fast_choice);
   std::copy(last_pos, last_pos + 3, st.last);
   capture_boundary(boundary, &st);
-  capture_dead(boundary, &st);
+  capture_dead(boundary, used, &st);
   if (!attrs->empty()) capture_attributes(*attrs, &st);
   std::vector<uint8_t> raw, packed;
   serialize_state(st, attrs->dims(), &raw);
-  if (raw.size() > kMaxStateRaw)
-    return Status(ErrorCode::kLimit, "the boundary at triangle " + std::to_string(stats.triangles) +
-                                         " is too large for a segment record (use fewer segments)");
-  zstd_compress(raw, std::max(opt.zstd_level, 19), &packed);
-  if (packed.size() > kMaxStateBytes)
+  if (raw.size() <= kMaxStateRaw) zstd_compress(raw, std::max(opt.zstd_level, 19), &packed);
+  if (raw.size() > kMaxStateRaw || packed.size() > kMaxStateBytes)
     return Status(ErrorCode::kLimit, "the boundary at triangle " + std::to_string(stats.triangles) +
                                          " is too large for a segment record (use fewer segments)");
   std::vector<uint8_t> rec;
@@ -489,11 +427,8 @@ Status PsqEncoder::Impl::write_segment() {
   put.varint(packed.size());
   put.varint(raw.size());
   put.bytes(packed.data(), packed.size());
-  put.u32(crc32c_update(0, rec.data(), rec.size()));
-  chain_crc = crc32c_update(chain_crc, rec.data() + rec.size() - 4, 4);
-  segment_at.push_back(stats.total_bytes);
-  segment_vertices.push_back(st.vertices);
-  segment_triangles.push_back(st.triangles);
+  seal(&rec);
+  segments.push_back({stats.total_bytes, st.vertices, st.triangles});
   ++stats.segments;
   stats.segment_bytes += rec.size();
   // Spec 4.6: the state restarts from its canonical form, as a decoder's
@@ -507,7 +442,8 @@ Status PsqEncoder::Impl::write_segment() {
   for (auto& kv : slot_of) kv.second = remap(vmap, kv.second);
   for (uint32_t& s : by_ineslot) s = remap(emap, s);
   boundary.reset();
-  load_state(st, &boundary, nullptr, &ring, attrs.get());
+  used.reset();
+  load_state(st, &boundary, &used, &ring, attrs.get());
   attrs->restart_models();
   return emit(rec);
 }
@@ -527,18 +463,13 @@ Status PsqEncoder::Impl::finish() {
     std::vector<uint8_t> index;
     Put put(&index);
     put.u8(kIndexTag);
-    put.varint(segment_at.size());
-    uint64_t prev[3] = {0, 0, 0};
-    for (size_t i = 0; i < segment_at.size(); ++i) {
-      put.varint(segment_at[i] - prev[0]);
-      put.varint(segment_vertices[i] - prev[1]);
-      put.varint(segment_triangles[i] - prev[2]);
-      prev[0] = segment_at[i];
-      prev[1] = segment_vertices[i];
-      prev[2] = segment_triangles[i];
+    put.varint(segments.size());
+    std::array<uint64_t, 3> prev = {0, 0, 0};
+    for (const auto& s : segments) {
+      for (int i = 0; i < 3; ++i) put.varint(s[i] - prev[i]);
+      prev = s;
     }
-    put.u32(crc32c_update(0, index.data(), index.size()));
-    chain_crc = crc32c_update(chain_crc, index.data() + index.size() - 4, 4);
+    seal(&index);
     index_at = stats.total_bytes;
     stats.segment_bytes += index.size();
     PSQ_RETURN_IF_ERROR(emit(index));
@@ -568,12 +499,9 @@ PsqEncoder::PsqEncoder(ByteWriter* out, const EncodeOptions& options) : impl_(st
 
 PsqEncoder::~PsqEncoder() = default;
 
-
 Status PsqEncoder::begin(const MeshSchema& schema) {
   if (!impl_->error.ok()) return impl_->error;
-  Status s = impl_->begin(schema);
-  if (!s.ok()) return impl_->fail(s);
-  return s;
+  return impl_->fail(impl_->begin(schema));
 }
 
 Status PsqEncoder::vertex(const SequenceVertex& v) {
@@ -611,7 +539,7 @@ Status PsqEncoder::triangle(const SequenceTriangle& t) {
   if (!m.error.ok()) return m.error;
   if (!m.begun || m.finished) return m.fail(bad_sequence("triangle event outside begin()..finish()"));
   Status s = m.triangle(t);
-  if (!s.ok()) return m.fail(s);
+  if (!s.ok()) return m.fail(s);  // not on success: fail() copies the status twice
   return s;
 }
 
@@ -628,11 +556,7 @@ Status PsqEncoder::finalize(uint32_t index) {
     return m.fail(bad_sequence("vertex " + std::to_string(m.expect_final.front()) +
                                " is not finalized right after its last triangle (spec/psq-dump.md A.2)"));
   for (size_t i = 0; i < m.pending.size(); ++i)
-    if (m.pending[i].in_index == index) {
-      Status s = m.isolated(i);
-      if (!s.ok()) return m.fail(s);
-      return s;
-    }
+    if (m.pending[i].in_index == index) return m.fail(m.isolated(i));
   return m.fail(bad_sequence("vertex " + std::to_string(index) +
                              " is finalized while boundary edges touch it, or is not active"));
 }
@@ -643,8 +567,7 @@ Status PsqEncoder::finish() {
   if (!m.begun || m.finished) return m.fail(bad_sequence("finish() without begin() or twice"));
   Status s = m.finish();
   m.finished = true;
-  if (!s.ok()) return m.fail(s);
-  return s;
+  return m.fail(s);
 }
 
 const PsqStats& PsqEncoder::stats() const { return impl_->stats; }

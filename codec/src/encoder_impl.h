@@ -6,6 +6,7 @@
 #ifndef PSQ_CODEC_ENCODER_IMPL_H_
 #define PSQ_CODEC_ENCODER_IMPL_H_
 
+#include <array>
 #include <memory>
 #include <unordered_map>
 #include <vector>
@@ -48,6 +49,9 @@ struct PsqEncoder::Impl {
   bool begun = false, finished = false;
   PsqHeader header;
   Boundary boundary{1};
+  // Which active vertices an edge joins: an edge between old vertices that
+  // it lists is open or dead (spec 13.6.3).
+  Neighbors used;
   std::unique_ptr<PropertyPacker> props;
   // Normals, texture coordinates and colours (spec 8.3): the coder, its
   // chunk section, and the record being coded (new vertices' values, in
@@ -78,7 +82,6 @@ struct PsqEncoder::Impl {
   // Quantized: half the grid step, and the highest grid index 2^bits - 1.
   double half_step = 0;
   double grid_max = 0;
-  uint64_t choices_coded = 0;          // adds with a choice of parallelogram so far
 
   // The open chunk.
   std::vector<uint8_t> records;
@@ -91,6 +94,8 @@ struct PsqEncoder::Impl {
     stats.total_bytes += bytes.size();
     return out->write(bytes.data(), bytes.size());
   }
+  // Appends the checksum of record `rec` and chains it (spec 4.5).
+  void seal(std::vector<uint8_t>* rec);
 
   Status fail(Status s) {
     if (error.ok()) error = s;
@@ -127,16 +132,28 @@ struct PsqEncoder::Impl {
   // What triangle() does after the record is coded: checks the op,
   // applies the triangle to the boundary, expects the finalized vertices.
   Status close_triangle(const SequenceTriangle& t, BTriangle& bt, int nnew);
+  // What every triangle ends with (spec 6.4): the corners left with no
+  // open edge (bit k of `final` for corner[k]) are finalized, in canonical
+  // corner order, and the input must finalize exactly these next; then the
+  // face's property values and the counts.
+  Status end_triangle(const uint32_t corner[3], uint32_t final, const PropertyValues& face);
+  // kLimit: more `what` than the boundary limit.
+  Status boundary_full(const char* what) const;
+  // The active vertex `key` by the input's boundary slot `hint`, else kNone.
+  uint32_t slot_by_hint(uint32_t hint, uint32_t key) const {
+    const uint32_t s = hint < by_inslot.size() ? by_inslot[hint] : kNone;
+    return s != kNone && boundary.vertex_live(s) && boundary.vertex(s).key == key ? s : kNone;
+  }
   Status isolated(size_t pending_at);
   Status close_chunk();
   // Segments (spec 4.6): the triangle count at which the next segment
   // begins; set when a chunk closed there and the next record must come
-  // after a segment record; the records so far; the segment records'
-  // offsets and the counts before each (the index, 4.7).
+  // after a segment record; the records so far; per segment record, its
+  // offset and the vertex and triangle counts before it (the index, 4.7).
   uint64_t segment_next = 0;
   bool segment_due = false;
   uint64_t records_so_far = 0;
-  std::vector<uint64_t> segment_at, segment_vertices, segment_triangles;
+  std::vector<std::array<uint64_t, 3>> segments;
   // Writes the segment record of the state now, then restarts the free
   // slots and the attribute models as a decoder does.
   Status write_segment();
@@ -175,6 +192,13 @@ struct PsqEncoder::Impl {
   // canonical corner 0 (the first candidate for an escape). *rank must be
   // -1 on entry.
   int gate_class(const uint32_t cand[3], int* rot, int* rank) const;
+  // A gate record's symbols after its class (spec 13.7.3): a far gate's
+  // rank and the B symbol; then the next record's context.
+  void put_gate(int cls, int rank, uint32_t gate, int third, int e1, int e2);
+  void count_gate(int cls) {
+    ++stats.gates[cls == kFastStart ? 3 : cls == kFastGateR ? 0 : cls == kFastEscape || cls == kFastGateFar ? 2 : 1];
+    if (cls == kFastGateFar || cls == kFastEscape) ++stats.far_gates[cls == kFastGateFar ? 0 : 1];
+  }
   // The direct path for the common triangle of an input
   // that gives boundary slots (the converter's and the decoders'): an add
   // or a fill on a gate of class 0 to 3, without borders, re-appearances
@@ -190,15 +214,13 @@ struct PsqEncoder::Impl {
   // entered (fast_direct()'s lookups; a stale entry fails its check).
   std::vector<uint32_t> by_ineslot;
   // Remembers that input edge slot `in` (kNoSlot: none) names edge slot
-  // `slot`; note_input_edges() for a triangle's entering edges (canonical
-  // order, input corner rot first).
+  // `slot`.
   void note_input_edge(uint32_t in, uint32_t slot) {
     if (in < by_ineslot.size()) by_ineslot[in] = slot;
     else note_input_edge_grow(in, slot);
   }
   PSQ_NOINLINE void note_input_edge_grow(uint32_t in, uint32_t slot);
-  void note_input_edges(const SequenceTriangle& t, int rot, const uint32_t eslot[3], const EdgeState state[3]);
-  Status code_isolated(PendingVertex& v);
+  void code_isolated(PendingVertex& v);
   void fast_put(int table, int symbol);
   // Codes residual r with length table `table`; returns its bit length.
   int fast_residual(int table, int64_t r);

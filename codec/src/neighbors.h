@@ -1,17 +1,16 @@
 // SPDX-License-Identifier: Apache-2.0
 // codec/src/neighbors.h: which active vertices are joined by an edge, for
-// the decoder's new-edge check (spec 13.6.3).
+// the new-edge check (spec 13.6.3).
 //
 // The decoder is told which open edges a triangle completes; every other
 // edge between two old vertices must be new to the mesh, or the decoded
 // sequence would not be an oriented manifold with borders (psq/sequence.h,
-// spec A.2). The encoder's Boundary answers that with per-vertex lists
-// of open edges and dead-edge records, kept up to date at every
-// completion and finalization. Here each vertex slot lists the
-// neighbours its vertex has had (a slot and that slot's generation): two
-// appends per new edge, a scan of one short list per edge
-// between old vertices (a fill has one), and nothing when a vertex is
-// finalized. A neighbour finalized since is stale (its slot's generation
+// spec A.2). The encoder asks the same to tell such an edge from a dead
+// one (a border, or an edge two triangles completed). Here each vertex
+// slot lists the neighbours its vertex has had (a slot and that slot's
+// generation): two appends per new edge, a scan of one short list per
+// edge between old vertices (a fill has one), and nothing when a vertex
+// is finalized. A neighbour finalized since is stale (its slot's generation
 // moved on) and never matches; a slot's list is cleared when a new vertex
 // takes the slot, a full slot drops its stale entries before its list
 // spills out of it, and a long list drops them before it grows,
@@ -95,7 +94,7 @@ class Neighbors {
   // How many neighbours slot `s` lists, stale ones included (for tests).
   uint32_t listed(uint32_t s) const { return s < slots_.size() ? slots_[s].count : 0; }
   // Whether an edge joins the vertices now in slots a and b.
-  bool contains(uint32_t a, uint32_t b) const {
+  __attribute__((always_inline)) bool contains(uint32_t a, uint32_t b) const {
     // Scan the shorter list for the other vertex as it is now.
     if (slots_[b].count < slots_[a].count) std::swap(a, b);
     const Slot& va = slots_[a];
@@ -118,6 +117,7 @@ class Neighbors {
   static constexpr uint32_t kInline = 7;
 
   struct Slot {
+    Slot() {}  // not zero-filled as it would be without: e[] is read below count only
     uint32_t gen = 0;    // bumped when a new vertex takes the slot
     uint32_t count = 0;  // neighbours listed
     uint64_t e[kInline];  // the first ones: slot << 32 | that slot's generation then

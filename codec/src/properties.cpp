@@ -160,13 +160,9 @@ void PropertyUnpacker::next(std::vector<Column>& cols, uint64_t n, uint64_t* i, 
   for (Column& c : cols) {
     const size_t s = static_cast<size_t>(scalar_size(c.prop.type));
     if (!c.prop.is_list) {
-      if (s == 1) {
-        out->push_back(get_value(c.prop.type, raw_.data() + c.begin + *i));
-      } else {
-        uint8_t b[8];
-        for (size_t j = 0; j < s; ++j) b[j] = raw_[c.begin + j * n + *i];
-        out->push_back(get_value(c.prop.type, b));
-      }
+      uint8_t b[8];  // spec 8.1: byte j of the value from byte plane j
+      for (size_t j = 0; j < s; ++j) b[j] = raw_[c.begin + j * n + *i];
+      out->push_back(get_value(c.prop.type, b));
       continue;
     }
     double count = get_value(c.prop.count_type, raw_.data() + c.cursor);

@@ -30,6 +30,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "coding.h"  // ArrayStack
 #include "psq/psq_memory.h"  // DefaultInitAllocator
 
 namespace psq {
@@ -123,11 +124,6 @@ struct RansSymbol {
 // `ntables`: how many tables there are (every symbol's table is below it).
 void rans_encode(const RansSymbol* symbols, size_t count, const RansTable* tables, size_t ntables,
                  std::vector<uint8_t>* out);
-inline void rans_encode(const std::vector<RansSymbol>& symbols, const RansTable* tables, std::vector<uint8_t>* out) {
-  size_t ntables = 0;
-  for (const RansSymbol& s : symbols) ntables = std::max<size_t>(ntables, s.table + size_t{1});
-  rans_encode(symbols.data(), symbols.size(), tables, ntables, out);
-}
 
 // A section of three blocks (spec 13.2.2 for records, 8.3 for
 // attributes): the sizes of the table block and of the rANS block as
@@ -154,31 +150,8 @@ void put_rans_section(const std::vector<uint8_t>& tables, const std::vector<uint
 // multiplication", 1994, theorem 4.2: m f lies in [2^42, 2^42 + f), within [2^42, 2^42 + 2^10)).
 inline uint64_t rans_reciprocal(uint32_t f) { return ((uint64_t{1} << 42) + f - 1) / f; }
 
-// The symbols of the chunk an encoder has open, in order: a plain array and
-// a count, so that appending one stays inline in the encoder (a
-// std::vector's push_back would be a call per symbol).
-class RansSymbols {
- public:
-  __attribute__((always_inline)) void push(RansSymbol s) {
-    if (n_ == v_.size()) grow();
-    v_[n_++] = s;
-  }
-  size_t size() const { return n_; }
-  const RansSymbol* data() const { return v_.data(); }
-  const RansSymbol* begin() const { return v_.data(); }
-  const RansSymbol* end() const { return v_.data() + n_; }
-  void clear() { n_ = 0; }
-  // Room for n symbols without moving them (address space: pages are
-  // touched as symbols arrive).
-  void reserve(size_t n) { v_.reserve(n); }
-
- private:
-  // Up to the capacity reserved, else twice as many.
-  __attribute__((noinline)) void grow() { v_.resize(std::max(v_.capacity(), 2 * v_.size() + 4096)); }
-  // Grown without zeroing: every element is written before it is read.
-  std::vector<RansSymbol, DefaultInitAllocator<RansSymbol>> v_;
-  size_t n_ = 0;
-};
+// The symbols of the chunk an encoder has open, in order.
+using RansSymbols = ArrayStack<RansSymbol, 4096>;
 
 class RansDecoder {
  public:

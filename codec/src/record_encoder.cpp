@@ -126,9 +126,6 @@ PSQ_INLINE void PsqEncoder::Impl::fast_put(int table, int symbol) {
   fast_symbols.push(RansSymbol{static_cast<uint16_t>(table), static_cast<uint8_t>(symbol)});
   const size_t at = static_cast<size_t>(table) * 128 + static_cast<size_t>(symbol);
   ++fast_count[at];
-  // fast_cost()'s logarithms are kept up to date here, not computed per
-  // price (choosing a prediction prices up to five candidates), for the
-  // tables that it prices: the choices and the residual lengths.
   if (!fast_choices) return;  // nothing to price (spec 13.8.2)
   fast_denominator[table] += 2;
   if (table >= kFastTableChoice && table < kFastTableDistance) {
@@ -138,11 +135,8 @@ PSQ_INLINE void PsqEncoder::Impl::fast_put(int table, int symbol) {
 }
 
 PSQ_INLINE int64_t PsqEncoder::Impl::fast_cost(int table, int symbol) const {
-  // The symbol's cost under the running counts, with half a count for
-  // every symbol of the alphabet so that unseen symbols cost finitely
-  // (counts doubled to stay integers), in 1/65536 bits: the log2 of the
-  // denominator minus that of 2 * count + 1. Only the priced tables keep
-  // their logarithms (fast_put).
+  // Half a count for every symbol of the alphabet (encoder_impl.h), so
+  // that unseen symbols cost finitely.
   assert(table >= kFastTableChoice && table < kFastTableDistance);
   return int64_t{fast_log_denominator[table]} -
          fast_log_count[static_cast<size_t>(table) * 128 + static_cast<size_t>(symbol)];
@@ -268,20 +262,17 @@ void PsqEncoder::Impl::note_input_edge_grow(uint32_t in, uint32_t slot) {
   by_ineslot[in] = slot;
 }
 
-void PsqEncoder::Impl::note_input_edges(const SequenceTriangle& t, int rot, const uint32_t eslot[3],
-                                        const EdgeState state[3]) {
-  for (int k = 0; k < 3; ++k)
-    if (state[k] == EdgeState::kEnters) note_input_edge(t.eslot[(rot + k) % 3], eslot[k]);
+PSQ_INLINE void PsqEncoder::Impl::put_gate(int cls, int rank, uint32_t gate, int third, int e1, int e2) {
+  if (cls == kFastGateFar) fast_put(kFastTableRank + (boundary.reference() == kNone ? 1 : 0), rank);
+  const BEdge& g = boundary.edge(gate);
+  fast_put(fast_b_table(third_context(boundary.vertex(g.org).degree, boundary.vertex(g.dst).degree),
+                        rans ? 0 : shape_context(boundary, gate)),
+           fast_b_symbol(third, e1, e2));
+  fast_context = fast_a_context_gate(cls, third);
 }
 
 void PsqEncoder::Impl::gate_vertex(const PendingVertex& v, uint32_t gate, bool choices) {
   Prediction pr;
-  // With the rANS back-end, a quantized stream predicts across the gate
-  // (spec 13.8.2): the choices save few bytes on large meshes, but take a
-  // large share of the encoder's work to choose and of the decoder's time
-  // to follow. Lossless streams, which they make much smaller, and the
-  // adaptive back-end, which is for the smallest files, code them
-  // (fast_codes_choices()).
   const uint32_t mask = choices && fast_choices ? prediction_choices(boundary, gate) : 0;
   if (mask != 0) {
     const int choice = choose_prediction(gate, mask, v.pos, &pr);
@@ -293,6 +284,60 @@ void PsqEncoder::Impl::gate_vertex(const PendingVertex& v, uint32_t gate, bool c
     ++stats.predictions[kChoiceGate];
   }
   fast_vertex(v, pr.pos, pr.kind, pr.extent);
+}
+
+PSQ_INLINE Status PsqEncoder::Impl::end_triangle(const uint32_t corner[3], uint32_t final, const PropertyValues& face) {
+  pending.clear();
+  for (int k = 0; k < 3; ++k)
+    if (final >> k & 1) {
+      const BVertex& v = boundary.vertex(corner[k]);
+      expect_final.push_back(v.key);
+      if (!slot_of.empty()) slot_of.erase(v.key);
+      boundary.free_vertex(corner[k]);
+    }
+  if (!props->add_face(face))
+    return Status(ErrorCode::kBadValue, "face property values do not match the schema or their types");
+  ++stats.triangles;
+  ++chunk_triangles;
+  return after_record();
+}
+
+Status PsqEncoder::Impl::close_triangle(const SequenceTriangle& t, BTriangle& bt, int nnew) {
+  int completed = 0;
+  for (int k = 0; k < 3; ++k) completed += bt.state[k] == EdgeState::kCompletes;
+  Op op = nnew == 3 ? Op::kStart
+          : completed == 1 ? (nnew == 1 ? Op::kAdd : Op::kJoin)
+          : completed == 2 ? Op::kFill
+                           : Op::kEnd;
+  if ((nnew == 1 && completed != 1) || (nnew == 3 && completed != 0))
+    return bad_sequence("triangle is no valid op");
+  if (op != t.op)
+    return bad_sequence(std::string("triangle claims op ") + op_name(t.op) + " but is " + op_name(op));
+  if (!boundary.apply(bt)) return boundary_full("open edges");
+  // Spec 13.6.2: entering edges join the ring, in edge order; every edge
+  // that completes none is new to `used`.
+  uint8_t fresh = 0, entering = 0, final = 0;
+  for (int k = 0; k < 3; ++k) {
+    if (bt.state[k] == EdgeState::kEnters) ring.push(boundary, bt.eslot[k]);
+    if (bt.state[k] != EdgeState::kCompletes) used.insert(bt.c[k], bt.c[k == 2 ? 0 : k + 1]);
+    fresh |= static_cast<uint8_t>(bt.is_new[k] << k);
+    entering |= static_cast<uint8_t>((bt.state[k] == EdgeState::kEnters) << k);
+    final |= static_cast<uint8_t>(bt.final[k] << k);
+  }
+  if (!attrs->empty()) {
+    if (attrs->corner_dims() > 0) {
+      // Spec 8.5: the corners' values, in the record's corner order.
+      PSQ_RETURN_IF_ERROR(attrs->split_face(t.values, stats.triangles, &attr_columns, attr_face_q.data()));
+      const size_t cd = static_cast<size_t>(attrs->corner_dims());
+      for (int k = 0; k < 3; ++k)
+        for (int j = 0; j < 3; ++j)
+          if (out_index_of(t.v[j]) == boundary.vertex(bt.c[k]).index)
+            std::copy(&attr_face_q[j * cd], &attr_face_q[j * cd] + cd, &attr_cq[k * cd]);
+      attr_rec.corners = attr_cq.data();
+    }
+    code_attributes(bt.c, bt.eslot, fresh, entering, final);
+  }
+  return end_triangle(bt.c, final, attrs->corner_dims() > 0 ? attr_columns : t.values);
 }
 
 Status PsqEncoder::Impl::code_triangle(const SequenceTriangle& t, const int pend[3], const uint32_t slots_in[3],
@@ -321,7 +366,7 @@ Status PsqEncoder::Impl::code_triangle(const SequenceTriangle& t, const int pend
   }
   bt.gate = gate;
   const int r = (3 - rot) % 3;  // spec 6.2.3
-  if (!boundary.find_completions(bt))
+  if (!boundary.find_completions(bt, used))
     return bad_sequence("triangle " + std::to_string(t.v[0]) + " " + std::to_string(t.v[1]) + " " +
                         std::to_string(t.v[2]) + " uses a directed edge already on the boundary, or a border edge");
   for (int k = 0; k < 3; ++k)
@@ -393,16 +438,11 @@ Status PsqEncoder::Impl::code_triangle(const SequenceTriangle& t, const int pend
     }
     fast_context = kFastAContexts - 1;
   } else {
-    if (cls == kFastGateFar) fast_put(kFastTableRank + (boundary.reference() == kNone ? 1 : 0), rank);
-    const BEdge& g = boundary.edge(gate);
-    fast_put(fast_b_table(third_context(boundary.vertex(g.org).degree, boundary.vertex(g.dst).degree),
-                          rans ? 0 : shape_context(boundary, gate)),
-             fast_b_symbol(third, e[1], e[2]));
+    put_gate(cls, rank, gate, third, e[1], e[2]);
     if (third == kFastJoin) {
       fast_raw.put(join, sbits);
       fast_raw.put(static_cast<uint32_t>(join_side), 1);
     }
-    fast_context = fast_a_context_gate(cls, third);
   }
   if (nnew == 1) intro[nintro++] = 2;
   if (header.rotation) fast_put(kFastTableRotation, r);
@@ -426,10 +466,10 @@ Status PsqEncoder::Impl::code_triangle(const SequenceTriangle& t, const int pend
     }
     PSQ_RETURN_IF_ERROR(register_vertex(v, &bt.c[k]));
   }
-  ++stats.gates[cls == kFastStart ? 3 : cls == kFastGateR ? 0 : cls == kFastEscape || cls == kFastGateFar ? 2 : 1];
-  if (cls == kFastGateFar || cls == kFastEscape) ++stats.far_gates[cls == kFastGateFar ? 0 : 1];
+  count_gate(cls);
   PSQ_RETURN_IF_ERROR(close_triangle(t, bt, nnew));
-  note_input_edges(t, rot, bt.eslot, bt.state);
+  for (int k = 0; k < 3; ++k)
+    if (bt.state[k] == EdgeState::kEnters) note_input_edge(t.eslot[(rot + k) % 3], bt.eslot[k]);
   return Status();
 }
 
@@ -448,11 +488,8 @@ bool PsqEncoder::Impl::fast_direct(const SequenceTriangle& t, Status* status) {
       slots[k] = kNone;
       continue;
     }
-    const uint32_t hint = t.vslot[k];
-    if (hint >= by_inslot.size()) return false;
-    const uint32_t s = by_inslot[hint];
-    if (s == kNone || !boundary.vertex_live(s) || boundary.vertex(s).key != t.v[k]) return false;
-    slots[k] = s;
+    slots[k] = slot_by_hint(t.vslot[k], t.v[k]);
+    if (slots[k] == kNone) return false;
   }
   if (np == 1 && (j < 0 || pending[0].reappears != kNoVertex)) return false;
   // The open edge that input edge k (corner k to k + 1) completes, by the
@@ -483,7 +520,7 @@ bool PsqEncoder::Impl::fast_direct(const SequenceTriangle& t, Status* status) {
     }
     if (open_k < 0) return false;
     const uint32_t a = slots[open_k], b = slots[open_k == 2 ? 0 : open_k + 1];
-    if (!boundary.edge_is_new(a, b)) return false;
+    if (used.contains(a, b)) return false;  // not new: open or dead
   }
   int rot = 0, rank = -1;
   const int cls = gate_class(cand, &rot, &rank);
@@ -503,77 +540,50 @@ bool PsqEncoder::Impl::fast_direct(const SequenceTriangle& t, Status* status) {
 
   // The record (spec 13.7.3), as code_triangle() codes it.
   fast_put(kFastTableA + fast_context, cls);
-  if (cls == kFastGateFar) fast_put(kFastTableRank + (boundary.reference() == kNone ? 1 : 0), rank);
-  fast_put(fast_b_table(third_context(boundary.vertex(p).degree, boundary.vertex(q).degree),
-                        rans ? 0 : shape_context(boundary, gate)),
-           fast_b_symbol(third, kFastEnters, kFastEnters));
-  fast_context = fast_a_context_gate(cls, third);
-  const int gate_stat = cls == kFastGateR ? 0 : cls == kFastGateFar ? 2 : 1;
+  put_gate(cls, rank, gate, third, kFastEnters, kFastEnters);
+  count_gate(cls);
+  uint32_t corner[3] = {q, p, slots[in2]};  // an add's x: once registered
+  uint32_t final = 0;
   if (np == 1) {
     PendingVertex& v = pending[0];
     Status s = introduce(v);
     if (!s.ok()) return *status = std::move(s), true;
     v.coded = true;
     gate_vertex(v, gate, true);
-    uint32_t x;
-    Status r = register_vertex(v, &x);
+    Status r = register_vertex(v, &corner[2]);
     if (!r.ok()) return *status = std::move(r), true;
-    ++stats.gates[gate_stat];  // where code_triangle() counts it
+    const uint32_t x = corner[2];
     const uint32_t f1 = boundary.lean_add(gate, x);
-    if (f1 == kNone) {
-      *status = Status(ErrorCode::kLimit, "more than " + std::to_string(opt.boundary_limit) +
-                                              " open edges (the boundary limit)");
-      return true;
-    }
+    if (f1 == kNone) return *status = boundary_full("open edges"), true;
     const uint32_t f2 = boundary.edge(f1).next;
+    used.insert(p, x);
+    used.insert(x, q);
     ring.push(boundary, f1);
     ring.push(boundary, f2);
     note_input_edge(t.eslot[in1], f1);
     note_input_edge(t.eslot[in2], f2);
-    const uint32_t corner[3] = {q, p, x}, eslot[3] = {gate, f1, f2};
+    const uint32_t eslot[3] = {gate, f1, f2};
     code_attributes(corner, eslot, 4, 6);
   } else {
     const bool left = third == kFastLeft;
-    const uint32_t x = slots[in2];
-    uint32_t final;
-    ++stats.gates[gate_stat];
     const uint32_t f = boundary.lean_fill(gate, left, &final);
-    if (f == kNone) {
-      *status = Status(ErrorCode::kLimit, "more than " + std::to_string(opt.boundary_limit) +
-                                              " open edges (the boundary limit)");
-      return true;
-    }
+    if (f == kNone) return *status = boundary_full("open edges"), true;
     ring.push(boundary, f);
+    used.insert(boundary.edge(f).org, boundary.edge(f).dst);
     note_input_edge(t.eslot[left ? in2 : in1], f);
-    // Spec 6.4: finalized in canonical corner order (close_triangle()).
-    const uint32_t corner[3] = {q, p, x};
     if (!attrs->empty()) {
       const int enters = left ? 2 : 1;
       uint32_t eslot[3] = {gate, gate, gate};  // only the entering edge's slot is used
       eslot[enters] = f;
       code_attributes(corner, eslot, 0, static_cast<uint8_t>(1 << enters), static_cast<uint8_t>(final));
     }
-    for (int k = 0; k < 3; ++k)
-      if (final >> k & 1) {
-        const BVertex& v = boundary.vertex(corner[k]);
-        expect_final.push_back(v.key);
-        if (!slot_of.empty()) slot_of.erase(v.key);
-        boundary.free_vertex(corner[k]);
-      }
   }
-  pending.clear();
-  if (!props->add_face(t.values)) {
-    *status = Status(ErrorCode::kBadValue, "face property values do not match the schema or their types");
-    return true;
-  }
-  ++stats.triangles;
-  ++chunk_triangles;
-  Status s = after_record();
+  Status s = end_triangle(corner, final, t.values);
   if (!s.ok()) *status = std::move(s);
   return true;
 }
 
-Status PsqEncoder::Impl::code_isolated(PendingVertex& v) {
+void PsqEncoder::Impl::code_isolated(PendingVertex& v) {
   fast_put(kFastTableA + fast_context, kFastIsolated);
   fast_context = kFastAContexts - 2;
   // An isolated vertex re-appears only in sequences not written by psq's
@@ -585,7 +595,6 @@ Status PsqEncoder::Impl::code_isolated(PendingVertex& v) {
   const int no_extent[3] = {0, 0, 0};
   fast_vertex(v, last_pos, kPredOther, no_extent);
   ++stats.gates[3];
-  return Status();
 }
 
 void PsqEncoder::Impl::record_section(std::vector<uint8_t>* section) {
@@ -604,13 +613,13 @@ void PsqEncoder::Impl::record_section(std::vector<uint8_t>* section) {
       fast_chunk_base[at] = fast_count[at];
     }
   }
+  std::vector<uint8_t> coded, table_bytes;  // the range coder's bytes, or the rANS block and its tables
   if (!rans) {
     // The adaptive back-end: the symbols in order, each through its
     // table's bit-tree, the models fresh for the chunk.
     std::vector<SymbolModel> models;
     reset_adaptive_models(&models);
-    std::vector<uint8_t> range_bytes;
-    RangeEncoder enc(&range_bytes);
+    RangeEncoder enc(&coded);
     for (const RansSymbol& sym : fast_symbols) {
       SymbolModel& m = models[sym.table];
       if (opt.measure_costs) {
@@ -628,49 +637,47 @@ void PsqEncoder::Impl::record_section(std::vector<uint8_t>* section) {
       }
     }
     enc.finish();
-    if (opt.measure_costs) {
-      cost[kCostGeometry] += static_cast<double>(fast_raw_geometry);
-      cost[kCostConnectivity] += static_cast<double>(fast_raw.bits() - fast_raw_geometry);
+  } else {
+    std::vector<RansTable> tables(kFastTables);
+    RawWriter tw;
+    for (int i = 0; i < kFastTables; ++i) {
+      bool present = false;
+      for (uint64_t c : counts[i]) present = present || c != 0;
+      tw.put(present, 1);
+      if (present) tables[i].build(counts[i].data(), fast_table_size(i));
     }
-    fast_raw_geometry = 0;
-    const std::vector<uint8_t> raw_bytes = fast_raw.finish();
-    Put put(section);
-    put.varint(range_bytes.size());
-    put.bytes(range_bytes.data(), range_bytes.size());
-    put.bytes(raw_bytes.data(), raw_bytes.size());
-    fast_symbols.clear();
-    return;
+    if (opt.measure_costs) cost[kCostConnectivity] += kFastTables;  // the presence bits
+    for (int i = 0; i < kFastTables; ++i) {
+      if (tables[i].empty()) continue;
+      const uint64_t before = tw.bits();
+      tables[i].write(tw);
+      if (opt.measure_costs) cost[fast_table_cost(i)] += static_cast<double>(tw.bits() - before);
+    }
+    if (opt.measure_costs) {
+      // Each symbol's information content under its table.
+      for (const RansSymbol& s : fast_symbols)
+        cost[fast_table_cost(s.table)] += kRansScaleBits - std::log2(tables[s.table].freq(s.symbol));
+    }
+    table_bytes = tw.finish();
+    rans_encode(fast_symbols.data(), fast_symbols.size(), tables.data(), tables.size(), &coded);
   }
-  std::vector<RansTable> tables(kFastTables);
-  RawWriter tw;
-  for (int i = 0; i < kFastTables; ++i) {
-    bool present = false;
-    for (uint64_t c : counts[i]) present = present || c != 0;
-    tw.put(present, 1);
-    if (present) tables[i].build(counts[i].data(), fast_table_size(i));
-  }
-  if (opt.measure_costs) cost[kCostConnectivity] += kFastTables;  // the presence bits
-  for (int i = 0; i < kFastTables; ++i) {
-    if (tables[i].empty()) continue;
-    const uint64_t before = tw.bits();
-    tables[i].write(tw);
-    if (opt.measure_costs) cost[fast_table_cost(i)] += static_cast<double>(tw.bits() - before);
-  }
+  fast_symbols.clear();
   if (opt.measure_costs) {
-    // Each symbol's information content under its table; the raw bits of
-    // positions are geometry, the other raw bits connectivity.
-    for (const RansSymbol& s : fast_symbols)
-      cost[fast_table_cost(s.table)] += kRansScaleBits - std::log2(tables[s.table].freq(s.symbol));
+    // The raw bits of positions are geometry, the other raw bits connectivity.
     cost[kCostGeometry] += static_cast<double>(fast_raw_geometry);
     cost[kCostConnectivity] += static_cast<double>(fast_raw.bits() - fast_raw_geometry);
   }
   fast_raw_geometry = 0;
-  const std::vector<uint8_t> table_bytes = tw.finish();
-  std::vector<uint8_t> rans_bytes;
-  rans_encode(fast_symbols.data(), fast_symbols.size(), tables.data(), tables.size(), &rans_bytes);
-  put_rans_section(table_bytes, rans_bytes, fast_raw.finish(), section);
-  fast_symbols.clear();
-  // (finish() started fast_raw over, keeping its array.)
+  // (finish() starts fast_raw over, keeping its array.)
+  const std::vector<uint8_t> raw_bytes = fast_raw.finish();
+  if (rans) {
+    put_rans_section(table_bytes, coded, raw_bytes, section);
+    return;
+  }
+  Put put(section);
+  put.varint(coded.size());
+  put.bytes(coded.data(), coded.size());
+  put.bytes(raw_bytes.data(), raw_bytes.size());
 }
 
 }  // namespace psq

@@ -175,9 +175,11 @@ inline int fast_length_table(int kind, int axis, int context) {
   return kFastTableLength + (kind * 2 + (axis == 0 ? 0 : 1)) * kLengthContexts + context;
 }
 // Whether a stream's gate records code a prediction choice (spec
-// 13.8.2): with the adaptive back-end, and in a lossless stream; a
-// quantized stream with the rANS back-end predicts across the gate, which
-// spares a symbol per vertex where decoding speed matters most.
+// 13.8.2): with the adaptive back-end, which is for the smallest files,
+// and in a lossless stream, which they make much smaller. A quantized
+// stream with the rANS back-end predicts across the gate: there the
+// choices save few bytes on large meshes, but take a large share of the
+// encoder's work and a symbol per vertex where decoding speed matters most.
 inline bool fast_codes_choices(bool lossless, bool rans) { return lossless || !rans; }
 inline int fast_choice_table(uint32_t mask, int previous) {
   return kFastTableChoice + (static_cast<int>(mask) - 1) * kChoices + previous;

@@ -16,10 +16,6 @@ namespace {
 
 uint64_t zigzag(int64_t v) { return (static_cast<uint64_t>(v) << 1) ^ static_cast<uint64_t>(v >> 63); }
 int64_t unzigzag(uint64_t u) { return static_cast<int64_t>(u >> 1) ^ -static_cast<int64_t>(u & 1); }
-// a - b and a + b on coordinates, modulo 2^64: lossless coordinates use
-// all 64 bits.
-int64_t minus(int64_t a, int64_t b) { return static_cast<int64_t>(static_cast<uint64_t>(a) - static_cast<uint64_t>(b)); }
-int64_t plus(int64_t a, int64_t b) { return static_cast<int64_t>(static_cast<uint64_t>(a) + static_cast<uint64_t>(b)); }
 
 // Spec 4.6: how the state names an edge's endpoint and its opposite vertex.
 enum : uint64_t {
@@ -34,10 +30,11 @@ enum : uint64_t {
                      // parallelogram across it predict that midpoint (7.3)
 };
 
-// floor((a + b) / 2) per coordinate, without overflow.
 void midpoint(const int64_t a[3], const int64_t b[3], int64_t out[3]) {
-  for (int i = 0; i < 3; ++i) out[i] = (a[i] >> 1) + (b[i] >> 1) + (a[i] & b[i] & 1);
+  for (int i = 0; i < 3; ++i) out[i] = codec::midpoint(a[i], b[i]);
 }
+
+bool same_position(const int64_t a[3], const int64_t b[3]) { return a[0] == b[0] && a[1] == b[1] && a[2] == b[2]; }
 
 // The edge before edge `e` and after it in its loop (kNone at a chain's
 // ends), for edges in canonical order with the loops' first edges.
@@ -58,9 +55,13 @@ struct LoopLinks {
       first += l.first;
     }
   }
+  // How the state names edge k's opposite vertex `opp` (spec 4.6).
+  uint64_t opp_code(const SegmentState& s, uint32_t k, const int64_t opp[3]) const {
+    if (before[k] != kNone && same_position(opp, s.vertex[s.edge[before[k]].org].pos)) return kOppBefore;
+    if (after[k] != kNone && same_position(opp, s.vertex[s.edge[after[k]].dst].pos)) return kOppAfter;
+    return kOppMidpoint;
+  }
 };
-
-bool same_position(const int64_t a[3], const int64_t b[3]) { return a[0] == b[0] && a[1] == b[1] && a[2] == b[2]; }
 
 }  // namespace
 
@@ -135,9 +136,7 @@ void capture_boundary(const BasicBoundary<L>& b, SegmentState* s) {
   const LoopLinks links(*s);
   for (uint32_t k = 0; k < s->edge.size(); ++k) {
     SegmentState::Edge& x = s->edge[k];
-    if (!(links.before[k] != kNone && same_position(x.opp, s->vertex[s->edge[links.before[k]].org].pos)) &&
-        !(links.after[k] != kNone && same_position(x.opp, s->vertex[s->edge[links.after[k]].dst].pos)))
-      midpoint(s->vertex[x.org].pos, s->vertex[x.dst].pos, x.opp);
+    if (links.opp_code(*s, k, x.opp) == kOppMidpoint) midpoint(s->vertex[x.org].pos, s->vertex[x.dst].pos, x.opp);
   }
 }
 template void capture_boundary(const BasicBoundary<true>&, SegmentState*);
@@ -165,7 +164,8 @@ void finish_dead(SegmentState* s, std::vector<std::pair<uint32_t, uint32_t>>* by
 }
 }  // namespace
 
-void capture_dead(const BasicBoundary<false>& b, const Neighbors& n, SegmentState* s) {
+template <bool L>
+void capture_dead(const BasicBoundary<L>& b, const Neighbors& n, SegmentState* s) {
   std::vector<std::pair<uint32_t, uint32_t>> old;
   for (const SegmentState::Vertex& x : s->vertex)
     n.for_each_current(x.slot, [&](uint32_t w) {
@@ -173,15 +173,8 @@ void capture_dead(const BasicBoundary<false>& b, const Neighbors& n, SegmentStat
     });
   finish_dead(s, &old);
 }
-
-void capture_dead(const BasicBoundary<true>& b, SegmentState* s) {
-  std::vector<std::pair<uint32_t, uint32_t>> old;
-  for (const SegmentState::Vertex& x : s->vertex)
-    b.for_each_dead(x.slot, [&](uint32_t w) {
-      if (w > x.slot) old.emplace_back(x.slot, w);
-    });
-  finish_dead(s, &old);
-}
+template void capture_dead(const BasicBoundary<true>&, const Neighbors&, SegmentState*);
+template void capture_dead(const BasicBoundary<false>&, const Neighbors&, SegmentState*);
 
 void capture_attributes(AttributeCoder& a, SegmentState* s) {
   const int d = a.dims();
@@ -201,13 +194,9 @@ void capture_attributes(AttributeCoder& a, SegmentState* s) {
 void serialize_state(const SegmentState& s, int dims, std::vector<uint8_t>* out) {
   out->clear();
   Put put(out);
-  put.varint(s.records);
-  put.varint(s.vertices);
-  put.varint(s.triangles);
-  put.varint(s.entered);
-  put.varint(s.reference == kNone ? 0 : uint64_t{s.reference} + 1);
-  put.varint(s.context);
-  put.varint(s.choice);
+  const uint64_t head[] = {s.records, s.vertices, s.triangles, s.entered,
+                           s.reference == kNone ? 0 : uint64_t{s.reference} + 1, s.context, s.choice};
+  for (uint64_t v : head) put.varint(v);
   for (int i = 0; i < 3; ++i) put.varint(zigzag(s.last[i]));
   // A new vertex's fields: its index and position from the previous new
   // vertex's, its degree.
@@ -217,7 +206,7 @@ void serialize_state(const SegmentState& s, int dims, std::vector<uint8_t>* out)
     const SegmentState::Vertex& x = s.vertex[v];
     put.varint(zigzag(static_cast<int64_t>(x.index) - prev_index));
     put.varint(x.degree);
-    for (int i = 0; i < 3; ++i) put.varint(zigzag(minus(x.pos[i], prev_pos[i])));
+    for (int i = 0; i < 3; ++i) put.varint(zigzag(wrap_sub(x.pos[i], prev_pos[i])));
     prev_index = x.index;
     std::copy(x.pos, x.pos + 3, prev_pos);
     ++numbered;
@@ -247,16 +236,7 @@ void serialize_state(const SegmentState& s, int dims, std::vector<uint8_t>* out)
   put.varint(s.vertex.size() - numbered);
   while (numbered < s.vertex.size()) vertex(numbered);
   const LoopLinks links(s);
-  for (uint32_t k = 0; k < s.edge.size(); ++k) {
-    const SegmentState::Edge& x = s.edge[k];
-    if (links.before[k] != kNone && same_position(x.opp, s.vertex[s.edge[links.before[k]].org].pos)) {
-      put.varint(kOppBefore);
-    } else if (links.after[k] != kNone && same_position(x.opp, s.vertex[s.edge[links.after[k]].dst].pos)) {
-      put.varint(kOppAfter);
-    } else {
-      put.varint(kOppMidpoint);
-    }
-  }
+  for (uint32_t k = 0; k < s.edge.size(); ++k) put.varint(links.opp_code(s, k, s.edge[k].opp));
   put.varint(s.dead.size());
   uint32_t prev_a = 0;
   for (const auto& d : s.dead) {
@@ -277,12 +257,8 @@ const char* parse_state(const uint8_t* p, size_t n, uint32_t limit, int dims, in
   Get get(p, n);
   *s = SegmentState();
   auto ok = [&] { return !get.malformed() && !get.short_read(); };
-  s->records = get.varint();
-  s->vertices = get.varint();
-  s->triangles = get.varint();
-  s->entered = get.varint();
-  const uint64_t ref = get.varint();
-  const uint64_t ctx = get.varint(), choice = get.varint();
+  uint64_t ref, ctx, choice;
+  for (uint64_t* v : {&s->records, &s->vertices, &s->triangles, &s->entered, &ref, &ctx, &choice}) *v = get.varint();
   for (int i = 0; i < 3; ++i) s->last[i] = unzigzag(get.varint());
   if (!ok()) return kShort;
   if (s->vertices > 0xffffffffu) return "vertex count beyond 2^32 - 1";
@@ -297,9 +273,9 @@ const char* parse_state(const uint8_t* p, size_t n, uint32_t limit, int dims, in
   auto vertex = [&]() -> const char* {
     if (s->vertex.size() >= limit) return "more active vertices than the boundary limit";
     SegmentState::Vertex v;
-    const int64_t index = plus(prev_index, unzigzag(get.varint()));
+    const int64_t index = wrap_add(prev_index, unzigzag(get.varint()));
     const uint64_t degree = get.varint();
-    for (int i = 0; i < 3; ++i) v.pos[i] = plus(prev_pos[i], unzigzag(get.varint()));
+    for (int i = 0; i < 3; ++i) v.pos[i] = wrap_add(prev_pos[i], unzigzag(get.varint()));
     if (!ok()) return kShort;
     if (index < 0 || static_cast<uint64_t>(index) >= s->vertices) return "active vertex index beyond the vertices so far";
     if (degree > 0xffffffffu) return "vertex degree out of range";
@@ -421,12 +397,9 @@ void load_state(const SegmentState& s, BasicBoundary<L>* b, Neighbors* n, FastRi
     next.push_back(e.next);
   }
   b->load_end(next.data(), s.entered, s.reference);
-  for (const auto& d : s.dead) b->load_dead(d.first, d.second);
-  if (n) {
-    for (uint32_t i = 0; i < s.vertex.size(); ++i) n->vertex_begins(i);
-    for (const SegmentState::Edge& e : s.edge) n->insert(e.org, e.dst);
-    for (const auto& d : s.dead) n->insert(d.first, d.second);
-  }
+  for (uint32_t i = 0; i < s.vertex.size(); ++i) n->vertex_begins(i);
+  for (const SegmentState::Edge& e : s.edge) n->insert(e.org, e.dst);
+  for (const auto& d : s.dead) n->insert(d.first, d.second);
   ring->rebuild(*b);
   const size_t d = a ? static_cast<size_t>(a->dims()) : 0;
   if (d > 0) {

@@ -77,11 +77,10 @@ struct SegmentState {
 // the keys), in canonical order.
 template <bool L>
 void capture_boundary(const BasicBoundary<L>& b, SegmentState* s);
-// The dead pairs, after capture_boundary(): the decoder's are its
-// neighbour pairs that are no open edge; the encoder's come from its
-// boundary's lookups. The two agree on every stream (spec 13.6.3).
-void capture_dead(const BasicBoundary<false>& b, const Neighbors& n, SegmentState* s);
-void capture_dead(const BasicBoundary<true>& b, SegmentState* s);
+// The dead pairs, after capture_boundary(): the pairs of active vertices
+// that `n` lists and that are no open edge (spec 13.6.3).
+template <bool L>
+void capture_dead(const BasicBoundary<L>& b, const Neighbors& n, SegmentState* s);
 // The attributes' part, after capture_boundary().
 void capture_attributes(AttributeCoder& a, SegmentState* s);
 
@@ -95,9 +94,8 @@ void serialize_state(const SegmentState& s, int attr_dims, std::vector<uint8_t>*
 const char* parse_state(const uint8_t* p, size_t n, uint32_t limit, int attr_dims, int64_t lo, int64_t hi,
                         const AttributeCoder* attrs, SegmentState* s);
 
-// Loads a state into a fresh boundary and fresh neighbour lists (null:
-// none), the ring and the attributes' values (their models are the
-// caller's to restart).
+// Loads a state into a fresh boundary and fresh neighbour lists, the ring
+// and the attributes' values (their models are the caller's to restart).
 template <bool L>
 void load_state(const SegmentState& s, BasicBoundary<L>* b, Neighbors* n, FastRing* ring, AttributeCoder* a);
 

@@ -18,8 +18,6 @@
 #define PSQ_CODEC_SYMBOL_CODER_H_
 
 #include <cmath>
-#include <cstdlib>
-#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -52,9 +50,7 @@ inline void reset_adaptive_models(std::vector<SymbolModel>* models) {
   std::vector<uint64_t> leaf(128, 0);
   for (int t = kFastTableLength; t < kFastTableDistance; ++t) {
     const int c = (t - kFastTableLength) % kLengthContexts;
-    const int mu = 3 * c / 4;
-    for (int s = 0; s <= kFastLengthEscape; ++s)
-      leaf[s] = uint64_t{1} << (24 - std::min(24, std::abs(length_of_symbol(s) - mu)));
+    for (int s = 0; s <= kFastLengthEscape; ++s) leaf[s] = length_weight(length_of_symbol(s), c);
     init_tree((*models)[t], leaf);
   }
   // The record classes and B symbols start from their priors (13.2.1).
