@@ -49,6 +49,30 @@ inline bool checksum_ok(uint32_t stored, uint32_t computed) {
   return stored == computed;
 #endif
 }
+
+// What a segment decoded alone (PsqDecoder::start_segment()) leaves for a
+// caller that decodes every segment to check them together (parallel.cpp):
+// the state block it started from and the one its state serializes to at
+// its end, its checksum fields in order (4.5), and the end record's fields.
+struct AloneResult {
+  std::vector<uint8_t> start_state, end_state;
+  std::vector<uint8_t> chain_fields;  // the checksum fields it read (4 bytes each)
+  std::vector<uint8_t> end_bytes;     // the end record before its checksum
+  uint32_t end_checksum = 0;
+  uint64_t end_fields[5] = {0, 0, 0, 0, 0};
+  uint64_t end_index_at = 0;
+  bool reached_end = false;  // this segment is the last
+  uint64_t stopped_at = 0;   // the offset of the segment record it stopped at
+};
+
+// Spec 4.5: the end record's fields (vertices, triangles, chunks, the two
+// boundary maxima) and index offset against the stream's, which put its
+// index at `index_at`; kBadHeader at the end record's offset `at`.
+Status check_end(const uint64_t fields[5], uint64_t index_field, uint64_t index_at, const PsqStats& stats,
+                 uint64_t at);
+// kLimit when a position of a double stream became an infinity in the
+// arrays (decode_into(), decode_mesh_segments()).
+Status check_float_range(const PsqHeader& header, const MeshBuffers& mesh);
 }  // namespace codec
 
 struct PsqDecoder::Impl {
@@ -117,6 +141,11 @@ struct PsqDecoder::Impl {
     if (error.ok()) error = s;
     return error;
   }
+  // The error that stopped the decoder, or kUsage before open().
+  Status ready() {
+    if (!error.ok()) return error;
+    return opened ? Status() : fail(Status(ErrorCode::kUsage, "decoder not opened"));
+  }
   Status read(void* dst, size_t n) {
     Status s = in->read_exact(dst, n);
     if (!s.ok()) {
@@ -154,6 +183,19 @@ struct PsqDecoder::Impl {
     }
     return Status(ErrorCode::kBadHeader, "malformed varint", at);
   }
+  // Reads a checksum field (spec 4.5) and checks it against `crc`: "<what>
+  // checksum mismatch" at the field. `chain`: the field joins the stream
+  // checksum's chain (and, alone, the fields its caller chains).
+  Status read_checksum(uint32_t crc, const char* what, bool chain = true) {
+    uint8_t c[4];
+    const uint64_t at = in->offset();
+    PSQ_RETURN_IF_ERROR(read(c, 4));
+    if (!checksum_ok(Get(c, 4).u32(), crc)) return Status(ErrorCode::kChecksum, std::string(what) + " checksum mismatch", at);
+    if (!chain) return Status();
+    chain_crc = crc32c_update(chain_crc, c, 4);
+    if (alone) alone_result.chain_fields.insert(alone_result.chain_fields.end(), c, c + 4);
+    return Status();
+  }
   Status corrupt(const std::string& what) {
     const uint64_t at = conn_offset;
     return Status(ErrorCode::kBadValue, "record " + std::to_string(record_no) + ": " + what, at);
@@ -165,23 +207,13 @@ struct PsqDecoder::Impl {
   // (base_triangles); its stats count its own.
   uint64_t base_triangles = 0;
   uint64_t segment_next = 0;  // the triangle count where the next segment begins; 0: none
-  // The segment records seen: offsets and counts before each, for the index.
-  std::vector<uint64_t> seen_segment_at, seen_segment_vertices, seen_segment_triangles;
+  // The segment records seen, as the index lists them.
+  std::vector<PsqSegment> seen_segments;
   uint64_t index_at = 0;  // the index record's offset, once read
   // Decoding one segment alone (start_segment()): it ends at the next
-  // segment record or at the end record, with what a caller that decodes
-  // every segment needs to check them together (parallel.cpp): the state
-  // block it started from and the one its state serializes to at its end,
-  // its checksum fields in order (4.5), and the end record's fields.
+  // segment record or at the end record.
   bool alone = false;
-  std::vector<uint8_t> start_state, end_state;
-  std::vector<uint8_t> chain_fields;  // the checksum fields it read (4 bytes each)
-  std::vector<uint8_t> end_bytes;     // the end record before its checksum
-  uint32_t end_checksum = 0;
-  uint64_t end_fields[5] = {0, 0, 0, 0, 0};
-  uint64_t end_index_at = 0;
-  bool reached_end = false;   // alone: this segment is the last
-  uint64_t stopped_at = 0;    // alone: the offset of the segment record it stopped at
+  AloneResult alone_result;
   uint64_t triangles_so_far() const { return base_triangles + stats.triangles; }
   // The state now (segment.h), and serialized into `out`.
   void capture_state(SegmentState* st, std::vector<uint8_t>* out);
@@ -209,6 +241,10 @@ struct PsqDecoder::Impl {
   // starts here (`load`).
   Status read_segment(bool load);
   Status read_index();
+  // Spec 4.7: an index's n entries after its tag and count, whose bytes `f`
+  // holds: three varint deltas each, summed into `out`; then its checksum
+  // (read_checksum()).
+  Status read_index_entries(uint64_t n, std::vector<uint8_t>* f, std::vector<PsqSegment>* out, bool chain);
 
   Status open(InputStream* stream);
   Status next_chunk();
@@ -377,9 +413,6 @@ struct PsqDecoder::Impl {
   Status decode_range(MeshBuffers* mesh, size_t np_begin, size_t np_end, size_t ni_begin, size_t ni_end);
   // decode_into()'s and decode_range()'s loop.
   Status decode_loop();
-  // kLimit when a position of a double stream became an infinity in the
-  // arrays (decode_into(), decode_mesh_segments()).
-  static Status check_float_range(const PsqHeader& header, const MeshBuffers& mesh);
 
   // The records (record_decoder.cpp, spec section 13).
   bool fast_choices = false;  // gate records code a prediction choice (fast_codes_choices())
