@@ -11,11 +11,54 @@
 
 #include "decoder_impl.h"
 #include "geometry.h"
-#include "pages.h"
+
+#if defined(__linux__) && !defined(PSQ_NO_POPULATE)
+#include <errno.h>
+#include <sys/mman.h>
+#include <unistd.h>
+
+#include <atomic>
+#endif
 
 namespace psq {
 
 namespace {
+
+// Asks the kernel to back the whole pages within the `bytes` bytes at `p`
+// with memory now, writable, in one call (Linux's MADV_POPULATE_WRITE),
+// instead of one page fault at each page's first write. A hint: nothing
+// happens where the kernel lacks it (before Linux 5.14; after the first
+// refusal it is not asked again), on other systems, or when psq is built
+// with PSQ_NO_POPULATE defined (for sandboxes whose system call filter
+// kills a process on an advice it does not list); the memory's contents
+// are unchanged either way. Worth it only for memory about to be written
+// in full: decode_mesh()'s arrays, whose pages cost far less populated in
+// one call than faulted in one at a time (bench/HISTORY.md, "Arrays not
+// zeroed, pages populated").
+void populate_for_write(void* p, size_t bytes) {
+#if defined(__linux__) && !defined(PSQ_NO_POPULATE)
+#ifdef MADV_POPULATE_WRITE
+  constexpr int kPopulateWrite = MADV_POPULATE_WRITE;
+#else
+  constexpr int kPopulateWrite = 23;  // Linux's value, for C library headers that predate it
+#endif
+  // After a refusal that will not change (a kernel before 5.14: EINVAL; a
+  // sandbox that filters the call: ENOSYS or EPERM), no more calls.
+  static std::atomic<bool> refused{false};
+  if (refused.load(std::memory_order_relaxed)) return;
+  static const uintptr_t page = static_cast<uintptr_t>(sysconf(_SC_PAGESIZE));
+  if (page == 0 || (page & (page - 1)) != 0) return;
+  const uintptr_t begin = (reinterpret_cast<uintptr_t>(p) + page - 1) & ~(page - 1);
+  const uintptr_t end = (reinterpret_cast<uintptr_t>(p) + bytes) & ~(page - 1);
+  if (end <= begin) return;
+  if (madvise(reinterpret_cast<void*>(begin), end - begin, kPopulateWrite) != 0 &&
+      (errno == EINVAL || errno == ENOSYS || errno == EPERM))
+    refused.store(true, std::memory_order_relaxed);
+#else
+  (void)p;
+  (void)bytes;
+#endif
+}
 
 PSQ_INLINE uint64_t get_raw(RawReader& raw, int bits) {
   if (bits > 32) {
@@ -745,10 +788,6 @@ Status PsqDecoder::Impl::decode_record(int cls, uint32_t gate, int bsym) {
   return Status();
 }
 
-}  // namespace psq
-
-namespace psq {
-
 template <class D>
 Status PsqDecoder::Impl::direct_records() {
   FastBoundary& b = fboundary;
@@ -768,13 +807,14 @@ Status PsqDecoder::Impl::direct_records() {
   // size (2^20 coded bytes) about half a million triangles (a cap of half
   // a triangle per byte would make the arrays of most meshes grow once:
   // a copy and twice the pages).
-  // The room is populated at once (pages.h): honest records write all of it.
+  // The room is populated at once (populate_for_write()): honest records
+  // write all of it.
   const uint64_t cap = std::min<uint64_t>(4 * static_cast<uint64_t>(csize) + 64, uint64_t{1} << 21);
   const size_t ni = 3 * static_cast<size_t>(std::min<uint64_t>(chunk_triangles, cap));
   const size_t np = 3 * static_cast<size_t>(std::min<uint64_t>(chunk_vertices, cap));
   if (!direct_fixed) {
-    codec::populate_for_write(direct_room(mesh.indices, direct_ni, ni), ni * sizeof(uint32_t));
-    codec::populate_for_write(direct_room(mesh.positions, direct_np, np), np * sizeof(float));
+    populate_for_write(direct_room(mesh.indices, direct_ni, ni), ni * sizeof(uint32_t));
+    populate_for_write(direct_room(mesh.positions, direct_np, np), np * sizeof(float));
   }
   direct_float = !header.lossless && header.schema.position_type == ScalarType::kFloat32;
   DirectCursor out = direct_cursor();
