@@ -44,7 +44,7 @@ Status PsqDecoder::Impl::open(InputStream* stream) {
   PSQ_RETURN_IF_ERROR(read_block(length, &payload));
   PSQ_RETURN_IF_ERROR(read_checksum(file_crc, "header"));
   in_header = false;
-  header_chain = chain_crc;
+  alone_result.header_chain = chain_crc;
   PSQ_RETURN_IF_ERROR(parse_header_payload(payload.data(), payload.size(), payload_at, &header));
   stats.header_bytes = payload_at + length + 4;
   {
@@ -109,7 +109,7 @@ Status PsqDecoder::Impl::next_chunk() {
                                              std::to_string(segment_next) + " must come", chunk_offset);
   if (index_at != 0) return Status(ErrorCode::kBadHeader, "a chunk after the index", chunk_offset);
   // Spec 4.3: seven varint fields.
-  std::vector<uint8_t> f;
+  std::vector<uint8_t> f(1, kChunkTag);  // the tag and fields, for the checksum
   uint64_t records, vertices, triangles, conn_size, prop_size, prop_raw, attr_size;
   for (uint64_t* field : {&records, &vertices, &triangles, &conn_size, &prop_size, &prop_raw, &attr_size})
     PSQ_RETURN_IF_ERROR(read_varint(field, &f));
@@ -125,8 +125,7 @@ Status PsqDecoder::Impl::next_chunk() {
   if (has_props && prop_size == 0) return bad("no property section");
   if (segment_next != 0 && triangles_so_far() + triangles > segment_next)
     return bad("its triangles run past the segment start at triangle " + std::to_string(segment_next));
-  uint32_t crc = crc32c_update(0, &tag, 1);
-  crc = crc32c_update(crc, f.data(), f.size());
+  uint32_t crc = crc32c_update(0, f.data(), f.size());
   conn_offset = in->offset();
   csize = static_cast<size_t>(conn_size);
   cdata = in->view(csize);
@@ -164,7 +163,7 @@ Status PsqDecoder::Impl::next_chunk() {
   stats.record_bytes += conn_size;
   stats.property_bytes += prop_size;
   stats.attribute_bytes += attr_size;
-  stats.chunk_overhead_bytes += 1 + f.size() + 4;
+  stats.chunk_overhead_bytes += f.size() + 4;
   return Status();
 }
 
@@ -249,25 +248,17 @@ void PsqDecoder::Impl::report(SequenceEvent& e) {
   }
 }
 
-void PsqDecoder::Impl::restart(const SegmentState& st) {
-  fboundary.reset();
-  fneighbors.reset();
-  load_state(st, &fboundary, &fneighbors, &ring, attrs.get());
-  attrs->restart_models();
-}
-
 Status PsqDecoder::Impl::read_segment(bool load) {
   // Spec 4.6: the tag, two varints, the zstd frame, the checksum.
   const uint64_t at = chunk_offset;
-  std::vector<uint8_t> f;
+  std::vector<uint8_t> f(1, kSegmentTag);
   uint64_t packed_size, raw_size;
   PSQ_RETURN_IF_ERROR(read_varint(&packed_size, &f));
   PSQ_RETURN_IF_ERROR(read_varint(&raw_size, &f));
   auto bad = [&](const std::string& what) { return Status(ErrorCode::kBadHeader, "segment record: " + what, at); };
   if (packed_size == 0 || packed_size > kMaxStateBytes || raw_size > kMaxStateRaw)
     return bad("state block sizes beyond the limits of spec 4.4");
-  const uint8_t tag = kSegmentTag;
-  uint32_t crc = crc32c_update(crc32c_update(0, &tag, 1), f.data(), f.size());
+  uint32_t crc = crc32c_update(0, f.data(), f.size());
   const uint64_t block_at = in->offset();
   // Locals, not members: a state is up to a few MB on a long boundary, and
   // segment records are few; kept, they would stay in the peak memory.
@@ -309,12 +300,16 @@ Status PsqDecoder::Impl::read_segment(bool load) {
     std::vector<uint8_t>().swap(state_raw);
     keep_reported_slots(st);
   }
-  // Spec 4.6: the state restarts in its canonical form.
-  restart(st);
+  // Spec 4.6: the state restarts in its canonical form: a fresh boundary,
+  // neighbour lists, ring and attribute models.
+  fboundary.reset();
+  fneighbors.reset();
+  load_state(st, &fboundary, &fneighbors, &ring, attrs.get());
+  attrs->restart_models();
   seen_segments.push_back(PsqSegment{at, next_out, triangles_so_far()});
   segment_next += header.segment_triangles;
   ++stats.segments;
-  stats.segment_bytes += 1 + f.size() + packed_size + 4;
+  stats.segment_bytes += f.size() + packed_size + 4;
   return Status();
 }
 
@@ -323,7 +318,7 @@ Status PsqDecoder::Impl::read_index() {
   const uint64_t at = chunk_offset;
   auto bad = [&](const std::string& what) { return Status(ErrorCode::kBadHeader, "index: " + what, at); };
   if (index_at != 0) return bad("a second index");
-  std::vector<uint8_t> f;
+  std::vector<uint8_t> f(1, kIndexTag);
   uint64_t n;
   PSQ_RETURN_IF_ERROR(read_varint(&n, &f));
   if (alone) {
@@ -341,7 +336,7 @@ Status PsqDecoder::Impl::read_index() {
       return bad("entry " + std::to_string(i) + " differs from its segment record");
   }
   index_at = at;
-  stats.segment_bytes += 1 + f.size() + 4;
+  stats.segment_bytes += f.size() + 4;
   return Status();
 }
 
@@ -356,8 +351,7 @@ Status PsqDecoder::Impl::read_index_entries(uint64_t n, std::vector<uint8_t>* f,
     e.triangles += d[2];
     out->push_back(e);
   }
-  const uint8_t tag = kIndexTag;
-  return read_checksum(crc32c_update(crc32c_update(0, &tag, 1), f->data(), f->size()), "index", chain);
+  return read_checksum(crc32c_update(0, f->data(), f->size()), "index", chain);
 }
 
 Status PsqDecoder::Impl::decode_attributes(bool flush) {
@@ -605,16 +599,6 @@ const char* PsqDecoder::Impl::position_of(const int64_t pos[3], double out[3]) c
   return nullptr;
 }
 
-Status PsqDecoder::Impl::finish_vertex(const int64_t pos[3], SequenceVertex& v) {
-  if (const char* why = position_of(pos, v.position)) return corrupt(why);
-  for (int i = 0; i < 3; ++i) last_pos[i] = pos[i];
-  props->next_vertex(&v.values);
-  ++seen_vertices;
-  ++next_out;
-  ++stats.vertices;
-  return Status();
-}
-
 void PsqDecoder::Impl::emit_triangle(FastBoundary& b, const BTriangle& bt, Op op, uint32_t r, uint8_t cut) {
   // The triangle in output order: output corner j is canonical (j + r) % 3.
   static constexpr uint8_t kCorner[3][3] = {{0, 1, 2}, {1, 2, 0}, {2, 0, 1}};
@@ -695,7 +679,7 @@ Status PsqDecoder::segments(std::vector<PsqSegment>* out, PsqSegment* end) {
       return Status(ErrorCode::kBadHeader, "end record: index offset beyond the stream", size - 12);
     // Spec 4.7.
     auto bad = [&](const std::string& what) { return Status(ErrorCode::kBadHeader, "index: " + what, at); };
-    std::vector<uint8_t> f;
+    std::vector<uint8_t> f(1, kIndexTag);
     uint8_t tag = 0;
     uint64_t n = 0;
     PSQ_RETURN_IF_ERROR(in.seek(at));
@@ -765,8 +749,8 @@ Status PsqDecoder::Impl::advance() {
   PSQ_RETURN_IF_ERROR(rans ? decode_record<RansSymbolDecoder>() : decode_record<AdaptiveSymbolDecoder>());
   if (!attrs->empty()) PSQ_RETURN_IF_ERROR(decode_attributes());
   ++record_no;
-  stats.max_active_vertices = std::max(stats.max_active_vertices, active_vertices());
-  stats.max_open_edges = std::max(stats.max_open_edges, open_edges());
+  stats.max_active_vertices = std::max(stats.max_active_vertices, fboundary.active_vertices());
+  stats.max_open_edges = std::max(stats.max_open_edges, fboundary.open_edges());
   if (--records_left == 0) {
     if (late) {
       PSQ_RETURN_IF_ERROR(decode_attributes(true));

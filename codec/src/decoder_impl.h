@@ -56,6 +56,7 @@ inline bool checksum_ok(uint32_t stored, uint32_t computed) {
 // its end, its checksum fields in order (4.5), and the end record's fields.
 struct AloneResult {
   std::vector<uint8_t> start_state, end_state;
+  uint32_t header_chain = 0;          // the stream checksum's chain after the header
   std::vector<uint8_t> chain_fields;  // the checksum fields it read (4 bytes each)
   std::vector<uint8_t> end_bytes;     // the end record before its checksum
   uint32_t end_checksum = 0;
@@ -96,7 +97,6 @@ struct PsqDecoder::Impl {
   uint32_t file_crc = 0;     // of the header's bytes (spec 4.2)
   bool in_header = true;
   uint32_t chain_crc = 0;    // spec 4.5: the block checksums, in order
-  uint32_t header_chain = 0;  // chain_crc after the header
 
   // The current chunk.
   std::vector<uint8_t> conn, packed, raw;
@@ -217,9 +217,6 @@ struct PsqDecoder::Impl {
   uint64_t triangles_so_far() const { return base_triangles + stats.triangles; }
   // The state now (segment.h), and serialized into `out`.
   void capture_state(SegmentState* st, std::vector<uint8_t>* out);
-  // Restarts from a state (spec 4.6): a fresh boundary, neighbour lists,
-  // ring and attribute models.
-  void restart(const SegmentState& st);
   // The slots the events report (spec 4.6): a decoder that reads the
   // stream from its start restarts its boundary in the state's slots at a
   // segment record, but keeps reporting each element in the slot it was
@@ -242,8 +239,8 @@ struct PsqDecoder::Impl {
   Status read_segment(bool load);
   Status read_index();
   // Spec 4.7: an index's n entries after its tag and count, whose bytes `f`
-  // holds: three varint deltas each, summed into `out`; then its checksum
-  // (read_checksum()).
+  // holds (tag first): three varint deltas each, summed into `out`; then
+  // its checksum (read_checksum()).
   Status read_index_entries(uint64_t n, std::vector<uint8_t>* f, std::vector<PsqSegment>* out, bool chain);
 
   Status open(InputStream* stream);
@@ -259,14 +256,11 @@ struct PsqDecoder::Impl {
   // Decodes the next record (or chunk, or the end) into the queue.
   Status advance();
 
-  // A new vertex's position from its coded coordinates (spec 7.1, 7.2)
-  // with its checks, its properties and the counts; the triangle event of
-  // a record (spec 6.2.3, 6.4) and the finalizations, from a BTriangle
-  // that `b` applied.
-  Status finish_vertex(const int64_t pos[3], SequenceVertex& v);
   // The position of coded coordinates `pos` (spec 7.1, 7.2), or the reason
   // they are not one.
   const char* position_of(const int64_t pos[3], double x[3]) const;
+  // The triangle event of a record (spec 6.2.3, 6.4) and the
+  // finalizations, from a BTriangle that `b` applied.
   void emit_triangle(FastBoundary& b, const BTriangle& bt, Op op, uint32_t r, uint8_t cut);
   // The triangle event of a common record (common_record), and the
   // finalizations of the corners in final_mask, whose slots it frees.
@@ -283,7 +277,6 @@ struct PsqDecoder::Impl {
   // per vertex and the array's pages. The first re-appearance writes it out.
   bool direct_identity = true;
   std::vector<uint32_t> direct_index;
-  PropertyValues direct_values;        // face values not returned
   // The arrays are sized ahead and written through pointers; these are the
   // lengths in use (decode_into() trims the arrays to them at the end).
   size_t direct_np = 0, direct_ni = 0;  // positions, indices
@@ -295,8 +288,6 @@ struct PsqDecoder::Impl {
     if (used + n > v.size()) v.resize(std::max(used + n, std::min(2 * v.size(), v.capacity())));
     return v.data() + used;
   }
-  // The mesh index of the sequence's vertex `dense`.
-  uint32_t direct_mesh_index(uint32_t dense) const { return direct_identity ? dense : direct_index[dense]; }
   // Whether positions are quantized floats (direct_position() applies).
   bool direct_float = false;
   // direct_records()'s view of the arrays, kept in locals so that
@@ -401,7 +392,7 @@ struct PsqDecoder::Impl {
   }
   void direct_triangle(const uint32_t v[3]) {
     uint32_t* t = direct_room(direct->indices, direct_ni, 3);
-    for (int k = 0; k < 3; ++k) t[k] = direct_mesh_index(v[k]);
+    for (int k = 0; k < 3; ++k) t[k] = direct_identity ? v[k] : direct_index[v[k]];
     direct_ni += 3;
   }
   // Decodes the rest of the stream into `mesh` (PsqDecoder::pump() into a
@@ -485,7 +476,6 @@ struct PsqDecoder::Impl {
   std::vector<double> fsymbol_cost;
   double fraw_geometry_bits = 0;  // raw bits of position residuals in the chunk, when measuring
   uint64_t fraw_total_bits = 0;   // the chunk's raw block
-  // A new vertex's event: its index and, when it re-appears, the distance.
   // A new vertex fits the chunk's count and the 2^32 - 1 vertices (spec 13.10).
   Status vertex_room();
   // "Coded data ends early" for the current record (truncated).
@@ -495,14 +485,14 @@ struct PsqDecoder::Impl {
   template <class D>
   Status fast_position(D& d, RawReader& bits, const int64_t pred[3], int kind, const int extent[3],
                        int64_t pos[3], bool measure_it);
+  // A new vertex's event: its index and, when it re-appears, the distance;
   template <class D>
   Status vertex_begin(bool reappears, SequenceEvent* ev);
-  // Then its residuals against `pred`, and its position.
+  // then its residuals against `pred`, its position with its checks (spec
+  // 7.1, 7.2), its properties and the counts.
   template <class D>
   Status vertex_position(const int64_t pred[3], int kind, const int extent[3], int64_t pos[3],
                               SequenceEvent* ev);
-  uint32_t active_vertices() const { return fboundary.active_vertices(); }
-  uint32_t open_edges() const { return fboundary.open_edges(); }
 };
 
 }  // namespace psq

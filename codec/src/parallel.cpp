@@ -26,7 +26,6 @@ struct SegmentResult {
   Status status;
   AloneResult alone;
   uint64_t index_at = 0;
-  uint32_t header_chain = 0;
   PsqStats stats;
 };
 
@@ -87,7 +86,6 @@ Status decode_segments(const std::function<Status(InputStream*)>& open, int thre
         if (!m.ended) return Status(ErrorCode::kUsage, "a segment's work did not decode it to its end");
         r.alone = std::move(m.alone_result);
         r.index_at = m.index_at;
-        r.header_chain = m.header_chain;
         r.stats = m.stats;
         return Status();
       });
@@ -118,7 +116,7 @@ Status decode_segments(const std::function<Status(InputStream*)>& open, int thre
   const AloneResult& last = res.back().alone;
   if (!last.reached_end) return Status(ErrorCode::kBadHeader, "the last segment does not reach the end record", size);
   // Spec 4.5: the stream checksum over every segment's checksum fields.
-  uint32_t crc = res[0].header_chain;
+  uint32_t crc = res[0].alone.header_chain;
   for (const SegmentResult& r : res) crc = crc32c_update(crc, r.alone.chain_fields.data(), r.alone.chain_fields.size());
   crc = crc32c_update(crc, last.end_bytes.data(), last.end_bytes.size());
   if (!checksum_ok(last.end_checksum, crc)) return Status(ErrorCode::kChecksum, "stream checksum mismatch", size - 4);

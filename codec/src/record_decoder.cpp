@@ -68,6 +68,17 @@ PSQ_INLINE uint64_t get_raw(RawReader& raw, int bits) {
   return raw.get(bits);
 }
 
+// A join's third vertex, or an escape's old one (spec 13.7.3, 13.7.5):
+// the open edge J's slot, then the side (x = org(J) or dst(J)), from the
+// raw bits; J into bt->join_edge. kNone when J is not an open edge.
+uint32_t named_vertex(const FastBoundary& b, RawReader& bits, int sbits, BTriangle* bt) {
+  const uint32_t j = bits.get(sbits);
+  const bool side = bits.get(1) != 0;
+  if (!b.edge_live(j)) return kNone;
+  bt->join_edge = j;
+  return side ? b.edge(j).dst : b.edge(j).org;
+}
+
 }  // namespace
 
 Status PsqDecoder::Impl::open_records() {
@@ -306,7 +317,14 @@ template <class D>
 PSQ_INLINE Status PsqDecoder::Impl::vertex_position(const int64_t pred[3], int kind, const int extent[3], int64_t pos[3],
                                               SequenceEvent* ev) {
   PSQ_RETURN_IF_ERROR(fast_position(coder<D>(), *fraw, pred, kind, extent, pos, measure));
-  return finish_vertex(pos, ev->vertex);
+  SequenceVertex& v = ev->vertex;
+  if (const char* why = position_of(pos, v.position)) return corrupt(why);
+  for (int i = 0; i < 3; ++i) last_pos[i] = pos[i];
+  props->next_vertex(&v.values);
+  ++seen_vertices;
+  ++next_out;
+  ++stats.vertices;
+  return Status();
 }
 
 // The common records: an add, a fill on the gate's neighbour or a join,
@@ -474,11 +492,8 @@ __attribute__((noinline)) Status PsqDecoder::Impl::end_or_join_record(D& d, RawR
     fast_context = fast_a_context_gate(cls, kFastEnd);
     op = Op::kEnd;
   } else {
-    const uint32_t j = bits.get(slot_bits(b.edge_capacity()));
-    const bool side = bits.get(1) != 0;
-    if (!b.edge_live(j)) return corrupt("join names an edge that is not open");
-    x = side ? b.edge(j).dst : b.edge(j).org;
-    bt.join_edge = j;
+    x = named_vertex(b, bits, slot_bits(b.edge_capacity()), &bt);
+    if (x == kNone) return corrupt("join names an edge that is not open");
     fast_context = fast_a_context_gate(cls, kFastJoin);
     op = Op::kJoin;
   }
@@ -630,11 +645,8 @@ Status PsqDecoder::Impl::decode_record(int cls, uint32_t gate, int bsym) {
       xkind = static_cast<int>(bits.get(2));
       if (xkind == 3) return corrupt("escaped third vertex kind 3");
       if (xkind == 2) {
-        const uint32_t j = bits.get(sbits);
-        const bool side = bits.get(1) != 0;
-        if (!b.edge_live(j)) return corrupt("escaped third vertex names an edge that is not open");
-        x = side ? b.edge(j).dst : b.edge(j).org;
-        bt.join_edge = j;
+        x = named_vertex(b, bits, sbits, &bt);
+        if (x == kNone) return corrupt("escaped third vertex names an edge that is not open");
       }
       for (int k = 1; k < 3; ++k) {
         const uint32_t st = bits.get(2);
@@ -679,14 +691,10 @@ Status PsqDecoder::Impl::decode_record(int cls, uint32_t gate, int bsym) {
           completes[1] = completes[2] = true;
           xkind = 2;
           break;
-        default: {  // join
-          const uint32_t j = bits.get(sbits);
-          const bool side = bits.get(1) != 0;
-          if (!b.edge_live(j)) return corrupt("join names an edge that is not open");
-          x = side ? b.edge(j).dst : b.edge(j).org;
-          bt.join_edge = j;
+        default:  // join
+          x = named_vertex(b, bits, sbits, &bt);
+          if (x == kNone) return corrupt("join names an edge that is not open");
           xkind = 2;
-        }
       }
       fast_context = fast_a_context_gate(cls, third);
       choice_allowed = xkind != 2;
