@@ -42,13 +42,9 @@ Status PsqDecoder::Impl::open(InputStream* stream) {
   fast_choices = fast_codes_choices(header.lossless, rans);
   std::vector<uint8_t> payload;
   PSQ_RETURN_IF_ERROR(read_block(length, &payload));
-  uint32_t expect = file_crc;
-  uint8_t c[4];
-  PSQ_RETURN_IF_ERROR(read(c, 4));
-  if (!checksum_ok(Get(c, 4).u32(), expect))
-    return Status(ErrorCode::kChecksum, "header checksum mismatch", payload_at + length);
+  PSQ_RETURN_IF_ERROR(read_checksum(file_crc, "header"));
   in_header = false;
-  chain_crc = header_chain = crc32c_update(0, c, 4);
+  alone_result.header_chain = chain_crc;
   PSQ_RETURN_IF_ERROR(parse_header_payload(payload.data(), payload.size(), payload_at, &header));
   stats.header_bytes = payload_at + length + 4;
   {
@@ -94,8 +90,8 @@ Status PsqDecoder::Impl::next_chunk() {
       // The segment decoded alone ends here; its caller compares the
       // state it reached with the next segment's block.
       SegmentState st;
-      capture_state(&st, &end_state);
-      stopped_at = chunk_offset;
+      capture_state(&st, &alone_result.end_state);
+      alone_result.stopped_at = chunk_offset;
       ended = true;
       return Status();
     }
@@ -113,7 +109,7 @@ Status PsqDecoder::Impl::next_chunk() {
                                              std::to_string(segment_next) + " must come", chunk_offset);
   if (index_at != 0) return Status(ErrorCode::kBadHeader, "a chunk after the index", chunk_offset);
   // Spec 4.3: seven varint fields.
-  std::vector<uint8_t> f;
+  std::vector<uint8_t> f(1, kChunkTag);  // the tag and fields, for the checksum
   uint64_t records, vertices, triangles, conn_size, prop_size, prop_raw, attr_size;
   for (uint64_t* field : {&records, &vertices, &triangles, &conn_size, &prop_size, &prop_raw, &attr_size})
     PSQ_RETURN_IF_ERROR(read_varint(field, &f));
@@ -129,8 +125,7 @@ Status PsqDecoder::Impl::next_chunk() {
   if (has_props && prop_size == 0) return bad("no property section");
   if (segment_next != 0 && triangles_so_far() + triangles > segment_next)
     return bad("its triangles run past the segment start at triangle " + std::to_string(segment_next));
-  uint32_t crc = crc32c_update(0, &tag, 1);
-  crc = crc32c_update(crc, f.data(), f.size());
+  uint32_t crc = crc32c_update(0, f.data(), f.size());
   conn_offset = in->offset();
   csize = static_cast<size_t>(conn_size);
   cdata = in->view(csize);
@@ -144,12 +139,7 @@ Status PsqDecoder::Impl::next_chunk() {
   attr_offset = in->offset();
   PSQ_RETURN_IF_ERROR(read_block(attr_size, &attr_bytes));
   crc = crc32c_update(crc, attr_bytes.data(), attr_bytes.size());
-  uint8_t c[4];
-  uint64_t crc_at = in->offset();
-  PSQ_RETURN_IF_ERROR(read(c, 4));
-  if (!checksum_ok(Get(c, 4).u32(), crc)) return Status(ErrorCode::kChecksum, "chunk checksum mismatch", crc_at);
-  chain_crc = crc32c_update(chain_crc, c, 4);
-  if (alone) chain_fields.insert(chain_fields.end(), c, c + 4);
+  PSQ_RETURN_IF_ERROR(read_checksum(crc, "chunk"));
   if (has_props) {
     if (!zstd_decompress(packed.data(), packed.size(), prop_raw, &raw))
       return Status(ErrorCode::kBadValue, "property section does not decompress to its declared size",
@@ -173,7 +163,7 @@ Status PsqDecoder::Impl::next_chunk() {
   stats.record_bytes += conn_size;
   stats.property_bytes += prop_size;
   stats.attribute_bytes += attr_size;
-  stats.chunk_overhead_bytes += 1 + f.size() + 4;
+  stats.chunk_overhead_bytes += f.size() + 4;
   return Status();
 }
 
@@ -258,37 +248,24 @@ void PsqDecoder::Impl::report(SequenceEvent& e) {
   }
 }
 
-void PsqDecoder::Impl::restart(const SegmentState& st) {
-  fboundary.reset();
-  fneighbors.reset();
-  load_state(st, &fboundary, &fneighbors, &ring, attrs.get());
-  attrs->restart_models();
-}
-
 Status PsqDecoder::Impl::read_segment(bool load) {
   // Spec 4.6: the tag, two varints, the zstd frame, the checksum.
   const uint64_t at = chunk_offset;
-  std::vector<uint8_t> f;
+  std::vector<uint8_t> f(1, kSegmentTag);
   uint64_t packed_size, raw_size;
   PSQ_RETURN_IF_ERROR(read_varint(&packed_size, &f));
   PSQ_RETURN_IF_ERROR(read_varint(&raw_size, &f));
   auto bad = [&](const std::string& what) { return Status(ErrorCode::kBadHeader, "segment record: " + what, at); };
   if (packed_size == 0 || packed_size > kMaxStateBytes || raw_size > kMaxStateRaw)
     return bad("state block sizes beyond the limits of spec 4.4");
-  const uint8_t tag = kSegmentTag;
-  uint32_t crc = crc32c_update(crc32c_update(0, &tag, 1), f.data(), f.size());
+  uint32_t crc = crc32c_update(0, f.data(), f.size());
   const uint64_t block_at = in->offset();
   // Locals, not members: a state is up to a few MB on a long boundary, and
   // segment records are few; kept, they would stay in the peak memory.
   std::vector<uint8_t> state_packed, state_raw;
   PSQ_RETURN_IF_ERROR(read_block(packed_size, &state_packed));
   crc = crc32c_update(crc, state_packed.data(), state_packed.size());
-  uint8_t c[4];
-  const uint64_t crc_at = in->offset();
-  PSQ_RETURN_IF_ERROR(read(c, 4));
-  if (!checksum_ok(Get(c, 4).u32(), crc)) return Status(ErrorCode::kChecksum, "segment record checksum mismatch", crc_at);
-  chain_crc = crc32c_update(chain_crc, c, 4);
-  if (alone) chain_fields.insert(chain_fields.end(), c, c + 4);
+  PSQ_RETURN_IF_ERROR(read_checksum(crc, "segment record"));
   if (!zstd_decompress(state_packed.data(), state_packed.size(), raw_size, &state_raw))
     return Status(ErrorCode::kBadValue, "segment record: state block does not decompress to its declared size", block_at);
   std::vector<uint8_t>().swap(state_packed);
@@ -312,7 +289,7 @@ Status PsqDecoder::Impl::read_segment(bool load) {
     fast_choice = static_cast<int>(st.choice);
     std::copy(st.last, st.last + 3, last_pos);
     segment_next = st.triangles;
-    start_state = std::move(state_raw);
+    alone_result.start_state = std::move(state_raw);
   } else {
     {
       std::vector<uint8_t> state_mine;
@@ -323,14 +300,16 @@ Status PsqDecoder::Impl::read_segment(bool load) {
     std::vector<uint8_t>().swap(state_raw);
     keep_reported_slots(st);
   }
-  // Spec 4.6: the state restarts in its canonical form.
-  restart(st);
-  seen_segment_at.push_back(at);
-  seen_segment_vertices.push_back(next_out);
-  seen_segment_triangles.push_back(triangles_so_far());
+  // Spec 4.6: the state restarts in its canonical form: a fresh boundary,
+  // neighbour lists, ring and attribute models.
+  fboundary.reset();
+  fneighbors.reset();
+  load_state(st, &fboundary, &fneighbors, &ring, attrs.get());
+  attrs->restart_models();
+  seen_segments.push_back(PsqSegment{at, next_out, triangles_so_far()});
   segment_next += header.segment_triangles;
   ++stats.segments;
-  stats.segment_bytes += 1 + f.size() + packed_size + 4;
+  stats.segment_bytes += f.size() + packed_size + 4;
   return Status();
 }
 
@@ -339,36 +318,40 @@ Status PsqDecoder::Impl::read_index() {
   const uint64_t at = chunk_offset;
   auto bad = [&](const std::string& what) { return Status(ErrorCode::kBadHeader, "index: " + what, at); };
   if (index_at != 0) return bad("a second index");
-  std::vector<uint8_t> f;
+  std::vector<uint8_t> f(1, kIndexTag);
   uint64_t n;
   PSQ_RETURN_IF_ERROR(read_varint(&n, &f));
   if (alone) {
     // A segment decoded alone knows only the segments up to its own;
     // the index's entries are its caller's to check.
     if (n > (uint64_t{1} << 32)) return bad("more entries than segments");
-  } else if (n != seen_segment_at.size()) {
-    return bad(std::to_string(n) + " entries for " + std::to_string(seen_segment_at.size()) + " segment records");
+  } else if (n != seen_segments.size()) {
+    return bad(std::to_string(n) + " entries for " + std::to_string(seen_segments.size()) + " segment records");
   }
-  uint64_t prev[3] = {0, 0, 0};
-  for (uint64_t i = 0; i < n; ++i) {
-    uint64_t d[3];
-    for (uint64_t& x : d) PSQ_RETURN_IF_ERROR(read_varint(&x, &f));
-    for (int k = 0; k < 3; ++k) prev[k] += d[k];
-    if (!alone && (prev[0] != seen_segment_at[i] || prev[1] != seen_segment_vertices[i] ||
-                   prev[2] != seen_segment_triangles[i]))
+  std::vector<PsqSegment> entries;
+  PSQ_RETURN_IF_ERROR(read_index_entries(n, &f, &entries, true));
+  for (size_t i = 0; i < entries.size() && !alone; ++i) {
+    const PsqSegment &e = entries[i], &s = seen_segments[i];
+    if (e.offset != s.offset || e.vertices != s.vertices || e.triangles != s.triangles)
       return bad("entry " + std::to_string(i) + " differs from its segment record");
   }
-  const uint8_t tag = kIndexTag;
-  const uint32_t crc = crc32c_update(crc32c_update(0, &tag, 1), f.data(), f.size());
-  uint8_t c[4];
-  const uint64_t crc_at = in->offset();
-  PSQ_RETURN_IF_ERROR(read(c, 4));
-  if (!checksum_ok(Get(c, 4).u32(), crc)) return Status(ErrorCode::kChecksum, "index checksum mismatch", crc_at);
-  chain_crc = crc32c_update(chain_crc, c, 4);
-  if (alone) chain_fields.insert(chain_fields.end(), c, c + 4);
   index_at = at;
-  stats.segment_bytes += 1 + f.size() + 4;
+  stats.segment_bytes += f.size() + 4;
   return Status();
+}
+
+Status PsqDecoder::Impl::read_index_entries(uint64_t n, std::vector<uint8_t>* f, std::vector<PsqSegment>* out,
+                                            bool chain) {
+  PsqSegment e;
+  for (uint64_t i = 0; i < n; ++i) {
+    uint64_t d[3];
+    for (uint64_t& x : d) PSQ_RETURN_IF_ERROR(read_varint(&x, f));
+    e.offset += d[0];
+    e.vertices += d[1];
+    e.triangles += d[2];
+    out->push_back(e);
+  }
+  return read_checksum(crc32c_update(0, f->data(), f->size()), "index", chain);
 }
 
 Status PsqDecoder::Impl::decode_attributes(bool flush) {
@@ -493,63 +476,59 @@ void PsqDecoder::Impl::hold(SequenceEvent& e) {
 }
 
 Status PsqDecoder::Impl::read_end() {
-  // Spec 4.5: five varint fields and the index's offset.
-  std::vector<uint8_t> f;
-  uint64_t vertices, triangles, chunks, max_active, max_open;
-  for (uint64_t* field : {&vertices, &triangles, &chunks, &max_active, &max_open})
-    PSQ_RETURN_IF_ERROR(read_varint(field, &f));
+  // Spec 4.5: the tag, five varint fields and the index's offset.
+  std::vector<uint8_t> f(1, kEndTag);
+  uint64_t fields[5];  // vertices, triangles, chunks, max_active, max_open
+  for (uint64_t& field : fields) PSQ_RETURN_IF_ERROR(read_varint(&field, &f));
   uint8_t ix[8];
   PSQ_RETURN_IF_ERROR(read(ix, 8));
   f.insert(f.end(), ix, ix + 8);
   const uint64_t index_field = Get(ix, 8).u64();
-  auto bad = [&](const std::string& what) { return Status(ErrorCode::kBadHeader, "end record: " + what, chunk_offset); };
-  const uint8_t tag = kEndTag;
   if (alone) {
-    // The stream checksum and the totals are the caller's to check, over
+    // The stream checksum and the fields are the caller's to check, over
     // every segment (parallel.cpp).
-    const uint64_t fields[5] = {vertices, triangles, chunks, max_active, max_open};
-    std::copy(fields, fields + 5, end_fields);
-    end_index_at = index_field;
-    end_bytes.assign(1, tag);
-    end_bytes.insert(end_bytes.end(), f.begin(), f.end());
+    AloneResult& r = alone_result;
+    std::copy(fields, fields + 5, r.end_fields);
+    r.end_index_at = index_field;
+    r.end_bytes = f;
     uint8_t c[4];
     PSQ_RETURN_IF_ERROR(read(c, 4));
-    end_checksum = Get(c, 4).u32();
-    if (active_vertices() != 0)
-      return bad("the stream ends with " + std::to_string(active_vertices()) + " vertices still active");
-    bool at_end = false;
-    PSQ_RETURN_IF_ERROR(in->at_end(&at_end));
-    if (!at_end) return Status(ErrorCode::kBadHeader, "data after the end record", in->offset());
-    reached_end = true;
-    ended = true;
-    return Status();
+    r.end_checksum = Get(c, 4).u32();
+  } else {
+    PSQ_RETURN_IF_ERROR(read_checksum(crc32c_update(chain_crc, f.data(), f.size()), "stream", false));
+    PSQ_RETURN_IF_ERROR(check_end(fields, index_field, index_at, stats, chunk_offset));
   }
-  const uint32_t expect = crc32c_update(crc32c_update(chain_crc, &tag, 1), f.data(), f.size());
-  uint8_t c[4];
-  uint64_t crc_at = in->offset();
-  PSQ_RETURN_IF_ERROR(read(c, 4));
-  if (!checksum_ok(Get(c, 4).u32(), expect)) return Status(ErrorCode::kChecksum, "stream checksum mismatch", crc_at);
-  if (index_field != index_at) return bad("index offset " + std::to_string(index_field) + " is not the index's");
-  if (vertices != stats.vertices || triangles != stats.triangles || chunks != stats.chunks)
-    return bad("totals " + std::to_string(vertices) + " vertices, " + std::to_string(triangles) + " triangles, " +
-               std::to_string(chunks) + " chunks differ from the stream's " + std::to_string(stats.vertices) + ", " +
-               std::to_string(stats.triangles) + ", " + std::to_string(stats.chunks));
-  if (max_active != stats.max_active_vertices || max_open != stats.max_open_edges)
-    return bad("boundary maxima differ from the stream's");
-  if (active_vertices() != 0)
-    return bad("the stream ends with " + std::to_string(active_vertices()) + " vertices still active");
+  if (fboundary.active_vertices() != 0)
+    return Status(ErrorCode::kBadHeader, "end record: the stream ends with " +
+                                             std::to_string(fboundary.active_vertices()) + " vertices still active",
+                  chunk_offset);
   bool at_end = false;
   PSQ_RETURN_IF_ERROR(in->at_end(&at_end));
   if (!at_end) return Status(ErrorCode::kBadHeader, "data after the end record", in->offset());
-  stats.chunk_overhead_bytes += 1 + f.size() + 4;
+  alone_result.reached_end = ended = true;
+  if (alone) return Status();
+  stats.chunk_overhead_bytes += f.size() + 4;
   stats.total_bytes = in->offset();
   stats.connectivity_bits = cost[kCostConnectivity];
   stats.geometry_bits = cost[kCostGeometry];
-  ended = true;
   return Status();
 }
 
-Status PsqDecoder::Impl::check_float_range(const PsqHeader& header, const MeshBuffers& mesh) {
+namespace codec {
+
+Status check_end(const uint64_t f[5], uint64_t index_field, uint64_t index_at, const PsqStats& s, uint64_t at) {
+  auto bad = [&](const std::string& what) { return Status(ErrorCode::kBadHeader, "end record: " + what, at); };
+  if (index_field == 0 || index_field != index_at)
+    return bad("index offset " + std::to_string(index_field) + " is not the index's");
+  if (f[0] != s.vertices || f[1] != s.triangles || f[2] != s.chunks)
+    return bad("totals " + std::to_string(f[0]) + " vertices, " + std::to_string(f[1]) + " triangles, " +
+               std::to_string(f[2]) + " chunks differ from the stream's " + std::to_string(s.vertices) + ", " +
+               std::to_string(s.triangles) + ", " + std::to_string(s.chunks));
+  if (f[3] != s.max_active_vertices || f[4] != s.max_open_edges) return bad("boundary maxima differ from the stream's");
+  return Status();
+}
+
+Status check_float_range(const PsqHeader& header, const MeshBuffers& mesh) {
   // The arrays hold floats: a double stream's position beyond float range
   // (finite, by 7.1 and 7.2) became an infinity, which is refused rather
   // than returned.
@@ -562,6 +541,8 @@ Status PsqDecoder::Impl::check_float_range(const PsqHeader& header, const MeshBu
   }
   return Status();
 }
+
+}  // namespace codec
 
 Status PsqDecoder::Impl::decode_loop() {
   while (!ended) {
@@ -618,16 +599,6 @@ const char* PsqDecoder::Impl::position_of(const int64_t pos[3], double out[3]) c
   return nullptr;
 }
 
-Status PsqDecoder::Impl::finish_vertex(const int64_t pos[3], SequenceVertex& v) {
-  if (const char* why = position_of(pos, v.position)) return corrupt(why);
-  for (int i = 0; i < 3; ++i) last_pos[i] = pos[i];
-  props->next_vertex(&v.values);
-  ++seen_vertices;
-  ++next_out;
-  ++stats.vertices;
-  return Status();
-}
-
 void PsqDecoder::Impl::emit_triangle(FastBoundary& b, const BTriangle& bt, Op op, uint32_t r, uint8_t cut) {
   // The triangle in output order: output corner j is canonical (j + r) % 3.
   static constexpr uint8_t kCorner[3][3] = {{0, 1, 2}, {1, 2, 0}, {2, 0, 1}};
@@ -674,8 +645,6 @@ void PsqDecoder::Impl::emit_triangle(FastBoundary& b, const BTriangle& bt, Op op
     if (bt.final[k]) b.free_vertex(bt.c[k]);
 }
 
-
-
 // ------------------------------------------------------------------ API
 
 PsqDecoder::PsqDecoder() : impl_(std::make_unique<Impl>()) {}
@@ -689,8 +658,7 @@ Status PsqDecoder::open(InputStream* in) {
 Status PsqDecoder::segments(std::vector<PsqSegment>* out, PsqSegment* end) {
   Impl& m = *impl_;
   if (end) *end = PsqSegment();
-  if (!m.error.ok()) return m.error;
-  if (!m.opened) return m.fail(Status(ErrorCode::kUsage, "decoder not opened"));
+  PSQ_RETURN_IF_ERROR(m.ready());
   out->clear();
   InputStream& in = *m.in;
   const uint64_t back = in.offset();
@@ -698,81 +666,45 @@ Status PsqDecoder::segments(std::vector<PsqSegment>* out, PsqSegment* end) {
   out->push_back(PsqSegment{first, 0, 0});
   if (!in.can_rewind()) return Status(ErrorCode::kIo, "the segments of a stream need an input that can seek");
   const uint64_t size = static_cast<uint64_t>(in.size());
-  // Spec 4.5: the end record ends with the index's offset and the stream
-  // checksum.
-  uint8_t tail[12];
   if (size < first + 12) return Status();  // too short for an end record: the decoder tells
-  PSQ_RETURN_IF_ERROR(in.seek(size - 12));
-  PSQ_RETURN_IF_ERROR(in.read_exact(tail, 12));
-  const uint64_t at = Get(tail, 8).u64();
-  Status s;
-  if (at == 0) {
-    s = Status(ErrorCode::kBadHeader, "end record: no index offset", size - 12);
-  } else {
+  const Status s = [&]() -> Status {
+    // Spec 4.5: the end record ends with the index's offset and the
+    // stream checksum.
+    uint8_t tail[12];
+    PSQ_RETURN_IF_ERROR(in.seek(size - 12));
+    PSQ_RETURN_IF_ERROR(in.read_exact(tail, 12));
+    const uint64_t at = Get(tail, 8).u64();
+    if (at == 0) return Status(ErrorCode::kBadHeader, "end record: no index offset", size - 12);
+    if (at < first || at >= size - 12)
+      return Status(ErrorCode::kBadHeader, "end record: index offset beyond the stream", size - 12);
+    // Spec 4.7.
     auto bad = [&](const std::string& what) { return Status(ErrorCode::kBadHeader, "index: " + what, at); };
-    if (at < first || at >= size - 12) {
-      s = Status(ErrorCode::kBadHeader, "end record: index offset beyond the stream", size - 12);
-    } else {
-      // Spec 4.7, read from memory: the record is at most 10 bytes per
-      // varint, three per segment.
-      std::vector<uint8_t> f;
-      uint8_t tag = 0;
-      s = in.seek(at);
-      if (s.ok()) s = in.read_exact(&tag, 1);
-      if (s.ok() && tag != kIndexTag) s = bad("no index record at the end record's offset");
-      auto varint = [&](uint64_t* v) {
-        uint8_t b[kMaxVarintBytes];
-        for (size_t i = 0; i < kMaxVarintBytes; ++i) {
-          Status r = in.read_exact(&b[i], 1);
-          if (!r.ok()) return r;
-          f.push_back(b[i]);
-          if (!(b[i] & 0x80)) return parse_varint(b, i + 1, v) > 0 ? Status() : bad("malformed varint");
-        }
-        return bad("malformed varint");
-      };
-      uint64_t n = 0;
-      if (s.ok()) s = varint(&n);
-      if (s.ok() && n > (size - at) / 3) s = bad("more entries than the index has bytes");
-      PsqSegment prev{0, 0, 0};
-      for (uint64_t i = 0; s.ok() && i < n; ++i) {
-        uint64_t d[3];
-        for (uint64_t& x : d)
-          if (s.ok()) s = varint(&x);
-        if (!s.ok()) break;
-        prev.offset += d[0];
-        prev.vertices += d[1];
-        prev.triangles += d[2];
-        if (prev.offset <= out->back().offset || prev.offset >= at) {
-          s = bad("entry " + std::to_string(i) + " is not a segment record's offset");
-          break;
-        }
-        out->push_back(prev);
-      }
-      uint8_t c[4];
-      if (s.ok()) s = in.read_exact(c, 4);
-      if (s.ok()) {
-        const uint32_t crc = crc32c_update(crc32c_update(0, &tag, 1), f.data(), f.size());
-        if (!checksum_ok(Get(c, 4).u32(), crc)) s = Status(ErrorCode::kChecksum, "index checksum mismatch", at);
-      }
-      // Spec 4.5: the end record follows the index: its tag, then the
-      // totals.
-      if (s.ok() && end) {
-        PsqSegment e{in.offset(), 0, 0};
-        uint8_t etag = 0;
-        s = in.read_exact(&etag, 1);
-        if (s.ok() && etag != kEndTag) s = Status(ErrorCode::kBadHeader, "no end record after the index", e.offset);
-        if (s.ok()) s = varint(&e.vertices);
-        if (s.ok()) s = varint(&e.triangles);
-        if (s.ok()) *end = e;
-      }
-    }
-  }
-  Status r = in.seek(back);
-  if (!s.ok()) {
-    out->resize(1);
-    return s;
-  }
-  return r;
+    std::vector<uint8_t> f(1, kIndexTag);
+    uint8_t tag = 0;
+    uint64_t n = 0;
+    PSQ_RETURN_IF_ERROR(in.seek(at));
+    PSQ_RETURN_IF_ERROR(m.read(&tag, 1));
+    if (tag != kIndexTag) return bad("no index record at the end record's offset");
+    PSQ_RETURN_IF_ERROR(m.read_varint(&n, &f));
+    if (n > (size - at) / 3) return bad("more entries than the index has bytes");
+    PSQ_RETURN_IF_ERROR(m.read_index_entries(n, &f, out, false));
+    for (size_t i = 1; i < out->size(); ++i)
+      if ((*out)[i].offset <= (*out)[i - 1].offset || (*out)[i].offset >= at)
+        return bad("entry " + std::to_string(i - 1) + " is not a segment record's offset");
+    if (!end) return Status();
+    // Spec 4.5: the end record follows the index: its tag, then the
+    // totals.
+    PsqSegment e{in.offset(), 0, 0};
+    PSQ_RETURN_IF_ERROR(m.read(&tag, 1));
+    if (tag != kEndTag) return Status(ErrorCode::kBadHeader, "no end record after the index", e.offset);
+    PSQ_RETURN_IF_ERROR(m.read_varint(&e.vertices, nullptr));
+    PSQ_RETURN_IF_ERROR(m.read_varint(&e.triangles, nullptr));
+    *end = e;
+    return Status();
+  }();
+  const Status r = in.seek(back);
+  if (!s.ok()) out->resize(1);
+  return s.ok() ? r : s;
 }
 
 Status PsqDecoder::start_segment(const PsqSegment& segment) {
@@ -817,8 +749,8 @@ Status PsqDecoder::Impl::advance() {
   PSQ_RETURN_IF_ERROR(rans ? decode_record<RansSymbolDecoder>() : decode_record<AdaptiveSymbolDecoder>());
   if (!attrs->empty()) PSQ_RETURN_IF_ERROR(decode_attributes());
   ++record_no;
-  stats.max_active_vertices = std::max(stats.max_active_vertices, active_vertices());
-  stats.max_open_edges = std::max(stats.max_open_edges, open_edges());
+  stats.max_active_vertices = std::max(stats.max_active_vertices, fboundary.active_vertices());
+  stats.max_open_edges = std::max(stats.max_open_edges, fboundary.open_edges());
   if (--records_left == 0) {
     if (late) {
       PSQ_RETURN_IF_ERROR(decode_attributes(true));
@@ -904,8 +836,7 @@ Status PsqDecoder::Impl::decode_into(MeshBuffers* mesh) {
 
 Status PsqDecoder::next(SequenceEvent* event) {
   Impl& m = *impl_;
-  if (!m.error.ok()) return m.error;
-  if (!m.opened) return m.fail(Status(ErrorCode::kUsage, "decoder not opened"));
+  PSQ_RETURN_IF_ERROR(m.ready());
   while (m.qhead == m.qcount) {
     if (m.ended) {
       event->kind = SequenceEvent::Kind::kEnd;
@@ -929,8 +860,7 @@ Status PsqDecoder::next(SequenceEvent* event) {
 
 Status PsqDecoder::pump(SequenceSink& sink) {
   Impl& m = *impl_;
-  if (!m.error.ok()) return m.error;
-  if (!m.opened) return m.fail(Status(ErrorCode::kUsage, "decoder not opened"));
+  PSQ_RETURN_IF_ERROR(m.ready());
   PSQ_RETURN_IF_ERROR(sink.begin(m.header.schema));
   // A sink that keeps only the mesh takes its arrays straight from the
   // records (psq/sequence.h), when no event was taken by next() yet.

@@ -49,6 +49,31 @@ inline bool checksum_ok(uint32_t stored, uint32_t computed) {
   return stored == computed;
 #endif
 }
+
+// What a segment decoded alone (PsqDecoder::start_segment()) leaves for a
+// caller that decodes every segment to check them together (parallel.cpp):
+// the state block it started from and the one its state serializes to at
+// its end, its checksum fields in order (4.5), and the end record's fields.
+struct AloneResult {
+  std::vector<uint8_t> start_state, end_state;
+  uint32_t header_chain = 0;          // the stream checksum's chain after the header
+  std::vector<uint8_t> chain_fields;  // the checksum fields it read (4 bytes each)
+  std::vector<uint8_t> end_bytes;     // the end record before its checksum
+  uint32_t end_checksum = 0;
+  uint64_t end_fields[5] = {0, 0, 0, 0, 0};
+  uint64_t end_index_at = 0;
+  bool reached_end = false;  // this segment is the last
+  uint64_t stopped_at = 0;   // the offset of the segment record it stopped at
+};
+
+// Spec 4.5: the end record's fields (vertices, triangles, chunks, the two
+// boundary maxima) and index offset against the stream's, which put its
+// index at `index_at`; kBadHeader at the end record's offset `at`.
+Status check_end(const uint64_t fields[5], uint64_t index_field, uint64_t index_at, const PsqStats& stats,
+                 uint64_t at);
+// kLimit when a position of a double stream became an infinity in the
+// arrays (decode_into(), decode_mesh_segments()).
+Status check_float_range(const PsqHeader& header, const MeshBuffers& mesh);
 }  // namespace codec
 
 struct PsqDecoder::Impl {
@@ -72,7 +97,6 @@ struct PsqDecoder::Impl {
   uint32_t file_crc = 0;     // of the header's bytes (spec 4.2)
   bool in_header = true;
   uint32_t chain_crc = 0;    // spec 4.5: the block checksums, in order
-  uint32_t header_chain = 0;  // chain_crc after the header
 
   // The current chunk.
   std::vector<uint8_t> conn, packed, raw;
@@ -117,6 +141,11 @@ struct PsqDecoder::Impl {
     if (error.ok()) error = s;
     return error;
   }
+  // The error that stopped the decoder, or kUsage before open().
+  Status ready() {
+    if (!error.ok()) return error;
+    return opened ? Status() : fail(Status(ErrorCode::kUsage, "decoder not opened"));
+  }
   Status read(void* dst, size_t n) {
     Status s = in->read_exact(dst, n);
     if (!s.ok()) {
@@ -154,6 +183,19 @@ struct PsqDecoder::Impl {
     }
     return Status(ErrorCode::kBadHeader, "malformed varint", at);
   }
+  // Reads a checksum field (spec 4.5) and checks it against `crc`: "<what>
+  // checksum mismatch" at the field. `chain`: the field joins the stream
+  // checksum's chain (and, alone, the fields its caller chains).
+  Status read_checksum(uint32_t crc, const char* what, bool chain = true) {
+    uint8_t c[4];
+    const uint64_t at = in->offset();
+    PSQ_RETURN_IF_ERROR(read(c, 4));
+    if (!checksum_ok(Get(c, 4).u32(), crc)) return Status(ErrorCode::kChecksum, std::string(what) + " checksum mismatch", at);
+    if (!chain) return Status();
+    chain_crc = crc32c_update(chain_crc, c, 4);
+    if (alone) alone_result.chain_fields.insert(alone_result.chain_fields.end(), c, c + 4);
+    return Status();
+  }
   Status corrupt(const std::string& what) {
     const uint64_t at = conn_offset;
     return Status(ErrorCode::kBadValue, "record " + std::to_string(record_no) + ": " + what, at);
@@ -165,29 +207,16 @@ struct PsqDecoder::Impl {
   // (base_triangles); its stats count its own.
   uint64_t base_triangles = 0;
   uint64_t segment_next = 0;  // the triangle count where the next segment begins; 0: none
-  // The segment records seen: offsets and counts before each, for the index.
-  std::vector<uint64_t> seen_segment_at, seen_segment_vertices, seen_segment_triangles;
+  // The segment records seen, as the index lists them.
+  std::vector<PsqSegment> seen_segments;
   uint64_t index_at = 0;  // the index record's offset, once read
   // Decoding one segment alone (start_segment()): it ends at the next
-  // segment record or at the end record, with what a caller that decodes
-  // every segment needs to check them together (parallel.cpp): the state
-  // block it started from and the one its state serializes to at its end,
-  // its checksum fields in order (4.5), and the end record's fields.
+  // segment record or at the end record.
   bool alone = false;
-  std::vector<uint8_t> start_state, end_state;
-  std::vector<uint8_t> chain_fields;  // the checksum fields it read (4 bytes each)
-  std::vector<uint8_t> end_bytes;     // the end record before its checksum
-  uint32_t end_checksum = 0;
-  uint64_t end_fields[5] = {0, 0, 0, 0, 0};
-  uint64_t end_index_at = 0;
-  bool reached_end = false;   // alone: this segment is the last
-  uint64_t stopped_at = 0;    // alone: the offset of the segment record it stopped at
+  AloneResult alone_result;
   uint64_t triangles_so_far() const { return base_triangles + stats.triangles; }
   // The state now (segment.h), and serialized into `out`.
   void capture_state(SegmentState* st, std::vector<uint8_t>* out);
-  // Restarts from a state (spec 4.6): a fresh boundary, neighbour lists,
-  // ring and attribute models.
-  void restart(const SegmentState& st);
   // The slots the events report (spec 4.6): a decoder that reads the
   // stream from its start restarts its boundary in the state's slots at a
   // segment record, but keeps reporting each element in the slot it was
@@ -209,6 +238,10 @@ struct PsqDecoder::Impl {
   // starts here (`load`).
   Status read_segment(bool load);
   Status read_index();
+  // Spec 4.7: an index's n entries after its tag and count, whose bytes `f`
+  // holds (tag first): three varint deltas each, summed into `out`; then
+  // its checksum (read_checksum()).
+  Status read_index_entries(uint64_t n, std::vector<uint8_t>* f, std::vector<PsqSegment>* out, bool chain);
 
   Status open(InputStream* stream);
   Status next_chunk();
@@ -223,14 +256,11 @@ struct PsqDecoder::Impl {
   // Decodes the next record (or chunk, or the end) into the queue.
   Status advance();
 
-  // A new vertex's position from its coded coordinates (spec 7.1, 7.2)
-  // with its checks, its properties and the counts; the triangle event of
-  // a record (spec 6.2.3, 6.4) and the finalizations, from a BTriangle
-  // that `b` applied.
-  Status finish_vertex(const int64_t pos[3], SequenceVertex& v);
   // The position of coded coordinates `pos` (spec 7.1, 7.2), or the reason
   // they are not one.
   const char* position_of(const int64_t pos[3], double x[3]) const;
+  // The triangle event of a record (spec 6.2.3, 6.4) and the
+  // finalizations, from a BTriangle that `b` applied.
   void emit_triangle(FastBoundary& b, const BTriangle& bt, Op op, uint32_t r, uint8_t cut);
   // The triangle event of a common record (common_record), and the
   // finalizations of the corners in final_mask, whose slots it frees.
@@ -247,7 +277,6 @@ struct PsqDecoder::Impl {
   // per vertex and the array's pages. The first re-appearance writes it out.
   bool direct_identity = true;
   std::vector<uint32_t> direct_index;
-  PropertyValues direct_values;        // face values not returned
   // The arrays are sized ahead and written through pointers; these are the
   // lengths in use (decode_into() trims the arrays to them at the end).
   size_t direct_np = 0, direct_ni = 0;  // positions, indices
@@ -259,8 +288,6 @@ struct PsqDecoder::Impl {
     if (used + n > v.size()) v.resize(std::max(used + n, std::min(2 * v.size(), v.capacity())));
     return v.data() + used;
   }
-  // The mesh index of the sequence's vertex `dense`.
-  uint32_t direct_mesh_index(uint32_t dense) const { return direct_identity ? dense : direct_index[dense]; }
   // Whether positions are quantized floats (direct_position() applies).
   bool direct_float = false;
   // direct_records()'s view of the arrays, kept in locals so that
@@ -365,7 +392,7 @@ struct PsqDecoder::Impl {
   }
   void direct_triangle(const uint32_t v[3]) {
     uint32_t* t = direct_room(direct->indices, direct_ni, 3);
-    for (int k = 0; k < 3; ++k) t[k] = direct_mesh_index(v[k]);
+    for (int k = 0; k < 3; ++k) t[k] = direct_identity ? v[k] : direct_index[v[k]];
     direct_ni += 3;
   }
   // Decodes the rest of the stream into `mesh` (PsqDecoder::pump() into a
@@ -377,9 +404,6 @@ struct PsqDecoder::Impl {
   Status decode_range(MeshBuffers* mesh, size_t np_begin, size_t np_end, size_t ni_begin, size_t ni_end);
   // decode_into()'s and decode_range()'s loop.
   Status decode_loop();
-  // kLimit when a position of a double stream became an infinity in the
-  // arrays (decode_into(), decode_mesh_segments()).
-  static Status check_float_range(const PsqHeader& header, const MeshBuffers& mesh);
 
   // The records (record_decoder.cpp, spec section 13).
   bool fast_choices = false;  // gate records code a prediction choice (fast_codes_choices())
@@ -452,7 +476,6 @@ struct PsqDecoder::Impl {
   std::vector<double> fsymbol_cost;
   double fraw_geometry_bits = 0;  // raw bits of position residuals in the chunk, when measuring
   uint64_t fraw_total_bits = 0;   // the chunk's raw block
-  // A new vertex's event: its index and, when it re-appears, the distance.
   // A new vertex fits the chunk's count and the 2^32 - 1 vertices (spec 13.10).
   Status vertex_room();
   // "Coded data ends early" for the current record (truncated).
@@ -462,14 +485,14 @@ struct PsqDecoder::Impl {
   template <class D>
   Status fast_position(D& d, RawReader& bits, const int64_t pred[3], int kind, const int extent[3],
                        int64_t pos[3], bool measure_it);
+  // A new vertex's event: its index and, when it re-appears, the distance;
   template <class D>
   Status vertex_begin(bool reappears, SequenceEvent* ev);
-  // Then its residuals against `pred`, and its position.
+  // then its residuals against `pred`, its position with its checks (spec
+  // 7.1, 7.2), its properties and the counts.
   template <class D>
   Status vertex_position(const int64_t pred[3], int kind, const int extent[3], int64_t pos[3],
                               SequenceEvent* ev);
-  uint32_t active_vertices() const { return fboundary.active_vertices(); }
-  uint32_t open_edges() const { return fboundary.open_edges(); }
 };
 
 }  // namespace psq

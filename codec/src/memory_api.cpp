@@ -6,7 +6,7 @@
 
 #include "psq/psq_memory.h"
 
-#include "decoder_impl.h"
+#include "psq/psq_codec.h"
 #include "psq/sequence_builder.h"
 
 namespace psq {
@@ -68,7 +68,6 @@ class ArrayMeshSource : public MeshSource {
   SourceReport report_;
   Status error_;
 };
-
 
 }  // namespace
 

@@ -11,11 +11,54 @@
 
 #include "decoder_impl.h"
 #include "geometry.h"
-#include "pages.h"
+
+#if defined(__linux__) && !defined(PSQ_NO_POPULATE)
+#include <errno.h>
+#include <sys/mman.h>
+#include <unistd.h>
+
+#include <atomic>
+#endif
 
 namespace psq {
 
 namespace {
+
+// Asks the kernel to back the whole pages within the `bytes` bytes at `p`
+// with memory now, writable, in one call (Linux's MADV_POPULATE_WRITE),
+// instead of one page fault at each page's first write. A hint: nothing
+// happens where the kernel lacks it (before Linux 5.14; after the first
+// refusal it is not asked again), on other systems, or when psq is built
+// with PSQ_NO_POPULATE defined (for sandboxes whose system call filter
+// kills a process on an advice it does not list); the memory's contents
+// are unchanged either way. Worth it only for memory about to be written
+// in full: decode_mesh()'s arrays, whose pages cost far less populated in
+// one call than faulted in one at a time (bench/HISTORY.md, "Arrays not
+// zeroed, pages populated").
+void populate_for_write(void* p, size_t bytes) {
+#if defined(__linux__) && !defined(PSQ_NO_POPULATE)
+#ifdef MADV_POPULATE_WRITE
+  constexpr int kPopulateWrite = MADV_POPULATE_WRITE;
+#else
+  constexpr int kPopulateWrite = 23;  // Linux's value, for C library headers that predate it
+#endif
+  // After a refusal that will not change (a kernel before 5.14: EINVAL; a
+  // sandbox that filters the call: ENOSYS or EPERM), no more calls.
+  static std::atomic<bool> refused{false};
+  if (refused.load(std::memory_order_relaxed)) return;
+  static const uintptr_t page = static_cast<uintptr_t>(sysconf(_SC_PAGESIZE));
+  if (page == 0 || (page & (page - 1)) != 0) return;
+  const uintptr_t begin = (reinterpret_cast<uintptr_t>(p) + page - 1) & ~(page - 1);
+  const uintptr_t end = (reinterpret_cast<uintptr_t>(p) + bytes) & ~(page - 1);
+  if (end <= begin) return;
+  if (madvise(reinterpret_cast<void*>(begin), end - begin, kPopulateWrite) != 0 &&
+      (errno == EINVAL || errno == ENOSYS || errno == EPERM))
+    refused.store(true, std::memory_order_relaxed);
+#else
+  (void)p;
+  (void)bytes;
+#endif
+}
 
 PSQ_INLINE uint64_t get_raw(RawReader& raw, int bits) {
   if (bits > 32) {
@@ -23,6 +66,17 @@ PSQ_INLINE uint64_t get_raw(RawReader& raw, int bits) {
     return low | static_cast<uint64_t>(raw.get(bits - 32)) << 32;
   }
   return raw.get(bits);
+}
+
+// A join's third vertex, or an escape's old one (spec 13.7.3, 13.7.5):
+// the open edge J's slot, then the side (x = org(J) or dst(J)), from the
+// raw bits; J into bt->join_edge. kNone when J is not an open edge.
+uint32_t named_vertex(const FastBoundary& b, RawReader& bits, int sbits, BTriangle* bt) {
+  const uint32_t j = bits.get(sbits);
+  const bool side = bits.get(1) != 0;
+  if (!b.edge_live(j)) return kNone;
+  bt->join_edge = j;
+  return side ? b.edge(j).dst : b.edge(j).org;
 }
 
 }  // namespace
@@ -263,7 +317,14 @@ template <class D>
 PSQ_INLINE Status PsqDecoder::Impl::vertex_position(const int64_t pred[3], int kind, const int extent[3], int64_t pos[3],
                                               SequenceEvent* ev) {
   PSQ_RETURN_IF_ERROR(fast_position(coder<D>(), *fraw, pred, kind, extent, pos, measure));
-  return finish_vertex(pos, ev->vertex);
+  SequenceVertex& v = ev->vertex;
+  if (const char* why = position_of(pos, v.position)) return corrupt(why);
+  for (int i = 0; i < 3; ++i) last_pos[i] = pos[i];
+  props->next_vertex(&v.values);
+  ++seen_vertices;
+  ++next_out;
+  ++stats.vertices;
+  return Status();
 }
 
 // The common records: an add, a fill on the gate's neighbour or a join,
@@ -431,11 +492,8 @@ __attribute__((noinline)) Status PsqDecoder::Impl::end_or_join_record(D& d, RawR
     fast_context = fast_a_context_gate(cls, kFastEnd);
     op = Op::kEnd;
   } else {
-    const uint32_t j = bits.get(slot_bits(b.edge_capacity()));
-    const bool side = bits.get(1) != 0;
-    if (!b.edge_live(j)) return corrupt("join names an edge that is not open");
-    x = side ? b.edge(j).dst : b.edge(j).org;
-    bt.join_edge = j;
+    x = named_vertex(b, bits, slot_bits(b.edge_capacity()), &bt);
+    if (x == kNone) return corrupt("join names an edge that is not open");
     fast_context = fast_a_context_gate(cls, kFastJoin);
     op = Op::kJoin;
   }
@@ -587,11 +645,8 @@ Status PsqDecoder::Impl::decode_record(int cls, uint32_t gate, int bsym) {
       xkind = static_cast<int>(bits.get(2));
       if (xkind == 3) return corrupt("escaped third vertex kind 3");
       if (xkind == 2) {
-        const uint32_t j = bits.get(sbits);
-        const bool side = bits.get(1) != 0;
-        if (!b.edge_live(j)) return corrupt("escaped third vertex names an edge that is not open");
-        x = side ? b.edge(j).dst : b.edge(j).org;
-        bt.join_edge = j;
+        x = named_vertex(b, bits, sbits, &bt);
+        if (x == kNone) return corrupt("escaped third vertex names an edge that is not open");
       }
       for (int k = 1; k < 3; ++k) {
         const uint32_t st = bits.get(2);
@@ -636,14 +691,10 @@ Status PsqDecoder::Impl::decode_record(int cls, uint32_t gate, int bsym) {
           completes[1] = completes[2] = true;
           xkind = 2;
           break;
-        default: {  // join
-          const uint32_t j = bits.get(sbits);
-          const bool side = bits.get(1) != 0;
-          if (!b.edge_live(j)) return corrupt("join names an edge that is not open");
-          x = side ? b.edge(j).dst : b.edge(j).org;
-          bt.join_edge = j;
+        default:  // join
+          x = named_vertex(b, bits, sbits, &bt);
+          if (x == kNone) return corrupt("join names an edge that is not open");
           xkind = 2;
-        }
       }
       fast_context = fast_a_context_gate(cls, third);
       choice_allowed = xkind != 2;
@@ -745,10 +796,6 @@ Status PsqDecoder::Impl::decode_record(int cls, uint32_t gate, int bsym) {
   return Status();
 }
 
-}  // namespace psq
-
-namespace psq {
-
 template <class D>
 Status PsqDecoder::Impl::direct_records() {
   FastBoundary& b = fboundary;
@@ -768,13 +815,14 @@ Status PsqDecoder::Impl::direct_records() {
   // size (2^20 coded bytes) about half a million triangles (a cap of half
   // a triangle per byte would make the arrays of most meshes grow once:
   // a copy and twice the pages).
-  // The room is populated at once (pages.h): honest records write all of it.
+  // The room is populated at once (populate_for_write()): honest records
+  // write all of it.
   const uint64_t cap = std::min<uint64_t>(4 * static_cast<uint64_t>(csize) + 64, uint64_t{1} << 21);
   const size_t ni = 3 * static_cast<size_t>(std::min<uint64_t>(chunk_triangles, cap));
   const size_t np = 3 * static_cast<size_t>(std::min<uint64_t>(chunk_vertices, cap));
   if (!direct_fixed) {
-    codec::populate_for_write(direct_room(mesh.indices, direct_ni, ni), ni * sizeof(uint32_t));
-    codec::populate_for_write(direct_room(mesh.positions, direct_np, np), np * sizeof(float));
+    populate_for_write(direct_room(mesh.indices, direct_ni, ni), ni * sizeof(uint32_t));
+    populate_for_write(direct_room(mesh.positions, direct_np, np), np * sizeof(float));
   }
   direct_float = !header.lossless && header.schema.position_type == ScalarType::kFloat32;
   DirectCursor out = direct_cursor();
