@@ -5,8 +5,8 @@
 // 1. Pages: the time per 4 KiB page to map and write a fresh anonymous
 //    region of --mib MiB (mmap, then memset), with the kernel asked to back
 //    it first in one call (madvise MADV_POPULATE_WRITE, as
-//    codec/src/pages.cpp does) and without (one fault per page). Fastest
-//    of --runs.
+//    codec/src/record_decoder.cpp does) and without (one fault per page).
+//    Fastest of --runs.
 // 2. decode_mesh(): each FILE.psq decoded --runs times in this process
 //    into fresh MeshBuffers, as an application would; fastest run, its
 //    M triangles/s and its minor page faults (getrusage). Unlike

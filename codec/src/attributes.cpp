@@ -711,8 +711,8 @@ struct AttributeCoder::AdaptiveOut final : Coding {
   }
 };
 struct AttributeCoder::AdaptiveIn final : Coding {
-  explicit AdaptiveIn(BasicDecoder<false>& x) : dec(x) {}
-  BasicDecoder<false>& dec;
+  explicit AdaptiveIn(Decoder& x) : dec(x) {}
+  Decoder& dec;
   PSQ_INLINE bool residual(int, ResidualModel& m, const Component& c, int64_t pred, int32_t* x, int* length) override {
     int64_t res;
     if (!dec.residual(m, &res, length)) return why = "attribute residual longer than 64 bits", false;
@@ -781,7 +781,7 @@ void AttributeCoder::encode(Encoder& enc, const AttributeRecord& r, const int32_
   code_record(r, const_cast<int32_t*>(q), out);  // only reads the values it is given
 }
 
-const char* AttributeCoder::decode(BasicDecoder<false>& dec, const AttributeRecord& r, int32_t* q) {
+const char* AttributeCoder::decode(Decoder& dec, const AttributeRecord& r, int32_t* q) {
   AdaptiveIn in(dec);
   return code_record(r, q, in);
 }

@@ -122,7 +122,7 @@ class AttributeCoder {
   // Codes one record; `q` holds r.nnew vertices' values, dims() each.
   void encode(Encoder& enc, const AttributeRecord& r, const int32_t* q);
   // Decodes one record into q; nullptr, or why the stream is corrupt.
-  const char* decode(BasicDecoder<false>& dec, const AttributeRecord& r, int32_t* q);
+  const char* decode(Decoder& dec, const AttributeRecord& r, int32_t* q);
 
   // The rANS back-end (spec 13.8.4): the same predictions and contexts,
   // the residuals as length symbols of static tables.

@@ -218,12 +218,10 @@ class Encoder {
   RangeEncoder* rc_;
 };
 
-// Encoder's counterpart. (A template only because attributes.h names it
-// BasicDecoder<false>; the parameter is unused.)
-template <bool>
-class BasicDecoder {
+// Encoder's counterpart.
+class Decoder {
  public:
-  explicit BasicDecoder(RangeDecoder* rc) : rc_(rc) {}
+  explicit Decoder(RangeDecoder* rc) : rc_(rc) {}
   PSQ_INLINE int bit(BitModel& m) { return rc_->decode_bit(m); }
   // A symbol of a model of kBits bits (kBits must be m.bits(); a template
   // parameter, so that the tree's walk unrolls; spec 5.5).

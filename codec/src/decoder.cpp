@@ -387,7 +387,7 @@ Status PsqDecoder::Impl::decode_attributes(bool flush) {
   if (rans) {
     why = attrs->decode_fast(attr_fast, r, attr_q.data());
   } else {
-    BasicDecoder<false> dec(attr_rc.get());
+    Decoder dec(attr_rc.get());
     why = attrs->decode(dec, r, attr_q.data());
   }
   if (why)
