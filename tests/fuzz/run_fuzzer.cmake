@@ -28,6 +28,8 @@ set(args
   -timeout=10
   -print_final_stats=1
   "-artifact_prefix=${WORK_DIR}/artifacts/")
+# EXTRA_ARGS come last: libFuzzer takes the last value of a flag, so a
+# target may change the ones above (fuzz_drc its -timeout).
 if(DEFINED DICT AND NOT DICT STREQUAL "")
   list(APPEND args "-dict=${DICT}")
 endif()

@@ -67,7 +67,12 @@ struct DracoHeaderInfo {
 // declarations (they follow the entropy-coded connectivity), so a file whose
 // points carry many wide attributes (up to 255 components of 8 bytes) can
 // make libdraco allocate a multiple of the estimate before DracoReader
-// measures the decoded mesh against the budget.
+// measures the decoded mesh against the budget. Nor can it bound what
+// libdraco (1.5.5, and upstream in 2026) does with the orientation count of a
+// texture coordinate prediction (MESH_PREDICTION_TEX_COORDS_PORTABLE),
+// which it reads from the attribute data and trusts: any count up to 2^31
+// makes it allocate up to 256 MiB and loop up to 2^31 times (about 7 s),
+// per attribute, before the file is refused.
 // Returns OK, or (the offset is the byte where the problem is):
 // kUnknownFormat (no magic), kTruncated (the header or counts end early),
 // kBadHeader (unknown type, method, traversal or flags), kUnsupported (a
