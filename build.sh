@@ -103,7 +103,11 @@ case "$cmd" in
     # report; the library code it calls is what the C++ suite checks here.
     # -O1, as AddressSanitizer advises: GCC compiles the instrumented codec
     # in half the time it takes at -O2 (84 s against 41 s for one file).
-    configure build-sanitize -DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g -DNDEBUG" -DPSQ_SANITIZE=ON -DPSQ_BUILD_TESTS=ON -DPSQ_BUILD_BENCH=OFF -DPSQ_FUZZ=OFF \
+    # At -O1 with the sanitizers, GCC 12 warns of uninitialized members
+    # inside libstdc++'s std::regex (the tests that use it); the Release
+    # build keeps that warning for psq's code.
+    configure build-sanitize -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+      "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g -DNDEBUG -Wno-maybe-uninitialized" -DPSQ_SANITIZE=ON -DPSQ_BUILD_TESTS=ON -DPSQ_BUILD_BENCH=OFF -DPSQ_FUZZ=OFF \
       -DPSQ_PYTHON=OFF
     cmake --build build-sanitize -j "$JOBS"
     ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 run_tests build-sanitize
