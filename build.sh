@@ -102,7 +102,7 @@ case "$cmd" in
     # interpreter, whose own leaks (and numpy's) LeakSanitizer would then
     # report; the library code it calls is what the C++ suite checks here.
     # -O1, as AddressSanitizer advises: GCC compiles the instrumented codec
-    # in half the time it takes at -O2 (84 s against 41 s for one file).
+    # in about half the time it takes at -O2.
     # At -O1 with the sanitizers, GCC 12 warns of uninitialized members
     # inside libstdc++'s std::regex (the tests that use it); the Release
     # build keeps that warning for psq's code.

@@ -71,7 +71,7 @@ struct DracoHeaderInfo {
 // libdraco (1.5.5, and upstream in 2026) does with the orientation count of a
 // texture coordinate prediction (MESH_PREDICTION_TEX_COORDS_PORTABLE),
 // which it reads from the attribute data and trusts: any count up to 2^31
-// makes it allocate up to 256 MiB and loop up to 2^31 times (about 7 s),
+// makes it allocate up to 256 MiB and loop up to 2^31 times (seconds),
 // per attribute, before the file is refused.
 // Returns OK, or (the offset is the byte where the problem is):
 // kUnknownFormat (no magic), kTruncated (the header or counts end early),
